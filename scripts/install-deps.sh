@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages instainpaint needs to build, test and run.
+# Idempotent: packages already present are skipped, so a second run is instant.
+set -euo pipefail
+
+PACKAGES=(
+  build-essential cmake ninja-build ccache pkg-config
+  libtorch-dev
+  libopenblas0-pthread          # without it LibTorch falls back to reference BLAS (~60x slower)
+  nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
+  libstb-dev libzip-dev libeigen3-dev
+  libopencv-imgproc-dev libopencv-calib3d-dev libopencv-photo-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libgloo-dev
+  ffmpeg
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

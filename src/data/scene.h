@@ -1,0 +1,58 @@
+#pragma once
+// The common scene representation every reader ends in: posed views with optional object
+// masks, and optional object-free test views. Nothing after a reader asks which format a
+// scene came from. Images are loaded on demand (a scene may hold hundreds of views).
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "camera/camera.h"
+#include "io/image.h"
+
+namespace ii {
+
+struct View {
+  std::string name;                  // file stem, unique within the scene
+  std::filesystem::path image_path;
+  std::optional<std::filesystem::path> mask_path;  // object mask file (1 = object)
+  bool mask_from_alpha = false;      // mask = alpha channel of the image, alpha 0 = object
+  Camera camera;                     // intrinsics for the image file's own size
+  Distortion distortion;             // undistorted on load when non-zero
+};
+
+struct Scene {
+  std::filesystem::path root;
+  std::string format;             // "llff", "nerfstudio", "colmap"
+  std::vector<View> views;        // input candidates (with the object)
+  std::vector<View> test_views;   // object-free ground-truth views (SPIn-NeRF), may be empty
+  std::optional<double> near, far;  // depth bounds when the format stores them
+  std::vector<std::string> warnings;  // non-fatal oddities found while reading
+
+  bool has_masks() const;
+  const View* find(const std::string& name) const;  // in views, then test_views
+};
+
+struct SceneOptions {
+  std::string format = "auto";     // auto | llff | nerfstudio | colmap
+  std::string image_folder;        // e.g. "images_4"; empty = the format's default
+  std::optional<std::filesystem::path> mask_dir;  // masks matched by stem or "<file>.png"
+  bool alpha_masks = false;        // take masks from the images' alpha channel
+};
+
+// Reads a scene folder in any supported format (detected from its files when
+// options.format is "auto").
+Scene load_scene(const std::filesystem::path& dir, const SceneOptions& options = {});
+
+// Decodes a view's image as RGB in [0,1] (alpha composited on white), undistorted when the
+// view has distortion.
+Image load_view_image(const View& view);
+// The view's binary object mask at the image's size, or nullopt when it has none. A mask
+// file a few pixels off the image size is resized nearest-neighbour with a warning.
+std::optional<Image> load_view_mask(const View& view);
+
+// Attaches masks from a folder: for each view, "<stem>.*" or "<image file name>.png".
+// Views without a matching file keep no mask. Returns the number matched.
+int attach_mask_folder(Scene& scene, const std::filesystem::path& mask_dir);
+
+}  // namespace ii

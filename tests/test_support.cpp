@@ -1,0 +1,39 @@
+#include "test_support.h"
+
+#include <cstdlib>
+#include <random>
+
+namespace ii::test {
+
+namespace fs = std::filesystem;
+
+fs::path shared_path(const std::string& relative) {
+  const char* env = std::getenv("INSTAINPAINT_SHARED");
+  const fs::path root = (env && *env) ? fs::path(env) : fs::path(INSTAINPAINT_SHARED_DIR);
+  return root / relative;
+}
+
+namespace {
+struct TempRoot {
+  fs::path path;
+  TempRoot() {
+    std::random_device rd;
+    path = fs::temp_directory_path() / ("instainpaint-test-" + std::to_string(rd()));
+    fs::create_directories(path);
+  }
+  ~TempRoot() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+}  // namespace
+
+fs::path temp_dir(const std::string& tag) {
+  static TempRoot root;
+  static int counter = 0;
+  fs::path p = root.path / (tag + "-" + std::to_string(counter++));
+  fs::create_directories(p);
+  return p;
+}
+
+}  // namespace ii::test

@@ -1,0 +1,44 @@
+#pragma once
+// Shared helpers for tests: locating ../shared data and skipping (never silently passing)
+// when it is absent.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+namespace ii::test {
+
+// Absolute path of `relative` under the shared folder (../shared beside the repository,
+// or $INSTAINPAINT_SHARED).
+std::filesystem::path shared_path(const std::string& relative);
+
+// A fresh empty temporary folder, removed at exit of the test process.
+std::filesystem::path temp_dir(const std::string& tag);
+
+// Runs `fn` and returns the Error message it throws; fails the test if it throws nothing
+// or something else.
+template <typename Fn>
+std::string error_message(Fn&& fn);
+
+}  // namespace ii::test
+
+// Skips the current test, with the reason, when a shared file or folder is missing.
+#define II_REQUIRE_SHARED(var, relative)                                               \
+  const std::filesystem::path var = ::ii::test::shared_path(relative);                 \
+  if (!std::filesystem::exists(var)) GTEST_SKIP() << "shared data missing: " << var.string()
+
+#include "common/error.h"
+
+template <typename Fn>
+std::string ii::test::error_message(Fn&& fn) {
+  try {
+    fn();
+  } catch (const ii::Error& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "expected ii::Error, got another exception: " << e.what();
+    return e.what();
+  }
+  ADD_FAILURE() << "expected ii::Error, nothing was thrown";
+  return {};
+}
