@@ -1,0 +1,38 @@
+# The two commands of the README. Both install missing Debian packages first.
+#   make demo   build, then run the main job and write demo-out/
+#   make test   build everything and run every test (plus the sanitizer build of the parsers)
+JOBS ?= $(shell nproc)
+BUILD ?= build
+SAN_BUILD ?= build-asan
+SHARED ?= ../shared
+
+.PHONY: all deps build demo test test-main test-asan bench clean
+
+all: build
+
+deps:
+	@bash scripts/install-deps.sh
+
+build: deps
+	@cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release > /dev/null
+	@cmake --build $(BUILD) -j $(JOBS)
+
+demo: build
+	@bash scripts/demo.sh $(BUILD)/instainpaint
+
+test: test-main test-asan
+
+test-main: build
+	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+
+# Parsers, cameras and scene readers under AddressSanitizer + UndefinedBehaviorSanitizer.
+test-asan: deps
+	@cmake -S . -B $(SAN_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DINSTAINPAINT_SANITIZE=ON > /dev/null
+	@cmake --build $(SAN_BUILD) -j $(JOBS)
+	@cd $(SAN_BUILD) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 ctest --output-on-failure -j $(JOBS)
+
+bench: build
+	@$(BUILD)/instainpaint bench
+
+clean:
+	rm -rf $(BUILD) $(SAN_BUILD) demo-out

@@ -1,0 +1,18 @@
+#pragma once
+// Each subcommand registers itself on the app; the command bodies are thin wrappers over
+// the library.
+#include <CLI/CLI.hpp>
+
+#include "data/scene.h"
+
+namespace ii::cli {
+
+void add_scene_info_command(CLI::App& app);
+void add_prepare_command(CLI::App& app);
+void add_infer_command(CLI::App& app);
+void add_bench_command(CLI::App& app);
+
+// Options shared by every command that reads a scene.
+void add_scene_options(CLI::App* cmd, std::string& scene_dir, SceneOptions& options);
+
+}  // namespace ii::cli

@@ -1,0 +1,46 @@
+#include "data/image_ops.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include "common/error.h"
+
+namespace ii {
+
+namespace {
+
+Image resize_with(const Image& image, int width, int height, int interpolation) {
+  if (width <= 0 || height <= 0) fail("cannot resize an image to {}x{}", width, height);
+  if (image.empty()) fail("cannot resize an empty image");
+  if (width == image.width && height == image.height) return image;
+  const cv::Mat src(image.height, image.width, CV_32FC(image.channels),
+                    const_cast<float*>(image.pixels.data()));
+  Image out(width, height, image.channels);
+  cv::Mat dst(height, width, CV_32FC(image.channels), out.pixels.data());
+  cv::resize(src, dst, dst.size(), 0, 0, interpolation);
+  return out;
+}
+
+}  // namespace
+
+Image resize_area(const Image& image, int width, int height) {
+  return resize_with(image, width, height, cv::INTER_AREA);
+}
+
+Image resize_nearest(const Image& image, int width, int height) {
+  return resize_with(image, width, height, cv::INTER_NEAREST);
+}
+
+Image crop(const Image& image, int x0, int y0, int width, int height) {
+  if (x0 < 0 || y0 < 0 || width <= 0 || height <= 0 || x0 + width > image.width ||
+      y0 + height > image.height)
+    fail("crop {}x{} at ({}, {}) is outside the {}x{} image", width, height, x0, y0, image.width,
+         image.height);
+  Image out(width, height, image.channels);
+  const size_t row = static_cast<size_t>(width) * image.channels;
+  for (int y = 0; y < height; ++y)
+    std::copy_n(&image.pixels[(static_cast<size_t>(y0 + y) * image.width + x0) * image.channels], row,
+                &out.pixels[static_cast<size_t>(y) * row]);
+  return out;
+}
+
+}  // namespace ii

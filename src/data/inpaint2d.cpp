@@ -1,0 +1,24 @@
+#include "data/inpaint2d.h"
+
+#include <opencv2/photo.hpp>
+
+#include "common/error.h"
+
+namespace ii {
+
+Image inpaint_telea(const Image& rgb, const Image& mask, double radius) {
+  if (rgb.channels != 3 || mask.channels != 1 || rgb.width != mask.width || rgb.height != mask.height)
+    fail("inpainting needs an RGB image and a one-channel mask of the same size");
+  // cv::inpaint works on 8-bit images.
+  cv::Mat src(rgb.height, rgb.width, CV_8UC3), m(rgb.height, rgb.width, CV_8UC1);
+  for (size_t i = 0; i < rgb.pixels.size(); ++i)
+    src.data[i] = static_cast<uint8_t>(std::clamp(rgb.pixels[i], 0.f, 1.f) * 255.f + 0.5f);
+  for (size_t i = 0; i < mask.pixels.size(); ++i) m.data[i] = mask.pixels[i] > 0.5f ? 255 : 0;
+  cv::Mat dst;
+  cv::inpaint(src, m, dst, radius, cv::INPAINT_TELEA);
+  Image out(rgb.width, rgb.height, 3);
+  for (size_t i = 0; i < out.pixels.size(); ++i) out.pixels[i] = dst.data[i] / 255.f;
+  return out;
+}
+
+}  // namespace ii

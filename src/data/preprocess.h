@@ -1,0 +1,42 @@
+#pragma once
+// Per-view preprocessing as the official evaluation does it (spec §5.3): resize to a target
+// height (area filter for photos, nearest for masks), then centre-crop the width (and the
+// height if needed) to a multiple of the patch size. Unlike the official code, the camera
+// intrinsics follow the crop exactly (the official SPIn-NeRF path keeps the uncropped
+// field of view; see docs/architecture.md).
+#include <optional>
+#include <string>
+
+#include "camera/camera.h"
+#include "data/scene.h"
+#include "io/image.h"
+
+namespace ii {
+
+struct PreprocessOptions {
+  int height = 512;  // working height in pixels
+  int patch = 8;     // width and height are cropped to multiples of this
+};
+
+struct PreparedView {
+  std::string name;
+  Image rgb;                  // 3 channels, [0,1], working size
+  std::optional<Image> mask;  // 1 channel {0,1}, working size
+  Camera camera;              // exact for the working image
+};
+
+// Working size for a source image: width int(W * height / H) (truncation, as the official
+// code), then both cropped down to multiples of the patch.
+struct WorkingSize {
+  int resized_width = 0, resized_height = 0;  // after resize
+  int width = 0, height = 0;                  // after the centre crop
+  int crop_x = 0, crop_y = 0;
+};
+WorkingSize working_size(int source_width, int source_height, const PreprocessOptions& options);
+
+// Applies resize + crop to an image (area filter) or a mask (nearest).
+Image to_working_size(const Image& image, const WorkingSize& size, bool is_mask = false);
+
+PreparedView prepare_view(const View& view, const PreprocessOptions& options);
+
+}  // namespace ii

@@ -1,0 +1,23 @@
+#pragma once
+// Global multi-head attention whose memory grows linearly with the token count: queries are
+// processed in chunks, so the N x N score matrix never exists at once (4 views of 512 x 904
+// are 28,928 tokens; the full matrix would need 53 GB in float32 for 16 heads).
+#include <torch/torch.h>
+
+namespace ii {
+
+// q, k, v: (B, heads, N, head_dim). Softmax scale 1/sqrt(head_dim). Returns (B, heads, N,
+// head_dim) in the dtype of q. Uses LibTorch's fused kernel where available, otherwise the
+// chunked form below.
+torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v);
+
+// The chunked form itself (exposed for tests and benchmarks). `max_chunk_bytes` bounds the
+// score block of one chunk.
+torch::Tensor chunked_attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v,
+                                int64_t max_chunk_bytes = 64LL << 20);
+
+// The textbook form, softmax(q k^T / sqrt(d)) v with the whole score matrix materialised:
+// the baseline that benchmarks compare against.
+torch::Tensor naive_attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v);
+
+}  // namespace ii

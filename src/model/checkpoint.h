@@ -1,0 +1,49 @@
+#pragma once
+// Model weights on disk: official `.pth` checkpoints (read without Python through the
+// restricted unpickler in io/pth.h) and safetensors with the official key names.
+// Loading normalises key names (module prefix, DDP's `module.`), folds weight-norm pairs
+// into plain weights, and infers the architecture from the shapes.
+#include <filesystem>
+#include <map>
+#include <string>
+
+#include <nlohmann/json.hpp>
+#include <torch/torch.h>
+
+#include "model/config.h"
+#include "model/network.h"
+
+namespace ii {
+
+using StateDict = std::map<std::string, torch::Tensor>;
+
+struct Checkpoint {
+  StateDict state;           // official names, weight norm folded, float32
+  ModelConfig config;        // inferred from shapes (+ stored config/arguments)
+  std::string format;        // "pth" or "safetensors"
+  nlohmann::json extra;      // stored training arguments / metadata, as plain data
+  int folded_weight_norms = 0;
+};
+
+// Reads a checkpoint file (format from its content, not its extension).
+Checkpoint read_checkpoint(const std::filesystem::path& path);
+
+// read_checkpoint + a Network of the inferred architecture with the weights loaded.
+Network load_network(const std::filesystem::path& path);
+
+// Writes safetensors with the official key names: weight-normed layers as `weight_g`
+// (row norms) and `weight_v` (the weight itself), which fold back to the same weight; the
+// architecture goes into `__metadata__.config`. Atomic.
+void save_safetensors_checkpoint(const std::filesystem::path& path, const Network& network,
+                                 const nlohmann::json& extra_metadata = {});
+
+// Architecture from official-layout shapes; `hints` may carry num_heads etc.
+ModelConfig infer_config(const StateDict& state, const nlohmann::json& hints, const std::string& source);
+
+// Every tensor of a safetensors file, under its stored name.
+StateDict read_safetensors_tensors(const std::filesystem::path& path);
+
+// Key normalisation and weight-norm folding on a raw state dict (exposed for tests).
+StateDict normalize_state_dict(const StateDict& raw, int* folded = nullptr);
+
+}  // namespace ii

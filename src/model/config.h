@@ -1,0 +1,48 @@
+#pragma once
+// Architecture of the InstaInpaint network (spec §1). Presets: `release` is the published
+// 309M-parameter model; `tiny` is the official-layout parity fixture; `small` and `base`
+// are the sizes we train ourselves.
+#include <cstdint>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace ii {
+
+struct ModelConfig {
+  std::string preset = "custom";
+  int embed_dim = 1024;       // token width D
+  int blocks = 24;            // transformer blocks
+  int heads = 16;             // attention heads (head dim = D / heads)
+  int patch = 8;              // patch size p
+  int image_channels = 4;     // RGB + mask (3 for the stage-1 RGB-only model)
+  int upsampler_dim = 1024;   // hidden width of each Gaussian head
+  int upsampler_depth = 1;    // hidden layers per head
+  int mlp_ratio = 4;          // transformer MLP hidden = mlp_ratio * D
+  double depth_near = 0.0, depth_far = 500.0, depth_bias = -4.0;
+  double scale_bias = -2.3, scale_min = 1e-4, scale_max = 0.3;
+  double opacity_bias = -2.0;
+  double encoder_ln_eps = 1e-6, ln_eps = 1e-5;
+
+  static ModelConfig from_preset(const std::string& name);  // throws Error on unknown names
+  static const char* preset_names();                        // "release, base, small, tiny"
+
+  int head_dim() const { return embed_dim / heads; }
+  int64_t parameter_count() const;  // including the inert cls token
+  void validate() const;            // throws Error on inconsistent sizes
+
+  // Multiply-adds x 2 of one forward pass over `views` images of height x width.
+  double forward_flops(int views, int height, int width) const;
+
+  nlohmann::json to_json() const;
+  static ModelConfig from_json(const nlohmann::json& j);  // missing keys keep defaults
+};
+
+// Per-pixel channel counts of the five Gaussian heads, in official order.
+struct GaussianHeads {
+  static constexpr int count = 5;
+  static constexpr const char* names[count] = {"depth", "rgb", "opacity", "scale", "rotation"};
+  static constexpr int channels[count] = {1, 3, 1, 3, 4};
+};
+
+}  // namespace ii

@@ -1,0 +1,222 @@
+#include "model/network.h"
+
+#include <cmath>
+#include <fstream>
+#include <set>
+
+#include <fmt/ranges.h>
+
+#include "common/error.h"
+#include "model/attention.h"
+
+namespace ii {
+
+const char* precision_name(Precision p) { return p == Precision::BFloat16 ? "bf16" : "fp32"; }
+
+Precision default_cpu_precision() {
+  // Without native bf16 dot products, bf16 matrix products are emulated and slower than fp32.
+  static const bool native = [] {
+    std::ifstream in("/proc/cpuinfo");
+    std::string word;
+    while (in >> word)
+      if (word == "avx512_bf16" || word == "amx_bf16") return true;
+    return false;
+  }();
+  return native ? Precision::BFloat16 : Precision::Float32;
+}
+
+torch::Tensor& Network::add(const std::string& name, torch::Tensor value) {
+  params_.emplace_back(name, std::move(value));
+  return params_.back().second;
+}
+
+Network::Network(const ModelConfig& config) : config_(config) {
+  config_.validate();
+  torch::NoGradGuard no_grad;
+  const int64_t D = config_.embed_dim, p = config_.patch, U = config_.upsampler_dim;
+  auto normal = [](std::vector<int64_t> shape, double std) { return torch::randn(shape) * std; };
+  // Zero-initialised Plücker branch as in the official code; small normal elsewhere.
+  proj_ = add("mvencoder.patch_embed.proj.weight", normal({D, config_.image_channels, p, p}, 0.02));
+  proj_plucker_ = add("mvencoder.patch_embed.proj_plucker.weight", torch::zeros({D, 6, p, p}));
+  cls_token_ = add("mvencoder.cls_token", normal({1, 1, D}, 0.02));
+  for (int b = 0; b < config_.blocks; ++b) {
+    const std::string prefix = fmt::format("gaudecoder.blocks.{}.", b);
+    Block blk;
+    blk.qkv = add(prefix + "attn.qkv.weight", normal({3 * D, D}, 0.02));
+    blk.proj = add(prefix + "attn.proj.weight", normal({D, D}, 0.02 / std::sqrt(2.0 * std::max(1, config_.blocks))));
+    blk.fc1 = add(prefix + "mlp.fc1.weight", normal({config_.mlp_ratio * D, D}, 0.02));
+    blk.fc2 = add(prefix + "mlp.fc2.weight", normal({D, config_.mlp_ratio * D}, 0.02 / std::sqrt(2.0 * std::max(1, config_.blocks))));
+    blocks_.push_back(blk);
+  }
+  for (int h = 0; h < GaussianHeads::count; ++h) {
+    Head head;
+    int64_t in = D;
+    for (int l = 0; l < config_.upsampler_depth; ++l) {
+      head.layers.push_back(add(fmt::format("gauupsampler.mlp_{}.{}.weight", GaussianHeads::names[h], 2 * l),
+                                normal({U, in}, 0.02)));
+      in = U;
+    }
+    head.layers.push_back(add(fmt::format("gauupsampler.mlp_{}.{}.weight", GaussianHeads::names[h], 2 * config_.upsampler_depth),
+                              normal({p * p * GaussianHeads::channels[h], in}, 0.002)));
+    heads_.push_back(head);
+  }
+}
+
+std::vector<torch::Tensor> Network::parameters() const {
+  std::vector<torch::Tensor> out;
+  for (const auto& kv : params_) out.push_back(kv.second);
+  return out;
+}
+
+void Network::load(const std::map<std::string, torch::Tensor>& state, const std::string& source) {
+  std::vector<std::string> missing, wrong_shape;
+  std::set<std::string> used;
+  for (auto& [name, param] : params_) {
+    auto it = state.find(name);
+    if (it == state.end()) {
+      missing.push_back(name);
+      continue;
+    }
+    used.insert(name);
+    if (it->second.sizes() != param.sizes()) {
+      wrong_shape.push_back(fmt::format("{} has shape [{}], the {} model needs [{}]", name,
+                                        fmt::join(it->second.sizes(), ", "), config_.preset,
+                                        fmt::join(param.sizes(), ", ")));
+      continue;
+    }
+  }
+  std::vector<std::string> unexpected;
+  for (const auto& kv : state)
+    if (!used.count(kv.first)) unexpected.push_back(kv.first);
+  if (!missing.empty() || !wrong_shape.empty() || !unexpected.empty()) {
+    std::string msg = fmt::format("{}: checkpoint does not fit the model architecture", source);
+    auto list = [&](const char* what, const std::vector<std::string>& items) {
+      if (items.empty()) return;
+      msg += fmt::format("\n  {} ({}): ", what, items.size());
+      for (size_t i = 0; i < std::min<size_t>(items.size(), 5); ++i) msg += (i ? ", " : "") + items[i];
+      if (items.size() > 5) msg += ", ...";
+    };
+    list("wrong shape", wrong_shape);
+    list("missing", missing);
+    list("unexpected", unexpected);
+    throw Error(msg);
+  }
+  torch::NoGradGuard no_grad;
+  for (auto& [name, param] : params_) param.copy_(state.at(name));
+  bf16_cache_.clear();
+}
+
+void Network::to(const torch::Device& device) {
+  std::map<const void*, torch::Tensor> moved;
+  for (auto& [name, param] : params_) param = param.to(device);
+  // Re-point the structured views at the moved tensors.
+  size_t i = 0;
+  proj_ = params_[i++].second;
+  proj_plucker_ = params_[i++].second;
+  cls_token_ = params_[i++].second;
+  for (Block& b : blocks_) {
+    b.qkv = params_[i++].second;
+    b.proj = params_[i++].second;
+    b.fc1 = params_[i++].second;
+    b.fc2 = params_[i++].second;
+  }
+  for (Head& h : heads_)
+    for (torch::Tensor& l : h.layers) l = params_[i++].second;
+  bf16_cache_.clear();
+}
+
+void Network::set_requires_grad(bool requires_grad) {
+  for (auto& kv : params_) kv.second.set_requires_grad(requires_grad);
+  bf16_cache_.clear();
+}
+
+torch::Tensor Network::weight_for(const torch::Tensor& weight, Precision precision) const {
+  if (precision == Precision::Float32 || weight.requires_grad()) {
+    return precision == Precision::Float32 ? weight : weight.to(torch::kBFloat16);
+  }
+  // Inference: convert each weight to bf16 once and keep it.
+  auto it = bf16_cache_.find(weight.data_ptr());
+  if (it == bf16_cache_.end()) it = bf16_cache_.emplace(weight.data_ptr(), weight.to(torch::kBFloat16)).first;
+  return it->second;
+}
+
+torch::Tensor Network::linear(const torch::Tensor& x, const torch::Tensor& weight, Precision precision) const {
+  if (precision == Precision::Float32) return torch::matmul(x, weight.t());
+  return torch::matmul(x.to(torch::kBFloat16), weight_for(weight, precision).t());
+}
+
+torch::Tensor unpatchify(const torch::Tensor& x, int views, int h, int w, int patch, int channels) {
+  const int64_t B = x.size(0);
+  // Element (py*p + px)*C + c of token (v, a, b) is channel c of pixel (a*p + py, b*p + px).
+  return x.reshape({B, views, h, w, patch, patch, channels})
+      .permute({0, 1, 6, 2, 4, 3, 5})
+      .reshape({B, views, channels, h * patch, w * patch});
+}
+
+NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor& plucker,
+                               const torch::Tensor& rays_o, const torch::Tensor& rays_d_un,
+                               Precision precision) const {
+  const int64_t B = images.size(0), V = images.size(1), C = images.size(2);
+  const int64_t H = images.size(3), W = images.size(4);
+  const int p = config_.patch;
+  const int64_t D = config_.embed_dim;
+  if (C != config_.image_channels)
+    fail("the model takes {} image channels, the input has {}", config_.image_channels, C);
+  if (H % p != 0 || W % p != 0)
+    fail("input size {}x{} is not a multiple of the patch size {}", W, H, p);
+  const int64_t h = H / p, w = W / p, hw = h * w;
+  const auto dtype = precision == Precision::BFloat16 ? torch::kBFloat16 : torch::kFloat32;
+
+  // Patch embedding: a stride-p convolution is a matrix product over flattened patches.
+  auto patches = [&](const torch::Tensor& t, int64_t channels) {
+    return t.reshape({B * V, channels, h, p, w, p}).permute({0, 2, 4, 1, 3, 5}).reshape({B * V, hw, channels * p * p});
+  };
+  torch::Tensor tokens =
+      torch::matmul(patches(images, C).to(dtype), weight_for(proj_, precision).reshape({D, -1}).t()) +
+      torch::matmul(patches(plucker, 6).to(dtype), weight_for(proj_plucker_, precision).reshape({D, -1}).t());
+  // Encoder norm per token (the cls token the official code prepends is normalised on its
+  // own and dropped, so it cannot change any output).
+  NetworkOutput out;
+  out.encoder_tokens = torch::layer_norm(tokens.to(torch::kFloat32), {D}, {}, {}, config_.encoder_ln_eps);
+
+  torch::Tensor x = out.encoder_tokens.reshape({B, V * hw, D});
+  const int64_t N = V * hw, heads = config_.heads, hd = D / heads;
+  for (const Block& blk : blocks_) {
+    const torch::Tensor qkv = linear(torch::layer_norm(x, {D}, {}, {}, config_.ln_eps), blk.qkv, precision)
+                                  .reshape({B, N, 3, heads, hd})
+                                  .permute({2, 0, 3, 1, 4});  // (3, B, heads, N, hd)
+    const torch::Tensor a = (naive_attention_ ? naive_attention : attention)(qkv[0], qkv[1], qkv[2]).permute({0, 2, 1, 3}).reshape({B, N, D});
+    x = x + linear(a, blk.proj, precision).to(torch::kFloat32);
+    const torch::Tensor hidden = torch::gelu(linear(torch::layer_norm(x, {D}, {}, {}, config_.ln_eps), blk.fc1, precision));
+    x = x + linear(hidden, blk.fc2, precision).to(torch::kFloat32);
+  }
+  out.transformer_tokens = x;
+
+  const torch::Tensor normed = torch::layer_norm(x, {D}, {}, {}, config_.ln_eps);
+  std::vector<torch::Tensor> raw;
+  for (int k = 0; k < GaussianHeads::count; ++k) {
+    torch::Tensor y = normed;
+    const auto& layers = heads_[k].layers;
+    for (size_t l = 0; l < layers.size(); ++l) {
+      y = linear(y, layers[l], precision);
+      if (l + 1 < layers.size()) y = torch::gelu(y);
+    }
+    raw.push_back(unpatchify(y.to(torch::kFloat32), static_cast<int>(V), static_cast<int>(h), static_cast<int>(w), p,
+                             GaussianHeads::channels[k]));
+  }
+
+  GaussianMaps& g = out.gaussians;
+  const torch::Tensor s = torch::sigmoid(raw[0] + config_.depth_bias);
+  g.depth = config_.depth_near * (1.0 - s) + config_.depth_far * s;
+  g.rgb = raw[1];
+  g.opacity = torch::sigmoid(raw[2] + config_.opacity_bias);
+  g.scale = torch::clamp(torch::exp(raw[3] + config_.scale_bias), config_.scale_min, config_.scale_max);
+  g.rotation = raw[4] / torch::clamp_min(raw[4].norm(2, 2, true), 1e-5);
+  // xyz = o + depth * d_un, with rays (B, V, H, W, 3) -> channel-first.
+  const torch::Tensor o = rays_o.permute({0, 1, 4, 2, 3});
+  const torch::Tensor du = rays_d_un.permute({0, 1, 4, 2, 3});
+  g.xyz = o + g.depth * du;
+  return out;
+}
+
+}  // namespace ii

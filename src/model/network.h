@@ -1,0 +1,89 @@
+#pragma once
+// The InstaInpaint network (spec §1-3): patch embedding of RGB+mask and Plücker rays, a
+// transformer over all views' tokens jointly, five per-token Gaussian heads, unpatchify,
+// activations, and positions from z-depth.
+//
+// Parameters are plain tensors under the official key names with weight norm folded
+// (`...weight` instead of `weight_g`/`weight_v`); see model/checkpoint.h for loading.
+#include <map>
+#include <string>
+#include <vector>
+
+#include <torch/torch.h>
+
+#include "model/config.h"
+
+namespace ii {
+
+// Per-pixel Gaussian attributes, activated, each (B, V, C, H, W) float32.
+struct GaussianMaps {
+  torch::Tensor depth;     // C=1, z-depth
+  torch::Tensor rgb;       // C=3, colour in [0,1] convention (no activation)
+  torch::Tensor opacity;   // C=1, in (0,1)
+  torch::Tensor scale;     // C=3, world units
+  torch::Tensor rotation;  // C=4, unit quaternion (w, x, y, z)
+  torch::Tensor xyz;       // C=3, world position
+};
+
+struct NetworkOutput {
+  torch::Tensor encoder_tokens;      // (B*V, h*w, D) after the encoder norm (cls dropped)
+  torch::Tensor transformer_tokens;  // (B, V*h*w, D)
+  GaussianMaps gaussians;
+};
+
+enum class Precision { Float32, BFloat16 };
+const char* precision_name(Precision p);
+// bf16 when the CPU has native bf16 dot products (AVX512-BF16 or AMX), else float32.
+Precision default_cpu_precision();
+
+class Network {
+ public:
+  explicit Network(const ModelConfig& config);  // randomly initialised
+
+  const ModelConfig& config() const { return config_; }
+
+  // Official key names (weight norm folded), in a fixed order.
+  const std::vector<std::pair<std::string, torch::Tensor>>& named_parameters() const { return params_; }
+  std::vector<torch::Tensor> parameters() const;
+
+  // Copies values in by name. Strict: every parameter must be present with its exact shape
+  // and no unknown key may remain; errors list what is missing or unexpected.
+  void load(const std::map<std::string, torch::Tensor>& state, const std::string& source);
+
+  // images: (B, V, C, H, W) with C = image_channels, RGB in [-1,1] then mask;
+  // plucker: (B, V, 6, H, W); rays_o, rays_d_un: (B, V, H, W, 3).
+  NetworkOutput forward(const torch::Tensor& images, const torch::Tensor& plucker,
+                        const torch::Tensor& rays_o, const torch::Tensor& rays_d_un,
+                        Precision precision = Precision::Float32) const;
+
+  // Moves parameters (e.g. to CUDA); the bf16 weight cache is rebuilt lazily.
+  void to(const torch::Device& device);
+  void set_requires_grad(bool requires_grad);
+  // Use the textbook attention with the full score matrix (benchmark baseline only).
+  void set_naive_attention(bool naive) { naive_attention_ = naive; }
+
+ private:
+  struct Block {
+    torch::Tensor qkv, proj, fc1, fc2;  // Linear weights (out, in), no bias
+  };
+  struct Head {
+    std::vector<torch::Tensor> layers;  // Linear weights; GELU between them
+  };
+
+  torch::Tensor& add(const std::string& name, torch::Tensor value);
+  torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, Precision precision) const;
+  torch::Tensor weight_for(const torch::Tensor& weight, Precision precision) const;
+
+  ModelConfig config_;
+  std::vector<std::pair<std::string, torch::Tensor>> params_;
+  torch::Tensor proj_, proj_plucker_, cls_token_;
+  std::vector<Block> blocks_;
+  std::vector<Head> heads_;  // depth, rgb, opacity, scale, rotation
+  bool naive_attention_ = false;
+  mutable std::map<const void*, torch::Tensor> bf16_cache_;  // keyed by the fp32 storage
+};
+
+// Unpatchify (spec §3.2): (B, V*h*w, p*p*C) head output -> (B, V, C, h*p, w*p).
+torch::Tensor unpatchify(const torch::Tensor& x, int views, int h, int w, int patch, int channels);
+
+}  // namespace ii

@@ -1,0 +1,89 @@
+#include <gtest/gtest.h>
+
+#include "data/image_ops.h"
+#include "data/preprocess.h"
+#include "data/view_selection.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+TEST(Preprocess, OfficialEvaluationSize) {
+  // A 16:9 capture at 512 rows is 910 wide, cropped to 904 (official SPIn-NeRF size).
+  const WorkingSize s = working_size(1920, 1080, {});
+  EXPECT_EQ(s.resized_width, 910);
+  EXPECT_EQ(s.width, 904);
+  EXPECT_EQ(s.height, 512);
+  EXPECT_EQ(s.crop_x, 3);
+  const WorkingSize t = working_size(504, 378, {});
+  EXPECT_EQ(t.resized_width, 682);  // int(504 * 512 / 378) = 682.67 truncated
+  EXPECT_EQ(t.width, 680);
+  EXPECT_EQ(t.crop_x, 1);
+}
+
+TEST(Preprocess, CameraFollowsResizeAndCropExactly) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  const Scene scene = load_scene(dir);
+  const PreparedView v = prepare_view(scene.views[0], {});
+  EXPECT_EQ(v.rgb.width, 680);
+  EXPECT_EQ(v.rgb.height, 512);
+  ASSERT_TRUE(v.mask);
+  EXPECT_EQ(v.mask->width, 680);
+  for (float m : v.mask->pixels) EXPECT_TRUE(m == 0.f || m == 1.f);
+  const Intrinsics& K0 = scene.views[0].camera.K;
+  const double s = 682.0 / 504.0;
+  EXPECT_NEAR(v.camera.K.fx, K0.fx * s, 1e-9);
+  EXPECT_NEAR(v.camera.K.cx, 252.0 * s - 1.0, 1e-9);  // centre shifted by the 1-pixel crop
+  EXPECT_NEAR(v.camera.K.fy, K0.fy * 512.0 / 378.0, 1e-9);
+}
+
+TEST(ImageOps, AreaResizeAveragesBlocks) {
+  Image img(4, 2, 1);
+  img.pixels = {0, 1, 2, 3, 4, 5, 6, 7};
+  const Image half = resize_area(img, 2, 1);
+  EXPECT_FLOAT_EQ(half.pixels[0], (0 + 1 + 4 + 5) / 4.f);
+  EXPECT_FLOAT_EQ(half.pixels[1], (2 + 3 + 6 + 7) / 4.f);
+  const Image c = crop(img, 1, 1, 2, 1);
+  EXPECT_EQ(c.pixels, (std::vector<float>{5, 6}));
+  EXPECT_EQ(test::error_message([&] { crop(img, 3, 0, 2, 1); }),
+            "crop 2x1 at (3, 0) is outside the 4x2 image");
+}
+
+Scene ring_scene(int n) {
+  Scene s;
+  for (int k = 0; k < n; ++k) {
+    View v;
+    v.name = "v" + std::to_string(k);
+    const double a = 2 * M_PI * k / n;
+    // centres on a circle, plus one in the middle (index n-1 when odd n is requested)
+    v.camera.c2w(0, 3) = (k == n - 1) ? 0.05 : std::cos(a);
+    v.camera.c2w(1, 3) = (k == n - 1) ? 0.0 : std::sin(a);
+    s.views.push_back(v);
+  }
+  return s;
+}
+
+TEST(ViewSelection, ReferenceInTheMiddleAndALargeTriangle) {
+  const Scene s = ring_scene(13);  // 12 on a circle + 1 near the centre
+  const std::vector<int> c = select_context_views(s, 4);
+  ASSERT_EQ(c.size(), 4u);
+  EXPECT_EQ(c[0], 12);
+  // The largest triangle on 12 equally spaced points is equilateral: indices 4 apart.
+  EXPECT_EQ((c[2] - c[1] + 12) % 12, 4);
+  EXPECT_EQ((c[3] - c[2] + 12) % 12, 4);
+  EXPECT_EQ(select_context_views(s, 2).size(), 2u);
+}
+
+TEST(ViewSelection, ByNameWithClearErrors) {
+  const Scene s = ring_scene(5);
+  EXPECT_EQ(context_views_by_name(s, {"v3", "v0"}), (std::vector<int>{3, 0}));
+  EXPECT_EQ(test::error_message([&] { context_views_by_name(s, {"v9"}); }),
+            "unknown context view 'v9' (views: v0, v1, v2, v3, v4)");
+  EXPECT_EQ(test::error_message([&] { context_views_by_name(s, {"v1", "v1"}); }),
+            "context view 'v1' is listed twice");
+  EXPECT_EQ(test::error_message([&] { select_context_views(s, 6); }),
+            "the scene has 5 views, 6 context views are needed");
+}
+
+}  // namespace
+}  // namespace ii
