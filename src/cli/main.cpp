@@ -7,6 +7,7 @@
 
 #include "cli/commands.h"
 #include "common/error.h"
+#include "common/memory.h"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -17,6 +18,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "instainpaint 0.1.0");
   bool verbose = false;
   app.add_flag("-v,--verbose", verbose, "Print debug messages");
+  ii::keep_large_allocations();
   spdlog::set_pattern("%^%l%$: %v");
   // Set before parsing: subcommands run inside parse().
   for (int i = 1; i < argc; ++i)

@@ -1,0 +1,111 @@
+#include <gtest/gtest.h>
+
+#include "model/attention.h"
+#include "model/checkpoint.h"
+#include "model/network.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+TEST(Unpatchify, FollowsOfficialLayout) {
+  const int V = 2, h = 2, w = 3, p = 2, C = 3;
+  const torch::Tensor x = torch::arange(V * h * w * p * p * C, torch::kFloat32).reshape({1, V * h * w, p * p * C});
+  const torch::Tensor y = unpatchify(x, V, h, w, p, C);
+  ASSERT_EQ(y.sizes(), (std::vector<int64_t>{1, V, C, h * p, w * p}));
+  // Element (py*p + px)*C + c of token v*h*w + a*w + b is channel c of pixel (a*p+py, b*p+px).
+  for (int v = 0; v < V; ++v)
+    for (int a = 0; a < h; ++a)
+      for (int b = 0; b < w; ++b)
+        for (int py = 0; py < p; ++py)
+          for (int px = 0; px < p; ++px)
+            for (int c = 0; c < C; ++c)
+              EXPECT_EQ(y[0][v][c][a * p + py][b * p + px].item<float>(),
+                        x[0][v * h * w + a * w + b][(py * p + px) * C + c].item<float>());
+}
+
+TEST(Attention, ChunkedEqualsTextbook) {
+  torch::manual_seed(0);
+  const auto q = torch::randn({2, 3, 50, 8}), k = torch::randn({2, 3, 50, 8}), v = torch::randn({2, 3, 50, 8});
+  const auto ref = naive_attention(q, k, v);
+  // A tiny chunk budget forces many chunks (one query row each).
+  EXPECT_LT((chunked_attention(q, k, v, 1) - ref).abs().max().item<float>(), 1e-5);
+  EXPECT_LT((attention(q, k, v) - ref).abs().max().item<float>(), 1e-5);
+}
+
+TEST(Attention, ChunkedHasGradients) {
+  const auto q = torch::randn({1, 2, 9, 4}, torch::requires_grad()), k = torch::randn({1, 2, 9, 4}),
+             v = torch::randn({1, 2, 9, 4});
+  chunked_attention(q, k, v, 64).sum().backward();
+  const auto q2 = q.detach().clone().requires_grad_(true);
+  naive_attention(q2, k, v).sum().backward();
+  EXPECT_LT((q.grad() - q2.grad()).abs().max().item<float>(), 1e-5);
+}
+
+TEST(ModelConfig, PresetSizes) {
+  // Release: 308,902,656 parameters in the official layout, of which 24*9216 + 5*(1024 +
+  // out) are weight-norm gains that fold away.
+  const ModelConfig release = ModelConfig::from_preset("release");
+  EXPECT_EQ(release.parameter_count(), 308902656 - 24 * 9216 - (5 * 1024 + 64 + 192 + 64 + 192 + 256));
+  EXPECT_EQ(test::error_message([] { ModelConfig::from_preset("huge"); }),
+            "unknown model preset 'huge' (known: release, base, small, tiny)");
+  ModelConfig bad = release;
+  bad.heads = 5;
+  EXPECT_EQ(test::error_message([&] { bad.validate(); }), "model config: embed_dim 1024 is not divisible by 5 heads");
+}
+
+TEST(Checkpoint, SafetensorsRoundTripKeepsWeightsAndArchitecture) {
+  torch::manual_seed(1);
+  ModelConfig c = ModelConfig::from_preset("tiny");
+  c.heads = 4;
+  const Network net(c);
+  const auto path = test::temp_dir("ckpt") / "m.safetensors";
+  save_safetensors_checkpoint(path, net);
+  const Checkpoint back = read_checkpoint(path);
+  EXPECT_EQ(back.format, "safetensors");
+  EXPECT_EQ(back.config.heads, 4);
+  EXPECT_EQ(back.config.blocks, 2);
+  for (const auto& [name, w] : net.named_parameters()) {
+    ASSERT_TRUE(back.state.count(name)) << name;
+    EXPECT_LT((back.state.at(name) - w).abs().max().item<float>(), 1e-6) << name;
+  }
+  // Official key names on disk: weight-normed layers as weight_g / weight_v.
+  const StateDict raw = read_safetensors_tensors(path);
+  EXPECT_TRUE(raw.count("gaudecoder.blocks.0.attn.qkv.weight_g"));
+  EXPECT_TRUE(raw.count("gauupsampler.mlp_rgb.2.weight_v"));
+  EXPECT_TRUE(raw.count("mvencoder.patch_embed.proj.weight"));
+}
+
+TEST(Checkpoint, StrictLoadNamesWhatDoesNotFit) {
+  Network net(ModelConfig::from_preset("tiny"));
+  StateDict state;
+  for (const auto& [name, w] : net.named_parameters()) state[name] = w.clone();
+  state.erase("gaudecoder.blocks.1.mlp.fc2.weight");
+  state["mvencoder.patch_embed.proj.weight"] = torch::zeros({128, 3, 8, 8});
+  state["gaudecoder.norm.weight"] = torch::zeros({128});
+  EXPECT_EQ(test::error_message([&] { net.load(state, "x.pth"); }),
+            "x.pth: checkpoint does not fit the model architecture\n"
+            "  wrong shape (1): mvencoder.patch_embed.proj.weight has shape [128, 3, 8, 8], the tiny model needs [128, 4, 8, 8]\n"
+            "  missing (1): gaudecoder.blocks.1.mlp.fc2.weight\n"
+            "  unexpected (1): gaudecoder.norm.weight");
+}
+
+TEST(Checkpoint, WeightNormFoldsAndModulePrefixIsStripped) {
+  StateDict raw;
+  raw["gaudecoder.module.blocks.0.attn.proj.weight_g"] = torch::tensor({{2.0f}, {3.0f}});
+  raw["gaudecoder.module.blocks.0.attn.proj.weight_v"] = torch::tensor({{3.0f, 4.0f}, {0.0f, 1.0f}});
+  raw["optimizer.state.0.exp_avg"] = torch::zeros({2});
+  int folded = 0;
+  const StateDict s = normalize_state_dict(raw, &folded);
+  EXPECT_EQ(folded, 1);
+  ASSERT_EQ(s.size(), 1u);
+  const auto w = s.at("gaudecoder.blocks.0.attn.proj.weight");
+  EXPECT_TRUE(torch::allclose(w, torch::tensor({{1.2f, 1.6f}, {0.0f, 3.0f}})));
+  raw.erase("gaudecoder.module.blocks.0.attn.proj.weight_v");
+  EXPECT_EQ(test::error_message([&] { normalize_state_dict(raw); }),
+            "weight-norm gain gaudecoder.blocks.0.attn.proj.weight_g has no matching "
+            "gaudecoder.blocks.0.attn.proj.weight_v");
+}
+
+}  // namespace
+}  // namespace ii
