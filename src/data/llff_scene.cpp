@@ -6,6 +6,7 @@
 // downscaled folders (images_K) scale them.
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <set>
 
 #include <fmt/ranges.h>

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
@@ -61,7 +62,10 @@ Scene load_scene(const fs::path& dir, const SceneOptions& options) {
     if (matched == 0) fail_file(*options.mask_dir, "no mask file matches any image of the scene");
   }
   if (options.alpha_masks)
-    for (View& v : scene.views) v.mask_from_alpha = true;
+    for (View& v : scene.views) {
+      v.mask_from_alpha = true;  // asked for explicitly: wins over mask files
+      v.mask_path.reset();
+    }
   for (const std::string& w : scene.warnings) spdlog::warn("{}", w);
   return scene;
 }

@@ -151,9 +151,11 @@ Checkpoint read_checkpoint(const fs::path& path) {
     }
   } else {
     ck.format = "pth";
-    for (const auto& [name, t] : read_pth_tensors(path))
-      raw[name] = to_torch(t.dtype, t.shape, t.contiguous_bytes(), path);
-    ck.extra = nlohmann::json::parse(read_pth_extras_json(path));
+    const PickleValue tree = read_pth(path);
+    std::map<std::string, PthTensor> tensors;
+    collect_tensors(tree, "", tensors);
+    for (const auto& [name, t] : tensors) raw[name] = to_torch(t.dtype, t.shape, t.contiguous_bytes(), path);
+    ck.extra = nlohmann::json::parse(extras_to_json(tree));
     // The official training arguments name the heads as `num_heads` when present.
     if (ck.extra.contains("args") && ck.extra["args"].is_object() && ck.extra["args"].contains("num_heads"))
       hints["num_heads"] = ck.extra["args"]["num_heads"];

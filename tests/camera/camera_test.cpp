@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include <Eigen/Geometry>
+
 #include "camera/camera.h"
 #include "io/safetensors.h"
 #include "test_support.h"

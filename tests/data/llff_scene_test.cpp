@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include <Eigen/LU>
+
 #include "data/scene.h"
 #include "data/scene_readers.h"
 #include "io/npy.h"

@@ -54,7 +54,7 @@ Scene ring_scene(int n) {
   for (int k = 0; k < n; ++k) {
     View v;
     v.name = "v" + std::to_string(k);
-    const double a = 2 * M_PI * k / n;
+    const double a = 2 * M_PI * k / (n - 1);
     // centres on a circle, plus one in the middle (index n-1 when odd n is requested)
     v.camera.c2w(0, 3) = (k == n - 1) ? 0.05 : std::cos(a);
     v.camera.c2w(1, 3) = (k == n - 1) ? 0.0 : std::sin(a);

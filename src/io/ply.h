@@ -1,0 +1,31 @@
+#pragma once
+// 3D Gaussian splat PLY files: the standard layout of the reference 3DGS code and viewers
+// (read and write) and the SuperSplat/PlayCanvas compressed layout (read).
+#include <cstddef>
+#include <filesystem>
+#include <vector>
+
+namespace ii {
+
+// Pre-activation values, as the reference 3DGS code stores them.
+struct SplatCloud {
+  std::vector<float> means;          // N*3
+  std::vector<float> normals;        // N*3 (usually zero; kept for round trips)
+  std::vector<float> sh_dc;          // N*3, f_dc_0..2; colour = 0.5 + 0.28209479 * dc
+  std::vector<float> sh_rest;        // N*3*K as in the file: per splat, all R coefficients, then G, then B
+  int sh_rest_per_channel = 0;       // K = 0, 3, 8 or 15
+  std::vector<float> opacity_logit;  // N
+  std::vector<float> log_scales;     // N*3
+  std::vector<float> rotations;      // N*4, (w, x, y, z) = rot_0..3, not necessarily normalised
+
+  size_t size() const { return opacity_logit.size(); }
+};
+
+// Reads binary little-endian or ASCII standard PLY, or a compressed PLY (detected from its
+// `chunk` element and packed_* properties).
+SplatCloud read_splat_ply(const std::filesystem::path& path);
+// Binary little-endian standard layout: x y z nx ny nz f_dc_0..2 f_rest_* opacity
+// scale_0..2 rot_0..3, all float. Atomic.
+void write_splat_ply(const std::filesystem::path& path, const SplatCloud& cloud);
+
+}  // namespace ii
