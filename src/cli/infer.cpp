@@ -70,8 +70,7 @@ void run(const InferArgs& a) {
 
   spdlog::info("[3/4] loading model {}", a.checkpoint);
   const Checkpoint ck = read_checkpoint(a.checkpoint);
-  Network net(ck.config);
-  net.load(ck.state, a.checkpoint);
+  const Network net = network_from_checkpoint(ck, a.checkpoint);
   check_model_fits_input(ck.config, si.input, a.checkpoint);
   timings["load_model_ms"] = watch.lap();
 

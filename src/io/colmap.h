@@ -1,6 +1,7 @@
 #pragma once
 // COLMAP sparse models, binary (cameras.bin, images.bin, points3D.bin) and text
-// (cameras.txt, images.txt, points3D.txt): reader and writer.
+// (cameras.txt, images.txt, points3D.txt): reader and writer. Parsing only: turning a model
+// into posed views is data/colmap_scene.cpp's job.
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -15,19 +16,19 @@ namespace ii {
 
 struct ColmapCamera {
   int id = 0;
-  std::string model;  // e.g. "PINHOLE"
+  std::string model;  // e.g. "PINHOLE"; always one of the models COLMAP defines
   int width = 0, height = 0;
-  std::vector<double> params;
+  std::vector<double> params;  // as many as the model has (colmap_model_params)
 };
 
 struct ColmapImage {
   int id = 0;
-  Eigen::Vector4d qvec{1, 0, 0, 0};  // w x y z, world-to-camera rotation
-  Eigen::Vector3d tvec = Eigen::Vector3d::Zero();
+  Eigen::Vector4d qvec{1, 0, 0, 0};  // w x y z, world-to-camera rotation (OpenCV axes)
+  Eigen::Vector3d tvec = Eigen::Vector3d::Zero();  // world-to-camera translation
   int camera_id = 0;
-  std::string name;
+  std::string name;  // relative to the image folder, '/'-separated
   std::vector<Eigen::Vector2d> xys;
-  std::vector<int64_t> point3d_ids;
+  std::vector<int64_t> point3d_ids;  // one per xy, -1 = no 3D point
 };
 
 struct ColmapPoint {
@@ -44,13 +45,21 @@ struct ColmapModel {
   std::map<int64_t, ColmapPoint> points;
 };
 
-// Number of parameters of a COLMAP camera model, or -1 when unknown.
+// Number of parameters of a COLMAP camera model name, or -1 when the model is unknown.
 int colmap_model_params(const std::string& model);
+// COLMAP's numeric id of a model name (0 SIMPLE_PINHOLE ... 11), or -1 when unknown.
+int colmap_model_id(const std::string& model);
 
-// Reads the model in `dir` (binary preferred when both exist). images/points files may be
-// absent: their maps stay empty. cameras must exist.
+// Reads the model in `dir`. The binary set is preferred when cameras.bin exists; otherwise
+// the text set. images and points files may be absent: their maps stay empty and the caller
+// decides. Throws Error naming the file and the problem on anything malformed.
 ColmapModel read_colmap_model(const std::filesystem::path& dir);
-std::map<int, ColmapCamera> read_colmap_cameras(const std::filesystem::path& file);  // .bin or .txt
+// One cameras file, binary or text by its extension (.txt = text, anything else binary).
+std::map<int, ColmapCamera> read_colmap_cameras(const std::filesystem::path& file);
+
+// Writes cameras, images and points3D (.bin when `binary`, else .txt) into `dir`, creating
+// it; each file is written atomically. Text keeps every double exact (shortest round-trip
+// form), so both formats round-trip bit for bit.
 void write_colmap_model(const std::filesystem::path& dir, const ColmapModel& model, bool binary);
 
 }  // namespace ii

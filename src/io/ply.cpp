@@ -1,11 +1,17 @@
 #include "io/ply.h"
 
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstring>
-#include <map>
-#include <sstream>
+#include <fstream>
+#include <optional>
+#include <string_view>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "common/error.h"
 #include "common/files.h"
@@ -17,309 +23,569 @@ namespace fs = std::filesystem;
 
 namespace {
 
+enum class Type { I8, U8, I16, U16, I32, U32, F32, F64 };
+
+std::optional<Type> parse_type(const std::string& t) {
+  if (t == "char" || t == "int8") return Type::I8;
+  if (t == "uchar" || t == "uint8") return Type::U8;
+  if (t == "short" || t == "int16") return Type::I16;
+  if (t == "ushort" || t == "uint16") return Type::U16;
+  if (t == "int" || t == "int32") return Type::I32;
+  if (t == "uint" || t == "uint32") return Type::U32;
+  if (t == "float" || t == "float32") return Type::F32;
+  if (t == "double" || t == "float64") return Type::F64;
+  return std::nullopt;
+}
+
+size_t type_size(Type t) {
+  switch (t) {
+    case Type::I8: case Type::U8: return 1;
+    case Type::I16: case Type::U16: return 2;
+    case Type::I32: case Type::U32: case Type::F32: return 4;
+    case Type::F64: return 8;
+  }
+  return 0;
+}
+
+double load(const uint8_t* p, Type t) {
+  auto get = [p](auto v) {
+    std::memcpy(&v, p, sizeof(v));
+    return static_cast<double>(v);
+  };
+  switch (t) {
+    case Type::I8: return get(int8_t{});
+    case Type::U8: return get(uint8_t{});
+    case Type::I16: return get(int16_t{});
+    case Type::U16: return get(uint16_t{});
+    case Type::I32: return get(int32_t{});
+    case Type::U32: return get(uint32_t{});
+    case Type::F32: return get(float{});
+    case Type::F64: return get(double{});
+  }
+  return 0;
+}
+
 struct Property {
-  std::string name, type;
-  size_t size = 0;
+  std::string name, type_name;
+  Type type = Type::F32;        // the value type (the item type for lists)
+  bool is_list = false;
+  Type count_type = Type::U8;   // lists only
 };
 
 struct Element {
   std::string name;
   uint64_t count = 0;
-  std::vector<Property> properties;
+  std::vector<Property> props;
+  // Filled while walking the body:
+  size_t offset = 0;          // binary: byte offset of the first row (fixed-size rows)
+  std::vector<float> values;  // ASCII: count x props, row-major (kept elements only)
+
+  bool has_list() const {
+    return std::any_of(props.begin(), props.end(), [](const Property& p) { return p.is_list; });
+  }
   size_t row_size() const {
     size_t s = 0;
-    for (const auto& p : properties) s += p.size;
+    for (const auto& p : props) s += type_size(p.type);
     return s;
   }
-  int index(const std::string& n) const {
-    for (size_t i = 0; i < properties.size(); ++i)
-      if (properties[i].name == n) return static_cast<int>(i);
+  int index(std::string_view n) const {
+    for (size_t i = 0; i < props.size(); ++i)
+      if (props[i].name == n) return static_cast<int>(i);
     return -1;
   }
 };
-
-size_t type_size(const std::string& t) {
-  static const std::map<std::string, size_t> sizes = {
-      {"char", 1}, {"uchar", 1}, {"int8", 1}, {"uint8", 1}, {"short", 2}, {"ushort", 2}, {"int16", 2}, {"uint16", 2},
-      {"int", 4},  {"uint", 4},  {"int32", 4}, {"uint32", 4}, {"float", 4}, {"float32", 4}, {"double", 8}, {"float64", 8}};
-  auto it = sizes.find(t);
-  return it == sizes.end() ? 0 : it->second;
-}
-
-double load_binary(const uint8_t* p, const std::string& t) {
-  auto get = [&](auto v) {
-    std::memcpy(&v, p, sizeof(v));
-    return static_cast<double>(v);
-  };
-  if (t == "float" || t == "float32") return get(float{});
-  if (t == "double" || t == "float64") return get(double{});
-  if (t == "uchar" || t == "uint8") return get(uint8_t{});
-  if (t == "char" || t == "int8") return get(int8_t{});
-  if (t == "short" || t == "int16") return get(int16_t{});
-  if (t == "ushort" || t == "uint16") return get(uint16_t{});
-  if (t == "int" || t == "int32") return get(int32_t{});
-  return get(uint32_t{});
-}
 
 struct Header {
   bool ascii = false;
   std::vector<Element> elements;
   size_t body_offset = 0;
+
+  Element* find(std::string_view name) {
+    for (auto& e : elements)
+      if (e.name == name) return &e;
+    return nullptr;
+  }
 };
 
+// Header lines go into error messages: keep them short and printable.
+std::string printable(std::string_view s) {
+  std::string out;
+  for (char c : s.substr(0, 80)) out += (c >= 32 && c < 127) ? c : '?';
+  if (s.size() > 80) out += "...";
+  return out;
+}
+
+std::vector<std::string> split(std::string_view line) {
+  std::vector<std::string> out;
+  size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
+    const size_t start = i;
+    while (i < line.size() && line[i] != ' ' && line[i] != '\t') ++i;
+    if (i > start) out.emplace_back(line.substr(start, i - start));
+  }
+  return out;
+}
+
 Header parse_header(const std::vector<uint8_t>& bytes, const fs::path& path) {
-  if (bytes.size() < 4 || std::memcmp(bytes.data(), "ply\n", 4) != 0)
-    fail_file(path, "not a PLY file (missing 'ply' magic)");
-  const std::string text(reinterpret_cast<const char*>(bytes.data()), std::min<size_t>(bytes.size(), 1 << 20));
-  const size_t end = text.find("end_header\n");
-  if (end == std::string::npos) fail_file(path, "PLY header has no end_header line");
+  const std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  size_t pos;
+  if (text.substr(0, 4) == "ply\n") pos = 4;
+  else if (text.substr(0, 5) == "ply\r\n") pos = 5;
+  else fail_file(path, "not a PLY file (missing 'ply' magic)");
+
   Header h;
-  h.body_offset = end + 11;
-  std::istringstream in(text.substr(4, end - 4));
-  std::string line;
   bool have_format = false;
-  while (std::getline(in, line)) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream ls(line);
-    std::string word;
-    ls >> word;
-    if (word.empty() || word == "comment" || word == "obj_info") continue;
-    if (word == "format") {
-      std::string fmt_name;
-      ls >> fmt_name;
-      if (fmt_name == "ascii") h.ascii = true;
-      else if (fmt_name != "binary_little_endian")
-        fail_file(path, "unsupported PLY format '{}' (binary_little_endian or ascii)", fmt_name);
+  while (true) {
+    const size_t nl = text.find('\n', pos);
+    if (nl == std::string_view::npos) fail_file(path, "PLY header has no end_header line");
+    std::string_view line = text.substr(pos, nl - pos);
+    pos = nl + 1;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const std::vector<std::string> w = split(line);
+    if (w.empty() || w[0] == "comment" || w[0] == "obj_info") continue;
+    if (w[0] == "end_header") break;
+    if (w[0] == "format") {
+      if (have_format) fail_file(path, "PLY header has two format lines");
+      if (w.size() != 3) fail_file(path, "malformed PLY format line '{}'", printable(line));
+      if (w[1] == "ascii") h.ascii = true;
+      else if (w[1] != "binary_little_endian")
+        fail_file(path, "unsupported PLY format '{}' (binary_little_endian or ascii)", printable(w[1]));
+      if (w[2] != "1.0") fail_file(path, "unsupported PLY version '{}' (1.0)", printable(w[2]));
       have_format = true;
-    } else if (word == "element") {
+    } else if (w[0] == "element") {
       Element e;
-      if (!(ls >> e.name >> e.count)) fail_file(path, "malformed PLY element line '{}'", line);
-      h.elements.push_back(e);
-    } else if (word == "property") {
-      if (h.elements.empty()) fail_file(path, "PLY property before any element");
+      if (w.size() == 3) {
+        e.name = w[1];
+        const char* end = w[2].data() + w[2].size();
+        const auto res = std::from_chars(w[2].data(), end, e.count);
+        if (res.ec != std::errc() || res.ptr != end)
+          fail_file(path, "malformed PLY element line '{}'", printable(line));
+      } else {
+        fail_file(path, "malformed PLY element line '{}'", printable(line));
+      }
+      if (h.find(e.name)) fail_file(path, "PLY header declares element '{}' twice", printable(e.name));
+      h.elements.push_back(std::move(e));
+    } else if (w[0] == "property") {
+      if (h.elements.empty()) fail_file(path, "PLY property before any element: '{}'", printable(line));
+      Element& e = h.elements.back();
       Property p;
-      ls >> p.type;
-      if (p.type == "list") fail_file(path, "list properties are not supported in splat files (element {})", h.elements.back().name);
-      ls >> p.name;
-      p.size = type_size(p.type);
-      if (p.size == 0) fail_file(path, "unknown PLY property type '{}'", p.type);
-      h.elements.back().properties.push_back(p);
+      if (w.size() == 5 && w[1] == "list") {
+        p.is_list = true;
+        p.name = w[4];
+        const auto ct = parse_type(w[2]), it = parse_type(w[3]);
+        if (!ct) fail_file(path, "unknown PLY property type '{}'", printable(w[2]));
+        if (!it) fail_file(path, "unknown PLY property type '{}'", printable(w[3]));
+        if (*ct == Type::F32 || *ct == Type::F64)
+          fail_file(path, "PLY list property '{}' has a non-integer count type {}", printable(p.name), w[2]);
+        p.count_type = *ct;
+        p.type = *it;
+        p.type_name = w[3];
+      } else if (w.size() == 3 && w[1] != "list") {
+        const auto t = parse_type(w[1]);
+        if (!t) fail_file(path, "unknown PLY property type '{}'", printable(w[1]));
+        p.type = *t;
+        p.type_name = w[1];
+        p.name = w[2];
+      } else {
+        fail_file(path, "malformed PLY property line '{}'", printable(line));
+      }
+      if (e.index(p.name) >= 0)
+        fail_file(path, "{} element declares property '{}' twice", printable(e.name), printable(p.name));
+      e.props.push_back(std::move(p));
     } else {
-      fail_file(path, "unexpected PLY header line '{}'", line);
+      fail_file(path, "unexpected PLY header line '{}'", printable(line));
     }
   }
   if (!have_format) fail_file(path, "PLY header has no format line");
+  h.body_offset = pos;
   return h;
 }
 
-// Column-major float values of one element.
-using Columns = std::vector<std::vector<float>>;
-
-Columns read_element(const Element& e, ByteReader& r, std::istringstream* ascii, const fs::path& path) {
-  Columns cols(e.properties.size());
-  const size_t row = e.row_size();
-  if (!ascii && (row == 0 || e.count > r.remaining() / row))
-    fail_file(path, "truncated PLY body: {} {} rows of {} bytes do not fit in the {} bytes left", e.count, e.name, row, r.remaining());
-  if (ascii && e.count > (1ULL << 32)) fail_file(path, "implausible element count {}", e.count);
-  for (auto& c : cols) c.resize(e.count);
-  for (uint64_t i = 0; i < e.count; ++i) {
-    if (ascii) {
-      for (size_t k = 0; k < cols.size(); ++k) {
-        double v;
-        if (!(*ascii >> v)) fail_file(path, "truncated or malformed ASCII PLY body at {} row {}", e.name, i);
-        cols[k][i] = static_cast<float>(v);
+// Walks a binary body: records where each fixed-row element starts and checks that every
+// element fits in the file before anything is allocated.
+void walk_binary(Header& h, const std::vector<uint8_t>& bytes, const fs::path& path) {
+  ByteReader r(bytes.data(), bytes.size(), path);
+  r.seek(h.body_offset, "PLY body");
+  for (Element& e : h.elements) {
+    e.offset = r.position();
+    if (!e.has_list()) {
+      const size_t row = e.row_size();
+      if (row == 0) continue;  // no properties: the rows hold no bytes
+      if (e.count > r.remaining() / row)
+        fail_file(path, "truncated PLY body: {} {} rows of {} bytes do not fit in the {} bytes left", e.count, e.name,
+                  row, r.remaining());
+      r.skip(e.count * row, "rows");
+      continue;
+    }
+    // Rows of variable size (faces and the like): every row holds at least one count byte,
+    // so this loop ends at the end of the file at the latest.
+    for (uint64_t i = 0; i < e.count; ++i) {
+      for (const Property& p : e.props) {
+        if (!p.is_list) {
+          r.skip(type_size(p.type), "property value");
+          continue;
+        }
+        r.require(type_size(p.count_type), "list length");
+        const double n = load(r.current(), p.count_type);
+        r.skip(type_size(p.count_type), "list length");
+        if (n < 0) fail_file(path, "negative list length {} in {} row {}", n, e.name, i);
+        const uint64_t items = static_cast<uint64_t>(n);
+        if (items > r.remaining() / type_size(p.type))
+          fail_file(path, "truncated PLY body: list of {} items in {} row {} does not fit in the {} bytes left", items,
+                    e.name, i, r.remaining());
+        r.skip(items * type_size(p.type), "list items");
       }
-    } else {
-      const uint8_t* p = r.current();
-      size_t off = 0;
-      for (size_t k = 0; k < cols.size(); ++k) {
-        cols[k][i] = static_cast<float>(load_binary(p + off, e.properties[k].type));
-        off += e.properties[k].size;
-      }
-      r.skip(row, "row");
     }
   }
-  return cols;
 }
 
-const std::vector<float>& column(const Element& e, const Columns& cols, const std::string& name, const fs::path& path) {
-  const int i = e.index(name);
-  if (i < 0) fail_file(path, "{} element has no '{}' property", e.name, name);
-  return cols[i];
+// Splits the ASCII body into numbers on the fly, keeping the values of the named element.
+class AsciiBody {
+ public:
+  AsciiBody(std::string_view text, const fs::path& path) : s_(text), path_(path) {}
+
+  void read(Element& e, bool keep) {
+    if (e.props.empty()) return;
+    if (keep && e.has_list())
+      fail_file(path_, "list properties are not supported in the {} element", e.name);
+    // Every value needs at least one character and one separator: refuse a count the rest
+    // of the file cannot hold before allocating for it.
+    const uint64_t bytes_left = s_.size() - pos_;
+    const uint64_t per_row = e.props.size();
+    if (e.count > (bytes_left + 1) / 2 / per_row)
+      fail_file(path_, "truncated ASCII PLY body: {} {} rows of {} values do not fit in the {} bytes left", e.count,
+                e.name, per_row, bytes_left);
+    if (keep) e.values.resize(e.count * per_row);
+    for (uint64_t i = 0; i < e.count; ++i) {
+      for (size_t k = 0; k < e.props.size(); ++k) {
+        const Property& p = e.props[k];
+        const double v = next(e, i);
+        if (p.is_list) {
+          if (v < 0 || v != std::floor(v) || v > static_cast<double>(s_.size()))
+            fail_file(path_, "bad list length {} in ASCII PLY body ({} row {})", v, e.name, i);
+          for (uint64_t j = 0; j < static_cast<uint64_t>(v); ++j) next(e, i);
+        } else if (keep) {
+          e.values[i * per_row + k] = static_cast<float>(v);
+        }
+      }
+    }
+  }
+
+ private:
+  double next(const Element& e, uint64_t row) {
+    while (pos_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[pos_]))) ++pos_;
+    if (pos_ == s_.size())
+      fail_file(path_, "truncated ASCII PLY body: {} row {} of {} has too few values", e.name, row, e.count);
+    size_t end = pos_;
+    while (end < s_.size() && !std::isspace(static_cast<unsigned char>(s_[end]))) ++end;
+    std::string_view tok = s_.substr(pos_, end - pos_);
+    pos_ = end;
+    std::string_view digits = tok;
+    if (!digits.empty() && digits[0] == '+') digits.remove_prefix(1);  // from_chars refuses '+'
+    double v = 0;
+    const auto res = std::from_chars(digits.data(), digits.data() + digits.size(), v);
+    if (res.ec != std::errc() || res.ptr != digits.data() + digits.size())
+      fail_file(path_, "malformed number '{}' in ASCII PLY body ({} row {})", printable(tok), e.name, row);
+    return v;
+  }
+
+  std::string_view s_;
+  size_t pos_ = 0;
+  const fs::path& path_;
+};
+
+// Random access to the scalar properties of one element, binary or ASCII.
+class Table {
+ public:
+  Table(const Element& e, const std::vector<uint8_t>& bytes, bool ascii) : e_(e), bytes_(bytes), ascii_(ascii) {
+    size_t off = 0;
+    for (const auto& p : e.props) {
+      offsets_.push_back(off);
+      off += type_size(p.type);
+    }
+    row_ = off;
+  }
+  float get(size_t row, int prop) const {
+    if (ascii_) return e_.values[row * e_.props.size() + static_cast<size_t>(prop)];
+    return static_cast<float>(load(bytes_.data() + e_.offset + row * row_ + offsets_[prop], e_.props[prop].type));
+  }
+  uint32_t get_u32(size_t row, int prop) const {  // binary uint32 properties only
+    uint32_t v;
+    std::memcpy(&v, bytes_.data() + e_.offset + row * row_ + offsets_[prop], 4);
+    return v;
+  }
+
+ private:
+  const Element& e_;
+  const std::vector<uint8_t>& bytes_;
+  bool ascii_;
+  std::vector<size_t> offsets_;
+  size_t row_ = 0;
+};
+
+// Indices of `names` in `e`; fails naming every missing one.
+std::vector<int> require(const Element& e, const std::vector<std::string>& names, const char* what,
+                         const fs::path& path) {
+  std::vector<int> idx;
+  std::vector<std::string> missing;
+  for (const auto& n : names) {
+    idx.push_back(e.index(n));
+    if (idx.back() < 0) missing.push_back(n);
+  }
+  if (!missing.empty())
+    fail_file(path, "{} element lacks required {} {} ({})", e.name, missing.size() == 1 ? "property" : "properties",
+              fmt::join(missing, ", "), what);
+  return idx;
 }
 
-float unorm(uint32_t v, int bits) { return static_cast<float>(v & ((1u << bits) - 1)) / static_cast<float>((1u << bits) - 1); }
+// Decoding runs in double, as PlayCanvas does in JavaScript, and rounds to float only when
+// storing, so decoded values match its output.
+double unorm(uint32_t v, int bits) {
+  const uint32_t mask = (1u << bits) - 1;
+  return static_cast<double>(v & mask) / mask;
+}
+
+double lerp(float a, float b, double t) { return static_cast<double>(a) * (1.0 - t) + static_cast<double>(b) * t; }
+
+constexpr double kSh0 = 0.28209479177387814;
+
+SplatCloud read_compressed(const Header& h, const Element& vertex, const std::vector<uint8_t>& bytes,
+                           const fs::path& path) {
+  const size_t n = vertex.count;
+  const std::vector<int> packed = require(vertex, {"packed_position", "packed_rotation", "packed_scale", "packed_color"},
+                                          "compressed PLY", path);
+  for (int k : packed)
+    if (vertex.props[k].type != Type::U32)
+      fail_file(path, "compressed PLY property '{}' must be uint32, not {}", vertex.props[k].name,
+                vertex.props[k].type_name);
+  const Element* chunk = nullptr;
+  const Element* sh = nullptr;
+  for (const Element& e : h.elements) {
+    if (e.name == "chunk") chunk = &e;
+    if (e.name == "sh") sh = &e;
+  }
+  if (!chunk) fail_file(path, "compressed PLY (packed_* vertex properties) has no chunk element");
+  if (chunk->has_list()) fail_file(path, "list properties are not supported in the chunk element");
+  const uint64_t chunks_needed = (n + 255) / 256;
+  if (chunk->count < chunks_needed)
+    fail_file(path, "compressed PLY has {} chunks for {} splats (256 splats per chunk: needs {})", chunk->count, n,
+              chunks_needed);
+  const std::vector<int> range = require(*chunk,
+                                         {"min_x", "min_y", "min_z", "max_x", "max_y", "max_z", "min_scale_x",
+                                          "min_scale_y", "min_scale_z", "max_scale_x", "max_scale_y", "max_scale_z"},
+                                         "compressed PLY", path);
+  // Older files store the colour directly as 8 bits; newer ones also give a per-chunk range.
+  const bool colour_range = chunk->index("min_r") >= 0 || chunk->index("max_r") >= 0;
+  std::vector<int> colour;
+  if (colour_range)
+    colour = require(*chunk, {"min_r", "min_g", "min_b", "max_r", "max_g", "max_b"}, "compressed PLY colour range",
+                     path);
+
+  const Table vt(vertex, bytes, false), ct(*chunk, bytes, false);
+  SplatCloud c;
+  c.means.resize(n * 3);
+  c.normals.assign(n * 3, 0.f);
+  c.sh_dc.resize(n * 3);
+  c.opacity_logit.resize(n);
+  c.log_scales.resize(n * 3);
+  c.rotations.resize(n * 4);
+  const double norm = 1.0 / (std::sqrt(2.0) * 0.5);  // maps [0, 1] back to [-1/sqrt2, 1/sqrt2]
+  for (size_t ci = 0; ci < chunks_needed; ++ci) {
+    float lo[9], hi[9];  // position, log scale, colour
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = ct.get(ci, range[a]);
+      hi[a] = ct.get(ci, range[3 + a]);
+      lo[3 + a] = ct.get(ci, range[6 + a]);
+      hi[3 + a] = ct.get(ci, range[9 + a]);
+      lo[6 + a] = colour_range ? ct.get(ci, colour[a]) : 0.f;
+      hi[6 + a] = colour_range ? ct.get(ci, colour[3 + a]) : 1.f;
+    }
+    const size_t end = std::min(n, (ci + 1) * 256);
+    for (size_t i = ci * 256; i < end; ++i) {
+      // Position and log scale: 11/10/11 bits of x/y/z, from the top bit down.
+      const uint32_t pp = vt.get_u32(i, packed[0]), ps = vt.get_u32(i, packed[2]);
+      const double tp[3] = {unorm(pp >> 21, 11), unorm(pp >> 11, 10), unorm(pp, 11)};
+      const double ts[3] = {unorm(ps >> 21, 11), unorm(ps >> 11, 10), unorm(ps, 11)};
+      for (int a = 0; a < 3; ++a) {
+        c.means[i * 3 + a] = static_cast<float>(lerp(lo[a], hi[a], tp[a]));
+        c.log_scales[i * 3 + a] = static_cast<float>(lerp(lo[3 + a], hi[3 + a], ts[a]));
+      }
+      // Rotation: the top 2 bits say which of rot_0..rot_3 (w, x, y, z) is largest in
+      // magnitude; the other three follow in rot order, 10 bits each, mapped from
+      // [-1/sqrt2, 1/sqrt2]; the writer normalised and flipped the sign so that the dropped
+      // one is positive, so it is recovered from the unit norm.
+      const uint32_t pr = vt.get_u32(i, packed[1]);
+      const double others[3] = {(unorm(pr >> 20, 10) - 0.5) * norm, (unorm(pr >> 10, 10) - 0.5) * norm,
+                                (unorm(pr, 10) - 0.5) * norm};
+      const double m = std::sqrt(std::max(0.0, 1.0 - (others[0] * others[0] + others[1] * others[1] + others[2] * others[2])));
+      const uint32_t largest = pr >> 30;
+      for (uint32_t k = 0, o = 0; k < 4; ++k) c.rotations[i * 4 + k] = static_cast<float>(k == largest ? m : others[o++]);
+      // Colour: 8 bits per channel (r, g, b from the top byte) within the chunk's range of
+      // 0.5 + SH_C0 * f_dc; the low byte is the activated opacity.
+      const uint32_t pc = vt.get_u32(i, packed[3]);
+      const double tc[3] = {unorm(pc >> 24, 8), unorm(pc >> 16, 8), unorm(pc >> 8, 8)};
+      for (int a = 0; a < 3; ++a)
+        c.sh_dc[i * 3 + a] = static_cast<float>((lerp(lo[6 + a], hi[6 + a], tc[a]) - 0.5) / kSh0);
+      // 0 and 255 stand for opacities beyond the 8-bit range: PlayCanvas maps them to +-40.
+      const double alpha = unorm(pc, 8);
+      c.opacity_logit[i] = alpha <= 0 ? -40.f : alpha >= 1 ? 40.f : static_cast<float>(-std::log(1.0 / alpha - 1.0));
+    }
+  }
+
+  if (sh) {
+    if (sh->count != n) fail_file(path, "sh element has {} rows for {} splats", sh->count, n);
+    if (sh->has_list()) fail_file(path, "list properties are not supported in the sh element");
+    const size_t k = sh->props.size();
+    if (k != 9 && k != 24 && k != 45)
+      fail_file(path, "sh element has {} properties; expected 9, 24 or 45 (SH degree 1 to 3)", k);
+    std::vector<std::string> names;
+    for (size_t j = 0; j < k; ++j) names.push_back(fmt::format("f_rest_{}", j));
+    const std::vector<int> idx = require(*sh, names, "compressed PLY", path);
+    for (int j : idx)
+      if (sh->props[j].type != Type::U8)
+        fail_file(path, "sh property '{}' must be uchar, not {}", sh->props[j].name, sh->props[j].type_name);
+    const Table st(*sh, bytes, false);
+    c.sh_rest_per_channel = static_cast<int>(k / 3);
+    c.sh_rest.resize(n * k);
+    for (size_t i = 0; i < n; ++i) {
+      for (size_t j = 0; j < k; ++j) {
+        // The writer stores trunc((v / 8 + 0.5) * 256) clamped to [0, 255]: decode to the
+        // centre of that bin, with the clamped ends at the range limits (as splat-transform).
+        const float b = st.get(i, idx[j]);
+        const float t = b == 0.f ? 0.f : b == 255.f ? 1.f : (b + 0.5f) / 256.f;
+        c.sh_rest[i * k + j] = (t - 0.5f) * 8.f;
+      }
+    }
+  }
+  return c;
+}
+
+SplatCloud read_standard(const Element& vertex, const std::vector<uint8_t>& bytes, bool ascii, const fs::path& path) {
+  if (vertex.has_list()) fail_file(path, "list properties are not supported in the vertex element");
+  const std::vector<int> idx =
+      require(vertex,
+              {"x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2", "rot_0",
+               "rot_1", "rot_2", "rot_3"},
+              "a 3D Gaussian splat PLY needs x y z f_dc_0..2 opacity scale_0..2 rot_0..3", path);
+  // f_rest_* must be numbered 0..R-1, R = 3K.
+  size_t rest = 0;
+  for (const Property& p : vertex.props) {
+    if (p.name.rfind("f_rest_", 0) != 0) continue;
+    const std::string_view num = std::string_view(p.name).substr(7);
+    size_t j = 0;
+    const auto res = std::from_chars(num.data(), num.data() + num.size(), j);
+    if (res.ec != std::errc() || res.ptr != num.data() + num.size()) continue;  // not ours: ignore
+    ++rest;
+  }
+  std::vector<int> rest_idx;
+  for (size_t j = 0; j < rest; ++j) {
+    rest_idx.push_back(vertex.index(fmt::format("f_rest_{}", j)));
+    if (rest_idx.back() < 0)
+      fail_file(path, "vertex element has {} f_rest properties but no f_rest_{}", rest, j);
+  }
+  if (rest != 0 && rest != 9 && rest != 24 && rest != 45)
+    fail_file(path, "vertex element has {} f_rest properties; expected 0, 9, 24 or 45 (SH degree 0 to 3)", rest);
+
+  const size_t n = vertex.count;
+  const Table t(vertex, bytes, ascii);
+  SplatCloud c;
+  c.means.resize(n * 3);
+  c.normals.assign(n * 3, 0.f);
+  c.sh_dc.resize(n * 3);
+  c.opacity_logit.resize(n);
+  c.log_scales.resize(n * 3);
+  c.rotations.resize(n * 4);
+  c.sh_rest_per_channel = static_cast<int>(rest / 3);
+  c.sh_rest.resize(n * rest);
+  int normal_idx[3];
+  for (int a = 0; a < 3; ++a) normal_idx[a] = vertex.index(std::string("n") + "xyz"[a]);
+  for (size_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      c.means[i * 3 + a] = t.get(i, idx[a]);
+      c.sh_dc[i * 3 + a] = t.get(i, idx[3 + a]);
+      c.log_scales[i * 3 + a] = t.get(i, idx[7 + a]);
+      if (normal_idx[a] >= 0) c.normals[i * 3 + a] = t.get(i, normal_idx[a]);
+    }
+    c.opacity_logit[i] = t.get(i, idx[6]);
+    for (int a = 0; a < 4; ++a) c.rotations[i * 4 + a] = t.get(i, idx[10 + a]);
+    for (size_t j = 0; j < rest; ++j) c.sh_rest[i * rest + j] = t.get(i, rest_idx[j]);
+  }
+  return c;
+}
 
 }  // namespace
 
 SplatCloud read_splat_ply(const fs::path& path) {
   const std::vector<uint8_t> bytes = read_file_bytes(path);
-  const Header h = parse_header(bytes, path);
-  ByteReader r(bytes.data(), bytes.size(), path);
-  r.seek(h.body_offset, "PLY body");
-  std::istringstream ascii_body;
-  if (h.ascii) ascii_body.str(std::string(bytes.begin() + h.body_offset, bytes.end()));
-
-  const Element* vertex = nullptr;
-  const Element* chunk = nullptr;
-  const Element* sh = nullptr;
-  std::map<std::string, Columns> columns;
-  std::map<std::string, size_t> offsets;
-  for (const Element& e : h.elements) {
-    offsets[e.name] = r.position();
-    columns[e.name] = read_element(e, r, h.ascii ? &ascii_body : nullptr, path);
-    if (e.name == "vertex") vertex = &e;
-    if (e.name == "chunk") chunk = &e;
-    if (e.name == "sh") sh = &e;
-  }
+  Header h = parse_header(bytes, path);
+  Element* vertex = h.find("vertex");
   if (!vertex) fail_file(path, "PLY file has no vertex element");
-  const Columns& vc = columns.at("vertex");
-  const size_t n = vertex->count;
-
-  if (chunk && vertex->index("packed_position") >= 0) {
-    if (h.ascii) fail_file(path, "compressed PLY must be binary");
-    const Columns& cc = columns.at("chunk");
-    if (chunk->count * 256 < n) fail_file(path, "compressed PLY has {} chunks for {} splats (256 per chunk)", chunk->count, n);
-    auto ccol = [&](const char* name) -> const std::vector<float>& { return column(*chunk, cc, name, path); };
-    const char* packed_names[] = {"packed_position", "packed_rotation", "packed_scale", "packed_color"};
-    int packed_index[4];
-    for (int k = 0; k < 4; ++k) {
-      packed_index[k] = vertex->index(packed_names[k]);
-      if (packed_index[k] < 0) fail_file(path, "compressed PLY vertex has no '{}' property", packed_names[k]);
-      if (vertex->properties[packed_index[k]].type != "uint" && vertex->properties[packed_index[k]].type != "uint32")
-        fail_file(path, "compressed PLY property '{}' must be uint32", packed_names[k]);
-    }
-    const bool colour_range = chunk->index("min_r") >= 0;
-    const size_t row = vertex->row_size();
-    SplatCloud c;
-    c.means.resize(n * 3);
-    c.normals.assign(n * 3, 0.f);
-    c.sh_dc.resize(n * 3);
-    c.opacity_logit.resize(n);
-    c.log_scales.resize(n * 3);
-    c.rotations.resize(n * 4);
-    const float norm = static_cast<float>(1.0 / (std::sqrt(2.0) * 0.5));
-    constexpr float kSh0 = 0.28209479177387814f;
-    for (size_t i = 0; i < n; ++i) {
-      const size_t ci = i / 256;
-      uint32_t packed[4];
-      for (int k = 0; k < 4; ++k) {
-        size_t off = 0;
-        for (int q = 0; q < packed_index[k]; ++q) off += vertex->properties[q].size;
-        std::memcpy(&packed[k], bytes.data() + offsets["vertex"] + i * row + off, 4);
-      }
-      auto lerp = [&](const char* lo, const char* hi, float t) { return ccol(lo)[ci] * (1 - t) + ccol(hi)[ci] * t; };
-      // position / scale: 11 / 10 / 11 bits
-      c.means[i * 3 + 0] = lerp("min_x", "max_x", unorm(packed[0] >> 21, 11));
-      c.means[i * 3 + 1] = lerp("min_y", "max_y", unorm(packed[0] >> 11, 10));
-      c.means[i * 3 + 2] = lerp("min_z", "max_z", unorm(packed[0], 11));
-      c.log_scales[i * 3 + 0] = lerp("min_scale_x", "max_scale_x", unorm(packed[2] >> 21, 11));
-      c.log_scales[i * 3 + 1] = lerp("min_scale_y", "max_scale_y", unorm(packed[2] >> 11, 10));
-      c.log_scales[i * 3 + 2] = lerp("min_scale_z", "max_scale_z", unorm(packed[2], 11));
-      // rotation: the largest of rot_0..3 is dropped (2-bit index), the others stored in
-      // order as 10-bit values in [-1/sqrt2, 1/sqrt2]; the dropped one follows from |q| = 1.
-      const float a = (unorm(packed[1] >> 20, 10) - 0.5f) * norm;
-      const float b = (unorm(packed[1] >> 10, 10) - 0.5f) * norm;
-      const float d = (unorm(packed[1], 10) - 0.5f) * norm;
-      const float m = std::sqrt(std::max(0.f, 1.f - (a * a + b * b + d * d)));
-      const uint32_t largest = packed[1] >> 30;
-      float q[4];
-      int src = 0;
-      const float others[3] = {a, b, d};
-      for (uint32_t k = 0; k < 4; ++k) q[k] = (k == largest) ? m : others[src++];
-      std::memcpy(&c.rotations[i * 4], q, sizeof(q));
-      // colour: 8 bits per channel within the chunk's colour range; opacity 8 bits, activated
-      const float rgb[3] = {unorm(packed[3] >> 24, 8), unorm(packed[3] >> 16, 8), unorm(packed[3] >> 8, 8)};
-      const char* lo[3] = {"min_r", "min_g", "min_b"};
-      const char* hi[3] = {"max_r", "max_g", "max_b"};
-      for (int k = 0; k < 3; ++k) {
-        const float colour = colour_range ? lerp(lo[k], hi[k], rgb[k]) : rgb[k];
-        c.sh_dc[i * 3 + k] = (colour - 0.5f) / kSh0;
-      }
-      const float alpha = std::clamp(unorm(packed[3], 8), 1e-6f, 1.f - 1e-6f);
-      c.opacity_logit[i] = -std::log(1.f / alpha - 1.f);
-    }
-    if (sh) {
-      const Columns& sc = columns.at("sh");
-      if (sh->count != n) fail_file(path, "sh element has {} rows for {} splats", sh->count, n);
-      const size_t k = sh->properties.size();
-      if (k % 3 != 0) fail_file(path, "sh element has {} coefficients, not a multiple of 3", k);
-      c.sh_rest_per_channel = static_cast<int>(k / 3);
-      c.sh_rest.resize(n * k);
-      for (size_t i = 0; i < n; ++i)
-        for (size_t j = 0; j < k; ++j) c.sh_rest[i * k + j] = (sc[j][i] / 256.f - 0.5f) * 8.f;
-    }
-    return c;
+  const bool compressed = vertex->index("packed_position") >= 0 || vertex->index("packed_rotation") >= 0 ||
+                          vertex->index("packed_scale") >= 0 || vertex->index("packed_color") >= 0;
+  if (compressed && h.ascii) fail_file(path, "compressed PLY must be binary, not ascii");
+  if (h.ascii) {
+    AsciiBody body(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()).substr(h.body_offset),
+                   path);
+    for (Element& e : h.elements) body.read(e, &e == vertex);
+  } else {
+    walk_binary(h, bytes, path);
   }
-
-  auto get = [&](const std::string& name) -> const std::vector<float>& { return column(*vertex, vc, name, path); };
-  SplatCloud c;
-  c.means.resize(n * 3);
-  c.normals.assign(n * 3, 0.f);
-  c.sh_dc.resize(n * 3);
-  c.opacity_logit = get("opacity");
-  c.log_scales.resize(n * 3);
-  c.rotations.resize(n * 4);
-  const bool has_normals = vertex->index("nx") >= 0;
-  for (int a = 0; a < 3; ++a) {
-    const auto& m = get(std::string(1, "xyz"[a]));
-    const auto& dc = get(fmt::format("f_dc_{}", a));
-    const auto& s = get(fmt::format("scale_{}", a));
-    for (size_t i = 0; i < n; ++i) {
-      c.means[i * 3 + a] = m[i];
-      c.sh_dc[i * 3 + a] = dc[i];
-      c.log_scales[i * 3 + a] = s[i];
-    }
-    if (has_normals) {
-      const auto& nn = get(std::string("n") + "xyz"[a]);
-      for (size_t i = 0; i < n; ++i) c.normals[i * 3 + a] = nn[i];
-    }
-  }
-  for (int a = 0; a < 4; ++a) {
-    const auto& q = get(fmt::format("rot_{}", a));
-    for (size_t i = 0; i < n; ++i) c.rotations[i * 4 + a] = q[i];
-  }
-  int rest = 0;
-  while (vertex->index(fmt::format("f_rest_{}", rest)) >= 0) ++rest;
-  if (rest % 3 != 0) fail_file(path, "{} f_rest properties is not a multiple of 3", rest);
-  c.sh_rest_per_channel = rest / 3;
-  c.sh_rest.resize(n * rest);
-  for (int j = 0; j < rest; ++j) {
-    const auto& col = get(fmt::format("f_rest_{}", j));
-    for (size_t i = 0; i < n; ++i) c.sh_rest[i * rest + j] = col[i];
-  }
-  return c;
+  return compressed ? read_compressed(h, *vertex, bytes, path) : read_standard(*vertex, bytes, h.ascii, path);
 }
 
 void write_splat_ply(const fs::path& path, const SplatCloud& c) {
   const size_t n = c.size();
-  const int rest = c.sh_rest_per_channel * 3;
-  if (c.means.size() != n * 3 || c.sh_dc.size() != n * 3 || c.log_scales.size() != n * 3 ||
-      c.rotations.size() != n * 4 || c.sh_rest.size() != n * rest || (!c.normals.empty() && c.normals.size() != n * 3))
-    fail_file(path, "splat cloud arrays do not all describe {} splats", n);
-  std::string header = fmt::format("ply\nformat binary_little_endian 1.0\ncomment written by instainpaint\nelement vertex {}\n", n);
+  if (c.sh_rest_per_channel < 0) fail_file(path, "splat cloud has a negative SH coefficient count");
+  const size_t rest = static_cast<size_t>(c.sh_rest_per_channel) * 3;
+  auto check = [&](const std::vector<float>& v, size_t per, const char* name) {
+    if (v.size() != n * per)
+      fail_file(path, "splat cloud {} has {} values, expected {} ({} per splat for {} splats)", name, v.size(), n * per,
+                per, n);
+  };
+  check(c.means, 3, "means");
+  if (!c.normals.empty()) check(c.normals, 3, "normals");
+  check(c.sh_dc, 3, "sh_dc");
+  check(c.sh_rest, rest, "sh_rest");
+  check(c.log_scales, 3, "log_scales");
+  check(c.rotations, 4, "rotations");
+
+  // No comment line: some splat viewers refuse headers with comments.
+  std::string header = fmt::format("ply\nformat binary_little_endian 1.0\nelement vertex {}\n", n);
   std::vector<std::string> props = {"x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"};
-  for (int j = 0; j < rest; ++j) props.push_back(fmt::format("f_rest_{}", j));
+  for (size_t j = 0; j < rest; ++j) props.push_back(fmt::format("f_rest_{}", j));
   for (const char* p : {"opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"}) props.push_back(p);
   for (const auto& p : props) header += "property float " + p + "\n";
   header += "end_header\n";
-  std::string out = header;
+
   const size_t row = props.size();
-  std::vector<float> values(n * row);
-  for (size_t i = 0; i < n; ++i) {
-    float* v = &values[i * row];
-    for (int a = 0; a < 3; ++a) {
-      v[a] = c.means[i * 3 + a];
-      v[3 + a] = c.normals.empty() ? 0.f : c.normals[i * 3 + a];
-      v[6 + a] = c.sh_dc[i * 3 + a];
+  write_file_atomic(path, [&](const fs::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) fail_file(tmp, "cannot open for writing: {}", std::strerror(errno));
+    out.write(header.data(), static_cast<std::streamsize>(header.size()));
+    // Rows are assembled in blocks so large clouds are not copied whole.
+    constexpr size_t kBlock = 4096;
+    std::vector<float> values(kBlock * row);
+    for (size_t start = 0; start < n; start += kBlock) {
+      const size_t count = std::min(kBlock, n - start);
+      for (size_t b = 0; b < count; ++b) {
+        const size_t i = start + b;
+        float* v = &values[b * row];
+        for (int a = 0; a < 3; ++a) {
+          v[a] = c.means[i * 3 + a];
+          v[3 + a] = c.normals.empty() ? 0.f : c.normals[i * 3 + a];
+          v[6 + a] = c.sh_dc[i * 3 + a];
+        }
+        for (size_t j = 0; j < rest; ++j) v[9 + j] = c.sh_rest[i * rest + j];
+        v[9 + rest] = c.opacity_logit[i];
+        for (int a = 0; a < 3; ++a) v[10 + rest + a] = c.log_scales[i * 3 + a];
+        for (int a = 0; a < 4; ++a) v[13 + rest + a] = c.rotations[i * 4 + a];
+      }
+      out.write(reinterpret_cast<const char*>(values.data()), static_cast<std::streamsize>(count * row * sizeof(float)));
     }
-    for (int j = 0; j < rest; ++j) v[9 + j] = c.sh_rest[i * rest + j];
-    v[9 + rest] = c.opacity_logit[i];
-    for (int a = 0; a < 3; ++a) v[10 + rest + a] = c.log_scales[i * 3 + a];
-    for (int a = 0; a < 4; ++a) v[13 + rest + a] = c.rotations[i * 4 + a];
-  }
-  out.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));
-  write_file_atomic(path, out);
+    out.flush();
+    if (!out) fail_file(path, "write error (disk full?)");
+  });
 }
 
 }  // namespace ii

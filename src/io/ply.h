@@ -1,6 +1,6 @@
 #pragma once
 // 3D Gaussian splat PLY files: the standard layout of the reference 3DGS code and viewers
-// (read and write) and the SuperSplat/PlayCanvas compressed layout (read).
+// (read and write) and the SuperSplat/PlayCanvas "compressed PLY" layout (read).
 #include <cstddef>
 #include <filesystem>
 #include <vector>
@@ -10,7 +10,7 @@ namespace ii {
 // Pre-activation values, as the reference 3DGS code stores them.
 struct SplatCloud {
   std::vector<float> means;          // N*3
-  std::vector<float> normals;        // N*3 (usually zero; kept for round trips)
+  std::vector<float> normals;        // N*3 (usually zero; kept for round trips; may be empty on write)
   std::vector<float> sh_dc;          // N*3, f_dc_0..2; colour = 0.5 + 0.28209479 * dc
   std::vector<float> sh_rest;        // N*3*K as in the file: per splat, all R coefficients, then G, then B
   int sh_rest_per_channel = 0;       // K = 0, 3, 8 or 15
@@ -21,8 +21,12 @@ struct SplatCloud {
   size_t size() const { return opacity_logit.size(); }
 };
 
-// Reads binary little-endian or ASCII standard PLY, or a compressed PLY (detected from its
-// `chunk` element and packed_* properties).
+// Reads a binary little-endian or ASCII standard PLY (properties in any order and of any
+// scalar type, unknown properties and elements ignored), or a compressed PLY (detected from
+// its packed_* vertex properties). Compressed data is decoded as PlayCanvas does: positions
+// and log-scales lerped within their chunk's range, rotations from "largest component
+// dropped" 2+10+10+10 bits, colours to f_dc, 8-bit opacity to a logit (0 and 255 map to
+// -40 and +40), 8-bit SH to the centre of their quantisation bin.
 SplatCloud read_splat_ply(const std::filesystem::path& path);
 // Binary little-endian standard layout: x y z nx ny nz f_dc_0..2 f_rest_* opacity
 // scale_0..2 rot_0..3, all float. Atomic.

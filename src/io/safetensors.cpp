@@ -1,7 +1,11 @@
 #include "io/safetensors.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cstring>
+#include <fstream>
+#include <limits>
+#include <set>
 
 #include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
@@ -14,39 +18,28 @@ namespace ii {
 
 namespace fs = std::filesystem;
 
-size_t dtype_size(const std::string& dtype) {
-  static const std::map<std::string, size_t> sizes = {
-      {"F64", 8}, {"F32", 4}, {"F16", 2}, {"BF16", 2}, {"I64", 8}, {"I32", 4},
-      {"I16", 2}, {"I8", 1},  {"U8", 1},  {"BOOL", 1}, {"U16", 2}, {"U32", 4}, {"U64", 8}};
-  auto it = sizes.find(dtype);
-  return it == sizes.end() ? 0 : it->second;
-}
-
-int64_t TensorData::numel() const {
-  int64_t n = 1;
-  for (int64_t s : shape) n *= s;
-  return n;
-}
-
 namespace {
 
+// The reference implementation refuses headers above 100 MB; so do we, before allocating.
+constexpr uint64_t kMaxHeaderBytes = 100'000'000;
+
 float half_to_float(uint16_t h) {
-  const uint32_t sign = (h & 0x8000u) << 16, exp = (h >> 10) & 0x1f, man = h & 0x3ff;
+  const uint32_t sign = static_cast<uint32_t>(h & 0x8000u) << 16;
+  const uint32_t exp = (h >> 10) & 0x1fu, man = h & 0x3ffu;
   uint32_t bits;
   if (exp == 0) {
     if (man == 0) {
       bits = sign;
-    } else {  // subnormal: renormalise
-      int e = -1;
-      uint32_t m = man;
-      do {
-        ++e;
+    } else {  // subnormal half: shift the mantissa up until it is normalised
+      uint32_t m = man, shifts = 0;
+      while ((m & 0x400u) == 0) {
         m <<= 1;
-      } while ((m & 0x400) == 0);
-      bits = sign | ((127 - 15 - e) << 23) | ((m & 0x3ff) << 13);
+        ++shifts;
+      }
+      bits = sign | ((127 - 15 + 1 - shifts) << 23) | ((m & 0x3ffu) << 13);
     }
   } else if (exp == 31) {
-    bits = sign | 0x7f800000u | (man << 13);
+    bits = sign | 0x7f800000u | (man << 13);  // inf / nan
   } else {
     bits = sign | ((exp + 127 - 15) << 23) | (man << 13);
   }
@@ -66,31 +59,48 @@ void convert(const std::vector<uint8_t>& bytes, std::vector<float>& out) {
 
 }  // namespace
 
+size_t dtype_size(const std::string& dtype) {
+  static const std::map<std::string, size_t> sizes = {
+      {"F64", 8}, {"F32", 4}, {"F16", 2}, {"BF16", 2}, {"I64", 8}, {"I32", 4}, {"I16", 2},
+      {"I8", 1},  {"U64", 8}, {"U32", 4}, {"U16", 2},  {"U8", 1},  {"BOOL", 1}};
+  auto it = sizes.find(dtype);
+  return it == sizes.end() ? 0 : it->second;
+}
+
+int64_t TensorData::numel() const {
+  int64_t n = 1;
+  for (int64_t s : shape) n *= s;
+  return n;
+}
+
 std::vector<float> TensorData::to_float() const {
-  std::vector<float> out(static_cast<size_t>(numel()));
+  const size_t item = dtype_size(dtype);
+  if (item == 0) fail("cannot convert tensor of dtype {} to float", dtype);
+  const int64_t n = numel();
+  if (n < 0 || static_cast<uint64_t>(n) * item != bytes.size())
+    fail("tensor of shape [{}] and dtype {} holds {} bytes", fmt::join(shape, ", "), dtype, bytes.size());
+  std::vector<float> out(static_cast<size_t>(n));
   if (dtype == "F32") {
-    std::memcpy(out.data(), bytes.data(), out.size() * 4);
-  } else if (dtype == "F16" || dtype == "BF16") {
+    if (n) std::memcpy(out.data(), bytes.data(), bytes.size());
+  } else if (dtype == "F16") {
+    for (size_t i = 0; i < out.size(); ++i) out[i] = half_to_float(static_cast<uint16_t>(bytes[2 * i] | (bytes[2 * i + 1] << 8)));
+  } else if (dtype == "BF16") {
+    // bfloat16 is the top half of a float32.
     for (size_t i = 0; i < out.size(); ++i) {
-      uint16_t h;
-      std::memcpy(&h, bytes.data() + 2 * i, 2);
-      if (dtype == "F16") {
-        out[i] = half_to_float(h);
-      } else {
-        const uint32_t bits = static_cast<uint32_t>(h) << 16;
-        std::memcpy(&out[i], &bits, 4);
-      }
+      const uint32_t bits = (static_cast<uint32_t>(bytes[2 * i]) << 16) | (static_cast<uint32_t>(bytes[2 * i + 1]) << 24);
+      std::memcpy(&out[i], &bits, 4);
     }
   } else if (dtype == "F64") convert<double>(bytes, out);
   else if (dtype == "I64") convert<int64_t>(bytes, out);
   else if (dtype == "I32") convert<int32_t>(bytes, out);
   else if (dtype == "I16") convert<int16_t>(bytes, out);
   else if (dtype == "I8") convert<int8_t>(bytes, out);
-  else if (dtype == "U8" || dtype == "BOOL") convert<uint8_t>(bytes, out);
-  else if (dtype == "U16") convert<uint16_t>(bytes, out);
-  else if (dtype == "U32") convert<uint32_t>(bytes, out);
   else if (dtype == "U64") convert<uint64_t>(bytes, out);
-  else fail("cannot convert dtype {} to float", dtype);
+  else if (dtype == "U32") convert<uint32_t>(bytes, out);
+  else if (dtype == "U16") convert<uint16_t>(bytes, out);
+  else if (dtype == "U8") convert<uint8_t>(bytes, out);
+  else  // BOOL
+    for (size_t i = 0; i < out.size(); ++i) out[i] = bytes[i] ? 1.f : 0.f;
   return out;
 }
 
@@ -108,11 +118,13 @@ const TensorData& SafetensorsFile::at(const std::string& name, const fs::path& f
 
 SafetensorsFile read_safetensors(const fs::path& path) {
   const std::vector<uint8_t> bytes = read_file_bytes(path);
-  ByteReader r(bytes.data(), bytes.size(), path);
   if (bytes.size() < 8) fail_file(path, "not a safetensors file: shorter than its 8-byte header length");
+  ByteReader r(bytes.data(), bytes.size(), path);
   const uint64_t header_len = r.read<uint64_t>("header length");
   if (header_len > r.remaining())
     fail_file(path, "not a safetensors file: header length {} exceeds the file size {}", header_len, bytes.size());
+  if (header_len > kMaxHeaderBytes)
+    fail_file(path, "header length {} is above the 100 MB limit", header_len);
   const std::string header_text = r.read_string(header_len, "header");
   nlohmann::json header;
   try {
@@ -121,7 +133,8 @@ SafetensorsFile read_safetensors(const fs::path& path) {
     fail_file(path, "header is not valid JSON ({})", e.what());
   }
   if (!header.is_object()) fail_file(path, "header is not a JSON object");
-  const size_t data_start = r.position(), data_size = r.remaining();
+  const size_t data_start = r.position();
+  const uint64_t data_size = r.remaining();
 
   SafetensorsFile file;
   struct Entry {
@@ -147,27 +160,42 @@ SafetensorsFile read_safetensors(const fs::path& path) {
     t.dtype = entry["dtype"].get<std::string>();
     const size_t item = dtype_size(t.dtype);
     if (item == 0) fail_file(path, "tensor '{}' has unknown dtype {}", name, t.dtype);
+    // Element count saturates just above the data size: a lying shape cannot overflow into
+    // a small product, and anything larger than the data is an error anyway.
     uint64_t numel = 1;
     for (const auto& d : entry["shape"]) {
       if (!d.is_number_unsigned()) fail_file(path, "tensor '{}' has a negative or non-integer dimension", name);
       const uint64_t dim = d.get<uint64_t>();
-      if (dim != 0 && numel > data_size / dim) numel = data_size + 1;  // overflow guard: too big anyway
-      else numel *= dim;
+      if (dim > static_cast<uint64_t>(std::numeric_limits<int64_t>::max()))
+        fail_file(path, "tensor '{}' has an implausible dimension {}", name, dim);
       t.shape.push_back(static_cast<int64_t>(dim));
+    }
+    for (int64_t dim : t.shape) {
+      if (dim == 0) {
+        numel = 0;
+        break;
+      }
+      numel = (numel > (data_size + 1) / static_cast<uint64_t>(dim)) ? data_size + 1 : numel * static_cast<uint64_t>(dim);
     }
     const auto& off = entry["data_offsets"];
     if (!off[0].is_number_unsigned() || !off[1].is_number_unsigned())
       fail_file(path, "tensor '{}' has invalid data_offsets", name);
     const uint64_t begin = off[0].get<uint64_t>(), end = off[1].get<uint64_t>();
     if (begin > end || end > data_size)
-      fail_file(path, "tensor '{}' data_offsets [{}, {}] lie outside the {}-byte data section", name, begin, end, data_size);
+      fail_file(path, "tensor '{}' data_offsets [{}, {}] lie outside the {}-byte data section", name, begin, end,
+                data_size);
     if (numel > data_size || numel * item != end - begin)
       fail_file(path, "tensor '{}' of shape [{}] and dtype {} needs {} bytes, data_offsets give {}", name,
-                fmt::join(t.shape, ", "), t.dtype, numel * item, end - begin);
-    t.bytes.assign(bytes.begin() + data_start + begin, bytes.begin() + data_start + end);
+                fmt::join(t.shape, ", "), t.dtype,
+                numel > data_size ? "more than " + std::to_string(data_size) : std::to_string(numel * item),
+                end - begin);
+    t.bytes.assign(bytes.begin() + static_cast<std::ptrdiff_t>(data_start + begin),
+                   bytes.begin() + static_cast<std::ptrdiff_t>(data_start + end));
     entries.push_back({begin, end, name, std::move(t)});
   }
-  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) { return a.begin < b.begin; });
+  std::stable_sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+    return a.begin != b.begin ? a.begin < b.begin : a.end < b.end;
+  });
   for (size_t i = 1; i < entries.size(); ++i)
     if (entries[i].begin < entries[i - 1].end)
       fail_file(path, "tensors '{}' and '{}' overlap", entries[i - 1].name, entries[i].name);
@@ -177,26 +205,37 @@ SafetensorsFile read_safetensors(const fs::path& path) {
 
 void write_safetensors(const fs::path& path, const std::vector<std::pair<std::string, TensorData>>& tensors,
                        const std::map<std::string, std::string>& metadata) {
-  nlohmann::ordered_json header;
+  nlohmann::ordered_json header = nlohmann::ordered_json::object();
   if (!metadata.empty()) header["__metadata__"] = metadata;
+  std::set<std::string> names;
   uint64_t offset = 0;
   for (const auto& [name, t] : tensors) {
+    if (name == "__metadata__") fail_file(path, "a tensor cannot be named __metadata__");
+    if (!names.insert(name).second) fail_file(path, "tensor '{}' is given twice", name);
     const size_t item = dtype_size(t.dtype);
     if (item == 0) fail_file(path, "cannot write tensor '{}' of unknown dtype {}", name, t.dtype);
+    for (int64_t d : t.shape)
+      if (d < 0) fail_file(path, "tensor '{}' has a negative dimension in shape [{}]", name, fmt::join(t.shape, ", "));
     if (static_cast<uint64_t>(t.numel()) * item != t.bytes.size())
-      fail_file(path, "tensor '{}': {} bytes do not match shape [{}] of {}", name, t.bytes.size(), fmt::join(t.shape, ", "), t.dtype);
+      fail_file(path, "tensor '{}': {} bytes do not match shape [{}] of {}", name, t.bytes.size(),
+                fmt::join(t.shape, ", "), t.dtype);
     header[name] = {{"dtype", t.dtype}, {"shape", t.shape}, {"data_offsets", {offset, offset + t.bytes.size()}}};
     offset += t.bytes.size();
   }
   std::string text = header.dump();
-  text.append((8 - text.size() % 8) % 8, ' ');  // data section 8-byte aligned
-  std::string out;
-  out.reserve(8 + text.size() + offset);
+  text.append((8 - text.size() % 8) % 8, ' ');  // keeps the data section 8-byte aligned
   const uint64_t len = text.size();
-  out.append(reinterpret_cast<const char*>(&len), 8);
-  out += text;
-  for (const auto& kv : tensors) out.append(reinterpret_cast<const char*>(kv.second.bytes.data()), kv.second.bytes.size());
-  write_file_atomic(path, out);
+  // Streamed rather than assembled in memory: checkpoints can be large.
+  write_file_atomic(path, [&](const fs::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) fail_file(tmp, "cannot open for writing: {}", std::strerror(errno));
+    out.write(reinterpret_cast<const char*>(&len), 8);
+    out.write(text.data(), static_cast<std::streamsize>(text.size()));
+    for (const auto& kv : tensors)
+      out.write(reinterpret_cast<const char*>(kv.second.bytes.data()), static_cast<std::streamsize>(kv.second.bytes.size()));
+    out.flush();
+    if (!out) fail_file(path, "write error (disk full?)");
+  });
 }
 
 }  // namespace ii

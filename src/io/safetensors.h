@@ -1,6 +1,7 @@
 #pragma once
 // safetensors: an 8-byte little-endian header length, a JSON header mapping tensor names to
-// dtype, shape and byte offsets (plus optional string metadata), then the raw data.
+// dtype, shape and byte offsets (plus optional string metadata under "__metadata__"), then
+// the raw little-endian, C-order data.
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -11,15 +12,17 @@
 namespace ii {
 
 struct TensorData {
-  std::string dtype;  // F64 F32 F16 BF16 I64 I32 I16 I8 U8 BOOL
+  std::string dtype;  // F64 F32 F16 BF16 I64 I32 I16 I8 U64 U32 U16 U8 BOOL
   std::vector<int64_t> shape;
   std::vector<uint8_t> bytes;  // little-endian, C order
 
   int64_t numel() const;
-  std::vector<float> to_float() const;  // converts any numeric dtype
+  // Converts any numeric dtype (BOOL gives 0/1). Throws Error when bytes do not match the
+  // shape or the dtype is unknown.
+  std::vector<float> to_float() const;
 };
 
-size_t dtype_size(const std::string& dtype);  // 0 for unknown dtypes
+size_t dtype_size(const std::string& dtype);  // bytes per element, 0 for unknown dtypes
 
 struct SafetensorsFile {
   std::map<std::string, std::string> metadata;
@@ -31,6 +34,8 @@ struct SafetensorsFile {
 };
 
 SafetensorsFile read_safetensors(const std::filesystem::path& path);
+// Tensors are stored in the order given; the JSON header is padded with spaces to a multiple
+// of 8 bytes so the data section is 8-byte aligned. Atomic.
 void write_safetensors(const std::filesystem::path& path,
                        const std::vector<std::pair<std::string, TensorData>>& tensors,
                        const std::map<std::string, std::string>& metadata = {});

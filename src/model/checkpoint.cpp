@@ -153,7 +153,7 @@ Checkpoint read_checkpoint(const fs::path& path) {
     ck.format = "pth";
     const PickleValue tree = read_pth(path);
     std::map<std::string, PthTensor> tensors;
-    collect_tensors(tree, "", tensors);
+    collect_tensors(tree, "", tensors, path);
     for (const auto& [name, t] : tensors) raw[name] = to_torch(t.dtype, t.shape, t.contiguous_bytes(), path);
     ck.extra = nlohmann::json::parse(extras_to_json(tree));
     // The official training arguments name the heads as `num_heads` when present.
@@ -166,10 +166,15 @@ Checkpoint read_checkpoint(const fs::path& path) {
   return ck;
 }
 
+Network network_from_checkpoint(const Checkpoint& ck, const std::string& source) {
+  Network net(ck.config, /*initialise=*/false);
+  net.load(ck.state, source);
+  return net;
+}
+
 Network load_network(const fs::path& path) {
   const Checkpoint ck = read_checkpoint(path);
-  Network net(ck.config);
-  net.load(ck.state, path.string());
+  Network net = network_from_checkpoint(ck, path.string());
   spdlog::debug("{}: {} model ({} blocks, width {}), {} weight-norm pairs folded", path.string(),
                 ck.config.preset, ck.config.blocks, ck.config.embed_dim, ck.folded_weight_norms);
   return net;

@@ -28,6 +28,9 @@ struct Checkpoint {
 // Reads a checkpoint file (format from its content, not its extension).
 Checkpoint read_checkpoint(const std::filesystem::path& path);
 
+// A Network of the checkpoint's architecture holding its weights.
+Network network_from_checkpoint(const Checkpoint& checkpoint, const std::string& source);
+
 // read_checkpoint + a Network of the inferred architecture with the weights loaded.
 Network load_network(const std::filesystem::path& path);
 

@@ -30,14 +30,16 @@ torch::Tensor& Network::add(const std::string& name, torch::Tensor value) {
   return params_.back().second;
 }
 
-Network::Network(const ModelConfig& config) : config_(config) {
+Network::Network(const ModelConfig& config, bool initialise) : config_(config) {
   config_.validate();
   torch::NoGradGuard no_grad;
   const int64_t D = config_.embed_dim, p = config_.patch, U = config_.upsampler_dim;
-  auto normal = [](std::vector<int64_t> shape, double std) { return torch::randn(shape) * std; };
+  auto normal = [&](std::vector<int64_t> shape, double std) {
+    return initialise ? torch::randn(shape) * std : torch::empty(shape);
+  };
   // Zero-initialised Plücker branch as in the official code; small normal elsewhere.
   proj_ = add("mvencoder.patch_embed.proj.weight", normal({D, config_.image_channels, p, p}, 0.02));
-  proj_plucker_ = add("mvencoder.patch_embed.proj_plucker.weight", torch::zeros({D, 6, p, p}));
+  proj_plucker_ = add("mvencoder.patch_embed.proj_plucker.weight", normal({D, 6, p, p}, 0.0));
   cls_token_ = add("mvencoder.cls_token", normal({1, 1, D}, 0.02));
   for (int b = 0; b < config_.blocks; ++b) {
     const std::string prefix = fmt::format("gaudecoder.blocks.{}.", b);

@@ -38,7 +38,9 @@ Precision default_cpu_precision();
 
 class Network {
  public:
-  explicit Network(const ModelConfig& config);  // randomly initialised
+  // Randomly initialised, or with uninitialised memory when `initialise` is false (for
+  // weights that are loaded right after).
+  explicit Network(const ModelConfig& config, bool initialise = true);
 
   const ModelConfig& config() const { return config_; }
 
