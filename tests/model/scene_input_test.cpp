@@ -1,0 +1,71 @@
+// From a real scene to network inputs, and the errors a user of `infer` can run into.
+#include <gtest/gtest.h>
+
+#include "data/scene.h"
+#include "model/inference.h"
+#include "model/scene_input.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(SceneInput, StatueBuildsOfficialInputs) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  const Scene scene = load_scene(dir);
+  SceneInputOptions opts;
+  opts.context = {"IMG_2720", "IMG_2707", "IMG_2715", "IMG_2730"};
+  opts.preprocess.height = 128;
+  const SceneInput si = prepare_scene_input(scene, opts);
+  ASSERT_EQ(si.input.images.sizes(), (std::vector<int64_t>{4, 4, 128, 168}));
+  EXPECT_EQ(si.reference_source, "telea");
+  // Reference: mask channel zero; others: grey (0.0) wherever the mask is set.
+  EXPECT_EQ(si.input.images[0][3].abs().sum().item<float>(), 0.f);
+  const auto mask = si.input.images[1][3];
+  EXPECT_GT(mask.sum().item<float>(), 0.f);
+  const auto rgb_in_mask = (si.input.images[1].narrow(0, 0, 3) * mask).abs().max().item<float>();
+  EXPECT_EQ(rgb_in_mask, 0.f);
+  // Normalised camera centres lie in [-1, 1].
+  EXPECT_LE(si.input.rays_o.abs().max().item<float>(), 1.0f + 1e-6f);
+}
+
+TEST(SceneInput, UserErrorsAreClear) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  const Scene scene = load_scene(dir);
+  SceneInputOptions opts;
+  opts.preprocess.height = 64;
+  opts.context = {"IMG_2720", "IMG_9999"};
+  EXPECT_EQ(test::error_message([&] { prepare_scene_input(scene, opts); }).rfind("unknown context view 'IMG_9999' (views: IMG_2707, ", 0), 0u);
+
+  const fs::path ref = test::temp_dir("ref") / "ref.png";
+  write_png(ref, Image(100, 50, 3, 0.5f));
+  opts.context = {"IMG_2720", "IMG_2707"};
+  opts.reference = ref;
+  EXPECT_EQ(test::error_message([&] { prepare_scene_input(scene, opts); }),
+            ref.string() + ": reference image is 100x50, but view IMG_2720 is 504x378 (working size 80x64): give the "
+                           "inpainted image at either size");
+
+  Scene no_masks = scene;
+  for (View& v : no_masks.views) v.mask_path.reset();
+  opts.reference.reset();
+  EXPECT_EQ(test::error_message([&] { prepare_scene_input(no_masks, opts); }),
+            "view IMG_2707 has no object mask: give masks for every context view (--masks DIR or --alpha-masks)");
+}
+
+TEST(SceneInput, ModelMustFitTheInput) {
+  ModelInput in;
+  in.images = torch::zeros({4, 4, 64, 72});
+  ModelConfig rgb_only = ModelConfig::from_preset("tiny");
+  rgb_only.image_channels = 3;
+  EXPECT_EQ(test::error_message([&] { check_model_fits_input(rgb_only, in, "stage1.pth"); }),
+            "stage1.pth: this is an RGB-only (stage-1 reconstruction) model; inpainting needs a model with the mask "
+            "channel (4 input channels)");
+  ModelConfig p16 = ModelConfig::from_preset("tiny");
+  p16.patch = 16;
+  EXPECT_EQ(test::error_message([&] { check_model_fits_input(p16, in, "m.safetensors"); }),
+            "m.safetensors: patch size 16 does not divide the working size 72x64; choose --height as a multiple of 16");
+}
+
+}  // namespace
+}  // namespace ii
