@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace ii::test {
 
@@ -14,6 +15,15 @@ std::filesystem::path shared_path(const std::string& relative);
 
 // A fresh empty temporary folder, removed at exit of the test process.
 std::filesystem::path temp_dir(const std::string& tag);
+
+// Whole-file bytes as a string, and writing a string as a file (for hand-made bad input).
+std::string file_bytes(const std::filesystem::path& path);
+void write_bytes(const std::filesystem::path& path, const std::string& bytes);
+// The raw bytes of a vector of plain values.
+template <typename T>
+std::string raw(const std::vector<T>& v) {
+  return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+}
 
 // Runs `fn` and returns the Error message it throws; fails the test if it throws nothing
 // or something else.

@@ -12,6 +12,7 @@ void add_prepare_command(CLI::App& app);
 void add_infer_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
 void add_convert_command(CLI::App& app);
+void add_render_command(CLI::App& app);
 
 // Options shared by every command that reads a scene.
 void add_scene_options(CLI::App* cmd, std::string& scene_dir, SceneOptions& options);

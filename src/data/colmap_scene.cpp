@@ -27,29 +27,6 @@ fs::path find_model_dir(const fs::path& dir) {
   fail_file(dir, "no COLMAP model found (looked for cameras.bin / cameras.txt in sparse/0/, sparse/ and the folder itself)");
 }
 
-// options.image_folder, else images/, else the least downscaled images_K/.
-fs::path find_image_dir(const fs::path& dir, const SceneOptions& options) {
-  if (!options.image_folder.empty()) {
-    const fs::path p = dir / options.image_folder;
-    if (!fs::is_directory(p)) fail_file(p, "image folder not found");
-    return p;
-  }
-  if (fs::is_directory(dir / "images")) return dir / "images";
-  fs::path best;
-  int best_factor = 0;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    const std::string n = e.path().filename().string();
-    if (!e.is_directory() || n.rfind("images_", 0) != 0) continue;
-    const int factor = std::atoi(n.c_str() + 7);
-    if (factor > 0 && (best_factor == 0 || factor < best_factor)) {
-      best_factor = factor;
-      best = e.path();
-    }
-  }
-  if (best.empty()) fail_file(dir, "no images/ (or images_K/) folder next to the COLMAP model");
-  return best;
-}
-
 // The image file of a model entry. Downscaled folders made by LLFF's tools hold PNGs for
 // JPG originals, so the same stem with another extension is accepted.
 fs::path find_image_file(const fs::path& image_dir, const std::string& name) {
@@ -160,7 +137,7 @@ Scene load_colmap_scene(const fs::path& dir, const SceneOptions& options) {
   const ColmapModel model = read_colmap_model(model_dir);
   if (model.images.empty())
     fail_file(model_dir, "COLMAP model has no images (images.bin / images.txt missing or empty)");
-  const fs::path image_dir = find_image_dir(dir, options);
+  const fs::path image_dir = choose_image_folder(dir, options, "the COLMAP model");
 
   Scene scene;
   scene.root = dir;

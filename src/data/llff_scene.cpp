@@ -37,29 +37,6 @@ std::vector<fs::path> sorted_images(const fs::path& dir) {
   return files;
 }
 
-// images/ when present, otherwise the least downscaled images_K/.
-fs::path choose_image_folder(const fs::path& dir, const SceneOptions& options) {
-  if (!options.image_folder.empty()) {
-    const fs::path p = dir / options.image_folder;
-    if (!fs::is_directory(p)) fail_file(p, "image folder not found");
-    return p;
-  }
-  if (fs::is_directory(dir / "images")) return dir / "images";
-  fs::path best;
-  int best_factor = 0;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    const std::string n = e.path().filename().string();
-    if (!e.is_directory() || n.rfind("images_", 0) != 0) continue;
-    const int factor = std::atoi(n.c_str() + 7);
-    if (factor > 0 && (best_factor == 0 || factor < best_factor)) {
-      best_factor = factor;
-      best = e.path();
-    }
-  }
-  if (best.empty()) fail_file(dir, "no images/ or images_K/ folder next to poses_bounds.npy");
-  return best;
-}
-
 // Masks in `folder` matched to images by file name, then by stem.
 std::map<std::string, fs::path> masks_by_stem(const fs::path& folder) {
   std::map<std::string, fs::path> out;
@@ -78,7 +55,7 @@ Scene load_llff_scene(const fs::path& dir, const SceneOptions& options) {
   for (double v : values)
     if (!std::isfinite(v)) fail_file(poses_file, "contains NaN or infinite values");
 
-  const fs::path image_dir = choose_image_folder(dir, options);
+  const fs::path image_dir = choose_image_folder(dir, options, "poses_bounds.npy");
   const std::vector<fs::path> images = sorted_images(image_dir);
   const size_t n = static_cast<size_t>(poses.shape[0]);
   if (images.size() != n)

@@ -44,6 +44,28 @@ std::string detect_format(const fs::path& dir) {
 
 }  // namespace
 
+fs::path choose_image_folder(const fs::path& dir, const SceneOptions& options, const std::string& next_to) {
+  if (!options.image_folder.empty()) {
+    const fs::path p = dir / options.image_folder;
+    if (!fs::is_directory(p)) fail_file(p, "image folder not found");
+    return p;
+  }
+  if (fs::is_directory(dir / "images")) return dir / "images";
+  fs::path best;
+  int best_factor = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string n = e.path().filename().string();
+    if (!e.is_directory() || n.rfind("images_", 0) != 0) continue;
+    const int factor = std::atoi(n.c_str() + 7);
+    if (factor > 0 && (best_factor == 0 || factor < best_factor)) {
+      best_factor = factor;
+      best = e.path();
+    }
+  }
+  if (best.empty()) fail_file(dir, "no images/ or images_K/ folder next to {}", next_to);
+  return best;
+}
+
 Scene load_scene(const fs::path& dir, const SceneOptions& options) {
   if (!fs::is_directory(dir)) fail_file(dir, "scene folder not found");
   const std::string format = options.format == "auto" ? detect_format(dir) : options.format;

@@ -8,6 +8,11 @@
 
 namespace ii {
 
+// The image folder of a scene: options.image_folder, else images/, else the least
+// downscaled images_K/. `next_to` names the camera file for the error message.
+std::filesystem::path choose_image_folder(const std::filesystem::path& dir, const SceneOptions& options,
+                                          const std::string& next_to);
+
 // LLFF / SPIn-NeRF: poses_bounds.npy, images in images/ or images_K/, object masks in
 // images_K/label/, object-free test views masked by images_K/test_label/.
 Scene load_llff_scene(const std::filesystem::path& dir, const SceneOptions& options);

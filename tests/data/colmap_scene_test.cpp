@@ -305,7 +305,7 @@ TEST(ColmapScene, BadInputIsAClearError) {
   EXPECT_EQ(test::error_message([&] { load_scene(dir, o); }), (dir / "images_2").string() + ": image folder not found");
   fs::remove_all(dir / "images");
   EXPECT_EQ(test::error_message([&] { load_colmap_scene(dir, {}); }),
-            dir.string() + ": no images/ (or images_K/) folder next to the COLMAP model");
+            dir.string() + ": no images/ or images_K/ folder next to the COLMAP model");
   const fs::path empty = test::temp_dir("colmap-empty");
   EXPECT_EQ(test::error_message([&] { load_colmap_scene(empty, {}); }),
             empty.string() +

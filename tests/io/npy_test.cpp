@@ -13,20 +13,9 @@ namespace ii {
 namespace {
 
 namespace fs = std::filesystem;
-
-void write_bytes(const fs::path& p, const std::string& bytes) {
-  std::ofstream(p, std::ios::binary | std::ios::trunc) << bytes;
-}
-
-std::string file_bytes(const fs::path& p) {
-  const auto b = read_file_bytes(p);
-  return std::string(b.begin(), b.end());
-}
-
-template <typename T>
-std::string raw(const std::vector<T>& v) {
-  return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
-}
+using test::file_bytes;
+using test::raw;
+using test::write_bytes;
 
 // A .npy file with the given header dict text (padded with spaces and a newline).
 std::string make_npy(const std::string& dict, const std::string& data, int major = 1) {

@@ -16,17 +16,11 @@ namespace ii {
 namespace {
 
 namespace fs = std::filesystem;
+using test::file_bytes;
+using test::raw;
+using test::write_bytes;
 
 constexpr double kSh0 = 0.28209479177387814;
-
-void write_bytes(const fs::path& p, const std::string& bytes) {
-  std::ofstream(p, std::ios::binary | std::ios::trunc) << bytes;
-}
-
-std::string file_bytes(const fs::path& p) {
-  const auto b = read_file_bytes(p);
-  return std::string(b.begin(), b.end());
-}
 
 template <typename T>
 void put(std::string& out, T v) {

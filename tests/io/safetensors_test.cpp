@@ -17,15 +17,8 @@ namespace ii {
 namespace {
 
 namespace fs = std::filesystem;
-
-void write_bytes(const fs::path& p, const std::string& bytes) {
-  std::ofstream(p, std::ios::binary | std::ios::trunc) << bytes;
-}
-
-std::string file_bytes(const fs::path& p) {
-  const auto b = read_file_bytes(p);
-  return std::string(b.begin(), b.end());
-}
+using test::file_bytes;
+using test::write_bytes;
 
 template <typename T>
 std::vector<uint8_t> raw(const std::vector<T>& v) {
