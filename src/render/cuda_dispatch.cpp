@@ -31,6 +31,7 @@ cuda::SplatInputs device_inputs(const RasterInputs& in) {
   d.sh_degree = in.sh_degree;
   d.num_coeffs = in.num_coeffs;
   d.is_double = in.means.scalar_type() == torch::kFloat64;
+  d.device = in.means.device().has_index() ? in.means.device().index() : 0;
   d.means = in.means.data_ptr();
   d.quats = in.quats.data_ptr();
   d.scales = in.scales.data_ptr();

@@ -16,8 +16,8 @@
 //  * colours are RGB, or spherical harmonics evaluated in the direction mean − camera
 //    centre, + 0.5, clamped at 0 from below.
 //
-// render() runs on the CPU (threads over tiles; bit-identical output and gradients for any
-// thread count) or, when built with the CUDA kernels and given CUDA tensors, on the GPU.
+// render() runs on the CPU (at::get_num_threads() threads over Gaussians and tiles;
+// bit-identical output and gradients for any thread count) or, when built with the CUDA kernels and given CUDA tensors, on the GPU.
 // It is differentiable with respect to means, quats, scales, opacities and colours (an
 // analytic backward; nothing is differentiable with respect to the camera).
 //

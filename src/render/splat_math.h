@@ -8,7 +8,6 @@
 #include <cstdint>
 
 #include <cmath>
-#include <cstring>
 
 #if defined(__CUDACC__)
 #define II_HD __host__ __device__ __forceinline__
@@ -53,28 +52,6 @@ II_HD float s_floor(float x) { return ::floorf(x); }
 II_HD double s_floor(double x) { return ::floor(x); }
 II_HD float s_ceil(float x) { return ::ceilf(x); }
 II_HD double s_ceil(double x) { return ::ceil(x); }
-// exp for the per-pixel alpha on the CPU in float: range reduction to r in [-ln2/2, ln2/2]
-// and the Taylor series to r^6 (relative error below 2e-7, about libm's), inlined so the
-// compositing loop does not call out; below -87 it returns 0 (alpha far under 1/255).
-II_HD float fast_exp(float x) {
-#if defined(__CUDA_ARCH__)
-  return ::expf(x);
-#else
-  if (!(x > -87.f)) return 0.f;
-  const float n = ::floorf(x * 1.44269504f + 0.5f);
-  const float r = (x - n * 0.693145752f) - n * 1.42860677e-06f;  // ln2 split in two parts
-  const float p =
-      1.f + r * (1.f + r * (0.5f + r * (1.f / 6 + r * (1.f / 24 + r * (1.f / 120 + r * (1.f / 720))))));
-  int32_t bits;
-  std::memcpy(&bits, &p, sizeof bits);
-  bits += static_cast<int32_t>(n) << 23;  // times 2^n (n >= -126 here: no underflow)
-  float out;
-  std::memcpy(&out, &bits, sizeof out);
-  return out;
-#endif
-}
-II_HD double fast_exp(double x) { return ::exp(x); }
-
 // NaN and +-inf fail x - x == 0; written out because isfinite differs between host and device.
 template <typename S>
 II_HD bool s_finite(S x) {
@@ -611,7 +588,7 @@ II_HD S splat_alpha(const Splat2D<S>& s, S px, S py, S& dx, S& dy, S& vis, S& ra
   dy = s.my - py;
   const S sigma = S(0.5) * (s.A * dx * dx + s.C * dy * dy) + s.B * dx * dy;
   if (sigma < S(0)) return S(0);
-  vis = fast_exp(-sigma);
+  vis = s_exp(-sigma);
   raw = s.opacity * vis;
   const S alpha = s_min(S(kAlphaMax), raw);
   return alpha < S(kAlphaMin) ? S(0) : alpha;

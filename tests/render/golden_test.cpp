@@ -25,6 +25,8 @@ void check_golden(const std::filesystem::path& path) {
     EXPECT_EQ(bad, 0) << "max |diff| " << test::max_abs_diff(got, c.image) << ", PSNR rgb " << p_rgb
                       << " alpha " << p_alpha;
     EXPECT_GT(c.image.narrow(2, 3, 1).max().item<float>(), 0.1f) << "golden image is empty?";
+    std::printf("%s %s: PSNR rgb %.1f dB, alpha %.1f dB, max |diff| %.2g\n", path.filename().string().c_str(),
+                reference ? "render_reference" : "render", p_rgb, p_alpha, test::max_abs_diff(got, c.image));
   }
 }
 

@@ -2,18 +2,16 @@
 
 #include <ATen/Parallel.h>
 
+#include <exception>
+#include <mutex>
+#include <thread>
+
 #include <algorithm>
 #include <atomic>
 #include <cstring>
 #include <memory>
 #include <vector>
 
-#include <chrono>
-#include <cstdio>
-#include <cstdlib>
-#include <ctime>
-#define PROF_T0 auto prof_t = std::chrono::steady_clock::now(); auto prof_c = std::clock(); const bool prof_on = std::getenv("II_RENDER_PROFILE") != nullptr;
-#define PROF_LAP(name) if (prof_on) { auto now = std::chrono::steady_clock::now(); auto c = std::clock(); std::fprintf(stderr, "%-10s wall %6.1f ms cpu %6.1f ms\n", name, std::chrono::duration<double, std::milli>(now - prof_t).count(), (c - prof_c) * 1000.0 / CLOCKS_PER_SEC); prof_t = now; prof_c = c; }
 namespace ii::render_detail {
 
 using splat::CameraParams;
@@ -28,15 +26,60 @@ static_assert(sizeof(Splat2DGrad<float>) == splat::kGradScalars * sizeof(float),
 static_assert(sizeof(Splat2DGrad<double>) == splat::kGradScalars * sizeof(double), "Splat2DGrad must pack");
 static_assert(sizeof(PixelBox) == 4 * sizeof(int32_t), "PixelBox must pack into 4 int32");
 
-void parallel_dynamic(int64_t n, const std::function<void(int64_t)>& fn) {
-  if (n <= 0) return;
-  const int64_t threads = std::min<int64_t>(at::get_num_threads(), n);
+namespace {
+
+thread_local bool t_in_worker = false;
+
+// Runs fn(t) for t in [0, threads) at once, t = 0 on the calling thread; rethrows the first
+// exception after all have finished. Plain std::threads: LibTorch 1.13's at::parallel_for
+// is an OpenMP pragma in its header, which runs serially in code built without -fopenmp.
+void run_threads(int threads, const std::function<void(int)>& fn) {
   if (threads <= 1) {
-    for (int64_t i = 0; i < n; ++i) fn(i);
+    fn(0);
     return;
   }
+  std::exception_ptr error;
+  std::mutex mutex;
+  auto guarded = [&](int t) {
+    const bool outer = t_in_worker;
+    t_in_worker = true;
+    try {
+      fn(t);
+    } catch (...) {
+      const std::lock_guard<std::mutex> lock(mutex);
+      if (!error) error = std::current_exception();
+    }
+    t_in_worker = outer;
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(guarded, t);
+  guarded(0);
+  for (std::thread& th : pool) th.join();
+  if (error) std::rethrow_exception(error);
+}
+
+// LibTorch's intra-op thread count; 1 inside a worker (no nested oversubscription).
+int thread_budget(int64_t tasks) {
+  if (t_in_worker || tasks <= 1) return 1;
+  return static_cast<int>(std::max<int64_t>(1, std::min<int64_t>(at::get_num_threads(), tasks)));
+}
+
+}  // namespace
+
+void parallel_range(int64_t n, int64_t grain, const std::function<void(int64_t, int64_t)>& fn) {
+  if (n <= 0) return;
+  const int threads = thread_budget((n + grain - 1) / std::max<int64_t>(grain, 1));
+  const int64_t chunk = (n + threads - 1) / threads;
+  run_threads(threads, [&](int t) {
+    const int64_t b = t * chunk, e = std::min(n, b + chunk);
+    if (b < e) fn(b, e);
+  });
+}
+
+void parallel_dynamic(int64_t n, const std::function<void(int64_t)>& fn) {
+  if (n <= 0) return;
   std::atomic<int64_t> next{0};
-  at::parallel_for(0, threads, 1, [&](int64_t, int64_t) {
+  run_threads(thread_budget(n), [&](int) {
     for (int64_t i = next++; i < n; i = next++) fn(i);
   });
 }
@@ -86,7 +129,7 @@ void project_all(const CameraParams& cam, const RasterInputs& in, Splat2D<S>* sp
   const S* colors = in.colors.data_ptr<S>();
   const int64_t cstride = in.sh_degree < 0 ? 3 : int64_t(in.num_coeffs) * 3;
   const splat::ViewConsts<S> view = splat::view_consts<S>(cam);
-  at::parallel_for(0, n, 2048, [&](int64_t b, int64_t e) {
+  parallel_range(n, 2048, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) {
       if (!splat::project_gaussian(view, means + i * 3, quats + i * 4, scales + i * 3, opac[i], colors + i * cstride,
                                    in.sh_degree, in.num_coeffs, splats[i], boxes[i]))
@@ -114,7 +157,7 @@ void bin_tiles(const CameraParams& cam, const Splat2D<float>* sf, const Splat2D<
   const int64_t chunks = std::max<int64_t>(1, std::min<int64_t>(32, nvis / 4096));
   std::vector<int64_t> counts(static_cast<size_t>(chunks * tiles), 0);
   auto chunk_range = [&](int64_t c) { return std::make_pair(nvis * c / chunks, nvis * (c + 1) / chunks); };
-  at::parallel_for(0, chunks, 1, [&](int64_t c0, int64_t c1) {
+  parallel_range(chunks, 1, [&](int64_t c0, int64_t c1) {
     for (int64_t c = c0; c < c1; ++c) {
       int64_t* cnt = counts.data() + c * tiles;
       const auto [b, e] = chunk_range(c);
@@ -139,7 +182,7 @@ void bin_tiles(const CameraParams& cam, const Splat2D<float>* sf, const Splat2D<
   off[tiles] = total;
   st.tile_gaussians = torch::empty({total}, torch::kInt32);
   int32_t* list = st.tile_gaussians.data_ptr<int32_t>();
-  at::parallel_for(0, chunks, 1, [&](int64_t c0, int64_t c1) {
+  parallel_range(chunks, 1, [&](int64_t c0, int64_t c1) {
     for (int64_t c = c0; c < c1; ++c) {
       int64_t* cursor = counts.data() + c * tiles;
       const auto [b, e] = chunk_range(c);
@@ -250,9 +293,7 @@ RasterOutputs forward_impl(const CameraParams& cam, const RasterInputs& in, Rast
   st.boxes = torch::empty({n, 4}, torch::kInt32);
   auto* splats = reinterpret_cast<Splat2D<S>*>(st.splats.data_ptr<S>());
   auto* boxes = reinterpret_cast<PixelBox*>(st.boxes.data_ptr<int32_t>());
-  PROF_T0
   project_all<S>(cam, in, splats, boxes);
-  PROF_LAP("project")
   if constexpr (std::is_same_v<S, float>)
     bin_tiles(cam, splats, nullptr, boxes, n, st);
   else
@@ -264,10 +305,8 @@ RasterOutputs forward_impl(const CameraParams& cam, const RasterInputs& in, Rast
   out.depth = torch::empty({cam.height, cam.width, 1}, opts);
   st.last = torch::empty({cam.height, cam.width}, torch::kInt32);
   st.final_T = torch::empty({cam.height, cam.width}, opts);
-  PROF_LAP("bin")
   raster_forward<S>(cam, splats, boxes, st, out.rgb.data_ptr<S>(), out.alpha.data_ptr<S>(),
                     out.depth.data_ptr<S>());
-  PROF_LAP("raster")
   return out;
 }
 
@@ -374,7 +413,6 @@ RasterGrads backward_impl(const CameraParams& cam, const RasterInputs& in, const
     return t.defined() ? t.data_ptr<S>() : nullptr;
   };
 
-  PROF_T0
   const int64_t m = st.tile_gaussians.numel();
   // Every entry is written by raster_backward: no initialisation here.
   std::unique_ptr<Splat2DGrad<S>[]> entry_grads(new Splat2DGrad<S>[static_cast<size_t>(std::max<int64_t>(m, 1))]);
@@ -382,7 +420,6 @@ RasterGrads backward_impl(const CameraParams& cam, const RasterInputs& in, const
   raster_backward<S>(cam, splats, boxes, st, out.alpha.data_ptr<S>(), out.depth.data_ptr<S>(), ptr(grad_rgb),
                      ptr(grad_alpha), ptr(grad_depth), entry_grads.get());
 
-  PROF_LAP("raster_bwd")
   // Group the entries by Gaussian (counting sort; entries stay in tile order).
   const int32_t* list = st.tile_gaussians.data_ptr<int32_t>();
   std::vector<int64_t> goff(static_cast<size_t>(n) + 1, 0);
@@ -394,7 +431,6 @@ RasterGrads backward_impl(const CameraParams& cam, const RasterInputs& in, const
     for (int64_t k = 0; k < m; ++k) gentries[cursor[list[k]]++] = k;
   }
 
-  PROF_LAP("group")
   RasterGrads gr;
   gr.means = torch::zeros_like(in.means);
   gr.quats = torch::zeros_like(in.quats);
@@ -412,7 +448,7 @@ RasterGrads backward_impl(const CameraParams& cam, const RasterInputs& in, const
   S* v_colors = gr.colors.data_ptr<S>();
   const int64_t cstride = in.sh_degree < 0 ? 3 : int64_t(in.num_coeffs) * 3;
   const splat::ViewConsts<S> view = splat::view_consts<S>(cam);
-  at::parallel_for(0, n, 1024, [&](int64_t b, int64_t e) {
+  parallel_range(n, 1024, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) {
       if (goff[i] == goff[i + 1]) continue;
       Splat2DGrad<S> g{};
@@ -421,13 +457,14 @@ RasterGrads backward_impl(const CameraParams& cam, const RasterInputs& in, const
         const S* eg = reinterpret_cast<const S*>(&entry_grads[gentries[j]]);
         for (int c = 0; c < splat::kGradScalars; ++c) gs[c] += eg[c];
       }
+      bool any = false;
+      for (int c = 0; c < splat::kGradScalars; ++c) any = any || gs[c] != S(0);
+      if (!any) continue;  // hidden behind others everywhere: nothing to propagate
       splat::project_gaussian_vjp(view, means + i * 3, quats + i * 4, scales + i * 3, colors + i * cstride,
                                   in.sh_degree, g, v_means + i * 3, v_quats + i * 4, v_scales + i * 3, v_opac + i,
                                   v_colors + i * cstride);
     }
   });
-  PROF_LAP("vjp")
-  if (prof_on) std::fprintf(stderr, "entries %ld\n", (long)m);
   return gr;
 }
 

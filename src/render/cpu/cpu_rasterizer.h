@@ -3,6 +3,8 @@
 // its analytic backward, for float or double tensors. Internal to src/render.
 #include <torch/torch.h>
 
+#include <functional>
+
 #include "render/splat_math.h"
 
 namespace ii::render_detail {
@@ -40,8 +42,11 @@ RasterGrads cpu_backward(const splat::CameraParams& cam, const RasterInputs& in,
                          const RasterOutputs& out, const torch::Tensor& grad_rgb, const torch::Tensor& grad_alpha,
                          const torch::Tensor& grad_depth);
 
-// Runs fn(i) for i in [0, n) on all intra-op threads, handing out indices dynamically (tiles
-// differ a lot in cost). fn must make its result independent of which thread runs it.
+// Work split over at::get_num_threads() threads. fn must make its result independent of
+// which thread runs it (the renderer's output does not depend on the thread count).
+// parallel_range: contiguous chunks of at least `grain` items, fn(begin, end).
+void parallel_range(int64_t n, int64_t grain, const std::function<void(int64_t, int64_t)>& fn);
+// parallel_dynamic: fn(i) for each i, handed out one by one (tiles differ a lot in cost).
 void parallel_dynamic(int64_t n, const std::function<void(int64_t)>& fn);
 
 }  // namespace ii::render_detail

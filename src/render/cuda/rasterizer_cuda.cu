@@ -337,9 +337,25 @@ void backward_impl(const splat::CameraParams& cam, const SplatInputs& in, const 
   II_CUDA_CHECK(cudaDeviceSynchronize());
 }
 
+// Makes `device` current for one call and restores the previous one.
+class DeviceGuard {
+ public:
+  explicit DeviceGuard(int device) {
+    II_CUDA_CHECK(cudaGetDevice(&previous_));
+    if (device != previous_) II_CUDA_CHECK(cudaSetDevice(device));
+  }
+  ~DeviceGuard() { cudaSetDevice(previous_); }
+  DeviceGuard(const DeviceGuard&) = delete;
+  DeviceGuard& operator=(const DeviceGuard&) = delete;
+
+ private:
+  int previous_ = 0;
+};
+
 }  // namespace
 
 int64_t forward(const splat::CameraParams& cam, const SplatInputs& in, const ForwardBuffers& buffers) {
+  const DeviceGuard guard(in.device);
   const int64_t m = in.is_double ? forward_impl<double>(cam, in, buffers) : forward_impl<float>(cam, in, buffers);
   // Scratch memory goes back to the caller's allocator on return.
   II_CUDA_CHECK(cudaDeviceSynchronize());
@@ -347,6 +363,7 @@ int64_t forward(const splat::CameraParams& cam, const SplatInputs& in, const For
 }
 
 void backward(const splat::CameraParams& cam, const SplatInputs& in, const BackwardBuffers& buffers) {
+  const DeviceGuard guard(in.device);
   if (in.is_double)
     backward_impl<double>(cam, in, buffers);
   else

@@ -22,6 +22,7 @@ struct SplatInputs {
   int sh_degree = -1;  // -1: colors are RGB (N,3); else (N, num_coeffs, 3)
   int num_coeffs = 0;
   bool is_double = false;
+  int device = 0;  // CUDA device of all pointers; made current for the call
   const void *means = nullptr, *quats = nullptr, *scales = nullptr, *opacities = nullptr, *colors = nullptr;
 };
 
