@@ -13,6 +13,7 @@
 #include "io/image.h"
 #include "io/ply.h"
 #include "model/checkpoint.h"
+#include "model/default_model.h"
 #include "model/inference.h"
 #include "model/scene_input.h"
 
@@ -68,10 +69,11 @@ void run(const InferArgs& a) {
   const SceneInput si = prepare_scene_input(scene, opts);
   timings["prepare_inputs_ms"] = watch.lap();
 
-  spdlog::info("[3/4] loading model {}", a.checkpoint);
-  const Checkpoint ck = read_checkpoint(a.checkpoint);
-  const Network net = network_from_checkpoint(ck, a.checkpoint);
-  check_model_fits_input(ck.config, si.input, a.checkpoint);
+  const std::string model_name = a.checkpoint.empty() ? kDefaultModelName : a.checkpoint;
+  spdlog::info("[3/4] loading model {}", model_name);
+  const Checkpoint ck = checkpoint_or_default(a.checkpoint);
+  const Network net = network_from_checkpoint(ck, model_name);
+  check_model_fits_input(ck.config, si.input, model_name);
   timings["load_model_ms"] = watch.lap();
 
   const auto& shape = si.input.images.sizes();
@@ -98,7 +100,7 @@ void run(const InferArgs& a) {
       {"context", nlohmann::json::array()},
       {"reference", si.reference_source},
       {"working_size", {shape[3], shape[2]}},
-      {"model", {{"checkpoint", a.checkpoint}, {"format", ck.format}, {"config", ck.config.to_json()}}},
+      {"model", {{"checkpoint", model_name}, {"format", ck.format}, {"config", ck.config.to_json()}}},
       {"precision", precision_name(precision)},
       {"threads", torch::get_num_threads()},
       {"gaussians", cloud.size()},
@@ -125,8 +127,8 @@ void add_infer_command(CLI::App& app) {
                   "the photo's size or the working size (default: OpenCV Telea inpainting)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--checkpoint", args->checkpoint,
-                  "Model weights: official .pth or safetensors")
-      ->required()
+                  "Model weights: official .pth or safetensors (default: the small model built into instainpaint, "
+                  "see models/MODEL_CARD.md; the released InstaInpaint checkpoint is far better)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--context", args->context, "Context views by name, reference first (default: automatic)")
       ->delimiter(',');

@@ -118,11 +118,15 @@ const TensorData& SafetensorsFile::at(const std::string& name, const fs::path& f
 
 SafetensorsFile read_safetensors(const fs::path& path) {
   const std::vector<uint8_t> bytes = read_file_bytes(path);
-  if (bytes.size() < 8) fail_file(path, "not a safetensors file: shorter than its 8-byte header length");
-  ByteReader r(bytes.data(), bytes.size(), path);
+  return parse_safetensors(bytes.data(), bytes.size(), path);
+}
+
+SafetensorsFile parse_safetensors(const uint8_t* data, size_t size, const fs::path& path) {
+  if (size < 8) fail_file(path, "not a safetensors file: shorter than its 8-byte header length");
+  ByteReader r(data, size, path);
   const uint64_t header_len = r.read<uint64_t>("header length");
   if (header_len > r.remaining())
-    fail_file(path, "not a safetensors file: header length {} exceeds the file size {}", header_len, bytes.size());
+    fail_file(path, "not a safetensors file: header length {} exceeds the file size {}", header_len, size);
   if (header_len > kMaxHeaderBytes)
     fail_file(path, "header length {} is above the 100 MB limit", header_len);
   const std::string header_text = r.read_string(header_len, "header");
@@ -189,8 +193,7 @@ SafetensorsFile read_safetensors(const fs::path& path) {
                 fmt::join(t.shape, ", "), t.dtype,
                 numel > data_size ? "more than " + std::to_string(data_size) : std::to_string(numel * item),
                 end - begin);
-    t.bytes.assign(bytes.begin() + static_cast<std::ptrdiff_t>(data_start + begin),
-                   bytes.begin() + static_cast<std::ptrdiff_t>(data_start + end));
+    t.bytes.assign(data + data_start + begin, data + data_start + end);
     entries.push_back({begin, end, name, std::move(t)});
   }
   std::stable_sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {

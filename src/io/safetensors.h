@@ -34,6 +34,8 @@ struct SafetensorsFile {
 };
 
 SafetensorsFile read_safetensors(const std::filesystem::path& path);
+// The same from bytes in memory; `path` only names them in error messages.
+SafetensorsFile parse_safetensors(const uint8_t* data, size_t size, const std::filesystem::path& path);
 // Tensors are stored in the order given; the JSON header is padded with spaces to a multiple
 // of 8 bytes so the data section is 8-byte aligned. Atomic.
 void write_safetensors(const std::filesystem::path& path,

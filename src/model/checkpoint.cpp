@@ -133,23 +133,41 @@ StateDict read_safetensors_tensors(const fs::path& path) {
   return out;
 }
 
+namespace {
+
+// Key normalisation, weight-norm folding and architecture inference shared by every source.
+void finish_checkpoint(Checkpoint& ck, const StateDict& raw, const nlohmann::json& hints, const fs::path& path) {
+  ck.state = normalize_state_dict(raw, &ck.folded_weight_norms);
+  if (ck.state.empty()) fail_file(path, "holds no InstaInpaint model weights (no mvencoder/gaudecoder/gauupsampler keys)");
+  ck.config = infer_config(ck.state, hints, path.string());
+}
+
+}  // namespace
+
+Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const fs::path& path) {
+  Checkpoint ck;
+  ck.format = "safetensors";
+  StateDict raw;
+  for (const auto& [name, t] : file.tensors) raw[name] = to_torch(t.dtype, t.shape, t.bytes, path);
+  ck.extra = nlohmann::json(file.metadata);
+  nlohmann::json hints = nlohmann::json::object();
+  if (auto it = file.metadata.find("config"); it != file.metadata.end()) {
+    try {
+      hints = nlohmann::json::parse(it->second);
+    } catch (const nlohmann::json::exception& e) {
+      fail_file(path, "__metadata__.config is not valid JSON: {}", e.what());
+    }
+  }
+  finish_checkpoint(ck, raw, hints, path);
+  return ck;
+}
+
 Checkpoint read_checkpoint(const fs::path& path) {
+  if (is_safetensors(path)) return checkpoint_from_safetensors(read_safetensors(path), path);
   Checkpoint ck;
   StateDict raw;
   nlohmann::json hints = nlohmann::json::object();
-  if (is_safetensors(path)) {
-    ck.format = "safetensors";
-    const SafetensorsFile file = read_safetensors(path);
-    for (const auto& [name, t] : file.tensors) raw[name] = to_torch(t.dtype, t.shape, t.bytes, path);
-    ck.extra = nlohmann::json(file.metadata);
-    if (auto it = file.metadata.find("config"); it != file.metadata.end()) {
-      try {
-        hints = nlohmann::json::parse(it->second);
-      } catch (const nlohmann::json::exception& e) {
-        fail_file(path, "__metadata__.config is not valid JSON: {}", e.what());
-      }
-    }
-  } else {
+  {
     ck.format = "pth";
     const PickleValue tree = read_pth(path);
     std::map<std::string, PthTensor> tensors;
@@ -160,9 +178,7 @@ Checkpoint read_checkpoint(const fs::path& path) {
     if (ck.extra.contains("args") && ck.extra["args"].is_object() && ck.extra["args"].contains("num_heads"))
       hints["num_heads"] = ck.extra["args"]["num_heads"];
   }
-  ck.state = normalize_state_dict(raw, &ck.folded_weight_norms);
-  if (ck.state.empty()) fail_file(path, "holds no InstaInpaint model weights (no mvencoder/gaudecoder/gauupsampler keys)");
-  ck.config = infer_config(ck.state, hints, path.string());
+  finish_checkpoint(ck, raw, hints, path);
   return ck;
 }
 

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <torch/torch.h>
 
+#include "io/safetensors.h"
 #include "model/config.h"
 #include "model/network.h"
 
@@ -27,6 +28,8 @@ struct Checkpoint {
 
 // Reads a checkpoint file (format from its content, not its extension).
 Checkpoint read_checkpoint(const std::filesystem::path& path);
+// A checkpoint from parsed safetensors (`path` names it in messages).
+Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const std::filesystem::path& path);
 
 // A Network of the checkpoint's architecture holding its weights.
 Network network_from_checkpoint(const Checkpoint& checkpoint, const std::string& source);
