@@ -8,6 +8,7 @@
 
 #include "cli/commands.h"
 #include "cli/runtime.h"
+#include "common/error.h"
 #include "common/files.h"
 #include "common/stopwatch.h"
 #include "io/image.h"
@@ -32,6 +33,7 @@ struct InferArgs {
   std::string out = "infer-out";
   int views = 4;
   int height = 512;
+  bool keep_object = false;
   RuntimeOptions runtime;
 };
 
@@ -66,6 +68,8 @@ void run(const InferArgs& a) {
   opts.num_views = a.views;
   if (!a.reference.empty()) opts.reference = fs::path(a.reference);
   opts.preprocess.height = a.height;
+  opts.keep_object = a.keep_object;
+  if (a.keep_object && !a.reference.empty()) fail("--keep-object uses the reference's own photo: drop --reference");
   const SceneInput si = prepare_scene_input(scene, opts);
   timings["prepare_inputs_ms"] = watch.lap();
 
@@ -138,6 +142,9 @@ void add_infer_command(CLI::App& app) {
   cmd->add_option("--height", args->height, "Working height in pixels (width follows the aspect ratio)")
       ->capture_default_str()
       ->check(CLI::Range(8, 4096));
+  cmd->add_flag("--keep-object", args->keep_object,
+                "Reconstruct the scene as captured, object included (no masks, no reference): a comparison "
+                "for the inpainted result");
   cmd->add_option("--out", args->out, "Output folder")->capture_default_str();
   add_runtime_options(cmd, args->runtime);
   cmd->footer(

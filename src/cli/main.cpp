@@ -30,7 +30,11 @@ int main(int argc, char** argv) {
   ii::cli::add_infer_command(app);
   ii::cli::add_convert_command(app);
   ii::cli::add_render_command(app);
+  ii::cli::add_synth_command(app);
   ii::cli::add_bench_command(app);
+  ii::cli::add_metrics_command(app);
+  ii::cli::add_eval_command(app);
+  ii::cli::add_train_command(app);
 
   try {
     app.parse(argc, argv);

@@ -25,3 +25,34 @@ inline torch::Tensor fused_sdpa(const torch::Tensor&, const torch::Tensor&, cons
 #endif
 
 }  // namespace ii::compat
+
+// ---- c10d process groups (data-parallel training) ---------------------------------------
+// Gloo (CPU) needs the gloo headers: Debian ships them in libgloo-dev, LibTorch 2.x zips
+// bundle them. NCCL needs a CUDA LibTorch, recognised by its generated ATen/cuda/CUDAConfig.h.
+// Both headers are compiled only when their macro is defined, which LibTorch leaves to the
+// consumer: define it before including them (see train/distributed.cpp).
+#if __has_include(<torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>) && __has_include(<gloo/algorithm.h>)
+#define II_HAS_C10D_GLOO 1
+#else
+#define II_HAS_C10D_GLOO 0
+#endif
+#if __has_include(<torch/csrc/distributed/c10d/ProcessGroupNCCL.hpp>) && __has_include(<ATen/cuda/CUDAConfig.h>)
+#define II_HAS_C10D_NCCL 1
+#else
+#define II_HAS_C10D_NCCL 0
+#endif
+
+namespace c10d {
+class ProcessGroup;
+class Backend;
+}  // namespace c10d
+
+namespace ii::compat {
+// The class a Gloo/NCCL process group object is used through: 1.13's backends derive from
+// c10d::ProcessGroup, 2.x's from c10d::Backend (ProcessGroup became a dispatcher above them).
+#if II_TORCH2
+using CollectiveGroup = c10d::Backend;
+#else
+using CollectiveGroup = c10d::ProcessGroup;
+#endif
+}  // namespace ii::compat

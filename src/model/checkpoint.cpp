@@ -46,7 +46,7 @@ bool is_safetensors(const fs::path& path) {
 
 }  // namespace
 
-StateDict normalize_state_dict(const StateDict& raw, int* folded) {
+StateDict normalize_state_dict(const StateDict& raw, int* folded, StateDict* weight_norm) {
   StateDict named;
   for (const auto& [key, value] : raw) {
     std::string k = key;
@@ -71,6 +71,7 @@ StateDict normalize_state_dict(const StateDict& raw, int* folded) {
       out[key] = value;
       continue;
     }
+    if (weight_norm) (*weight_norm)[key] = value;
     const std::string base = key.substr(0, key.size() - 9);
     if (is_v) continue;  // handled with its g
     auto v = named.find(base + ".weight_v");
@@ -136,15 +137,16 @@ StateDict read_safetensors_tensors(const fs::path& path) {
 namespace {
 
 // Key normalisation, weight-norm folding and architecture inference shared by every source.
-void finish_checkpoint(Checkpoint& ck, const StateDict& raw, const nlohmann::json& hints, const fs::path& path) {
-  ck.state = normalize_state_dict(raw, &ck.folded_weight_norms);
+void finish_checkpoint(Checkpoint& ck, const StateDict& raw, const nlohmann::json& hints, const fs::path& path,
+                       bool keep_weight_norm) {
+  ck.state = normalize_state_dict(raw, &ck.folded_weight_norms, keep_weight_norm ? &ck.weight_norm : nullptr);
   if (ck.state.empty()) fail_file(path, "holds no InstaInpaint model weights (no mvencoder/gaudecoder/gauupsampler keys)");
   ck.config = infer_config(ck.state, hints, path.string());
 }
 
 }  // namespace
 
-Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const fs::path& path) {
+Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const fs::path& path, bool keep_weight_norm) {
   Checkpoint ck;
   ck.format = "safetensors";
   StateDict raw;
@@ -158,12 +160,12 @@ Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const fs::pa
       fail_file(path, "__metadata__.config is not valid JSON: {}", e.what());
     }
   }
-  finish_checkpoint(ck, raw, hints, path);
+  finish_checkpoint(ck, raw, hints, path, keep_weight_norm);
   return ck;
 }
 
-Checkpoint read_checkpoint(const fs::path& path) {
-  if (is_safetensors(path)) return checkpoint_from_safetensors(read_safetensors(path), path);
+Checkpoint read_checkpoint(const fs::path& path, bool keep_weight_norm) {
+  if (is_safetensors(path)) return checkpoint_from_safetensors(read_safetensors(path), path, keep_weight_norm);
   Checkpoint ck;
   StateDict raw;
   nlohmann::json hints = nlohmann::json::object();
@@ -178,7 +180,7 @@ Checkpoint read_checkpoint(const fs::path& path) {
     if (ck.extra.contains("args") && ck.extra["args"].is_object() && ck.extra["args"].contains("num_heads"))
       hints["num_heads"] = ck.extra["args"]["num_heads"];
   }
-  finish_checkpoint(ck, raw, hints, path);
+  finish_checkpoint(ck, raw, hints, path, keep_weight_norm);
   return ck;
 }
 

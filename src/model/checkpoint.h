@@ -24,12 +24,16 @@ struct Checkpoint {
   std::string format;        // "pth" or "safetensors"
   nlohmann::json extra;      // stored training arguments / metadata, as plain data
   int folded_weight_norms = 0;
+  // With keep_weight_norm: the weight-norm tensors as stored (`...weight_g`, `...weight_v`,
+  // official names), so that training continues in the file's own parametrisation.
+  StateDict weight_norm;
 };
 
 // Reads a checkpoint file (format from its content, not its extension).
-Checkpoint read_checkpoint(const std::filesystem::path& path);
+Checkpoint read_checkpoint(const std::filesystem::path& path, bool keep_weight_norm = false);
 // A checkpoint from parsed safetensors (`path` names it in messages).
-Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const std::filesystem::path& path);
+Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const std::filesystem::path& path,
+                                      bool keep_weight_norm = false);
 
 // A Network of the checkpoint's architecture holding its weights.
 Network network_from_checkpoint(const Checkpoint& checkpoint, const std::string& source);
@@ -50,6 +54,7 @@ ModelConfig infer_config(const StateDict& state, const nlohmann::json& hints, co
 StateDict read_safetensors_tensors(const std::filesystem::path& path);
 
 // Key normalisation and weight-norm folding on a raw state dict (exposed for tests).
-StateDict normalize_state_dict(const StateDict& raw, int* folded = nullptr);
+// `weight_norm`, when given, receives the g and v tensors before folding.
+StateDict normalize_state_dict(const StateDict& raw, int* folded = nullptr, StateDict* weight_norm = nullptr);
 
 }  // namespace ii

@@ -1,7 +1,7 @@
 #pragma once
 // Architecture of the InstaInpaint network (spec §1). Presets: `release` is the published
 // 309M-parameter model; `tiny` is the official-layout parity fixture; `small` and `base`
-// are the sizes we train ourselves.
+// are the sizes we train ourselves; `mini` is the embedded default model's.
 #include <cstdint>
 #include <string>
 
@@ -25,7 +25,7 @@ struct ModelConfig {
   double encoder_ln_eps = 1e-6, ln_eps = 1e-5;
 
   static ModelConfig from_preset(const std::string& name);  // throws Error on unknown names
-  static const char* preset_names();                        // "release, base, small, tiny"
+  static const char* preset_names();                        // "release, base, small, mini, tiny"
 
   int head_dim() const { return embed_dim / heads; }
   int64_t parameter_count() const;  // including the inert cls token

@@ -109,9 +109,20 @@ void Network::load(const std::map<std::string, torch::Tensor>& state, const std:
 }
 
 void Network::to(const torch::Device& device) {
-  std::map<const void*, torch::Tensor> moved;
-  for (auto& [name, param] : params_) param = param.to(device);
-  // Re-point the structured views at the moved tensors.
+  std::vector<torch::Tensor> moved;
+  for (const auto& kv : params_) moved.push_back(kv.second.to(device));
+  set_parameters(moved);
+}
+
+void Network::set_parameters(const std::vector<torch::Tensor>& values) {
+  if (values.size() != params_.size())
+    fail("set_parameters: {} tensors given, the network has {}", values.size(), params_.size());
+  for (size_t k = 0; k < values.size(); ++k)
+    if (values[k].sizes() != params_[k].second.sizes())
+      fail("set_parameters: {} has shape [{}], needs [{}]", params_[k].first, fmt::join(values[k].sizes(), ", "),
+           fmt::join(params_[k].second.sizes(), ", "));
+  for (size_t k = 0; k < values.size(); ++k) params_[k].second = values[k];
+  // Re-point the structured views at the new tensors.
   size_t i = 0;
   proj_ = params_[i++].second;
   proj_plucker_ = params_[i++].second;
@@ -155,6 +166,61 @@ torch::Tensor unpatchify(const torch::Tensor& x, int views, int h, int w, int pa
       .reshape({B, views, channels, h * patch, w * patch});
 }
 
+namespace {
+
+// One pre-norm transformer block (spec §1.2 step 6). The Linear weights are already in the
+// compute dtype (fp32 or bf16); the residual stream stays fp32.
+torch::Tensor transformer_block(const torch::Tensor& x, const torch::Tensor& qkv_w, const torch::Tensor& proj_w,
+                                const torch::Tensor& fc1_w, const torch::Tensor& fc2_w, int64_t heads,
+                                double ln_eps, bool naive) {
+  const int64_t B = x.size(0), N = x.size(1), D = x.size(2), hd = D / heads;
+  auto linear = [](const torch::Tensor& in, const torch::Tensor& w) {
+    return torch::matmul(in.to(w.scalar_type()), w.t());
+  };
+  const torch::Tensor qkv = linear(torch::layer_norm(x, {D}, {}, {}, ln_eps), qkv_w)
+                                .reshape({B, N, 3, heads, hd})
+                                .permute({2, 0, 3, 1, 4});  // (3, B, heads, N, hd)
+  const torch::Tensor a = (naive ? naive_attention : attention)(qkv[0], qkv[1], qkv[2]).permute({0, 2, 1, 3}).reshape({B, N, D});
+  const torch::Tensor y = x + linear(a, proj_w).to(torch::kFloat32);
+  const torch::Tensor hidden = torch::gelu(linear(torch::layer_norm(y, {D}, {}, {}, ln_eps), fc1_w));
+  return y + linear(hidden, fc2_w).to(torch::kFloat32);
+}
+
+// A block that keeps only its inputs for the backward pass and runs itself again there
+// (activation checkpointing): memory per block drops from all activations to one (B, N, D).
+struct RecomputedBlock : torch::autograd::Function<RecomputedBlock> {
+  static torch::Tensor run(const torch::Tensor& x, const std::vector<torch::Tensor>& w, int64_t heads, double ln_eps,
+                           bool naive, bool bf16) {
+    auto cast = [&](const torch::Tensor& t) { return bf16 ? t.to(torch::kBFloat16) : t; };
+    return transformer_block(x, cast(w[0]), cast(w[1]), cast(w[2]), cast(w[3]), heads, ln_eps, naive);
+  }
+  static torch::Tensor forward(torch::autograd::AutogradContext* ctx, const torch::Tensor& x, const torch::Tensor& qkv,
+                               const torch::Tensor& proj, const torch::Tensor& fc1, const torch::Tensor& fc2,
+                               int64_t heads, double ln_eps, bool naive, bool bf16) {
+    ctx->save_for_backward({x, qkv, proj, fc1, fc2});
+    ctx->saved_data["heads"] = heads;
+    ctx->saved_data["ln_eps"] = ln_eps;
+    ctx->saved_data["naive"] = naive;
+    ctx->saved_data["bf16"] = bf16;
+    return run(x, {qkv, proj, fc1, fc2}, heads, ln_eps, naive, bf16);
+  }
+  static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
+                                                 torch::autograd::variable_list grad_output) {
+    std::vector<torch::Tensor> inputs;
+    for (const torch::Tensor& t : ctx->get_saved_variables()) inputs.push_back(t.detach().requires_grad_(true));
+    torch::Tensor y;
+    {
+      torch::AutoGradMode enable_grad(true);
+      y = run(inputs[0], {inputs[1], inputs[2], inputs[3], inputs[4]}, ctx->saved_data["heads"].toInt(),
+              ctx->saved_data["ln_eps"].toDouble(), ctx->saved_data["naive"].toBool(), ctx->saved_data["bf16"].toBool());
+    }
+    torch::autograd::variable_list g = torch::autograd::grad({y}, inputs, {grad_output[0]});
+    return {g[0], g[1], g[2], g[3], g[4], {}, {}, {}, {}};
+  }
+};
+
+}  // namespace
+
 NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor& plucker,
                                const torch::Tensor& rays_o, const torch::Tensor& rays_d_un,
                                Precision precision) const {
@@ -182,15 +248,15 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   out.encoder_tokens = torch::layer_norm(tokens.to(torch::kFloat32), {D}, {}, {}, config_.encoder_ln_eps);
 
   torch::Tensor x = out.encoder_tokens.reshape({B, V * hw, D});
-  const int64_t N = V * hw, heads = config_.heads, hd = D / heads;
+  const bool recompute = checkpoint_blocks_ && torch::GradMode::is_enabled();
   for (const Block& blk : blocks_) {
-    const torch::Tensor qkv = linear(torch::layer_norm(x, {D}, {}, {}, config_.ln_eps), blk.qkv, precision)
-                                  .reshape({B, N, 3, heads, hd})
-                                  .permute({2, 0, 3, 1, 4});  // (3, B, heads, N, hd)
-    const torch::Tensor a = (naive_attention_ ? naive_attention : attention)(qkv[0], qkv[1], qkv[2]).permute({0, 2, 1, 3}).reshape({B, N, D});
-    x = x + linear(a, blk.proj, precision).to(torch::kFloat32);
-    const torch::Tensor hidden = torch::gelu(linear(torch::layer_norm(x, {D}, {}, {}, config_.ln_eps), blk.fc1, precision));
-    x = x + linear(hidden, blk.fc2, precision).to(torch::kFloat32);
+    if (recompute)
+      x = RecomputedBlock::apply(x, blk.qkv, blk.proj, blk.fc1, blk.fc2, static_cast<int64_t>(config_.heads),
+                                 config_.ln_eps, naive_attention_, precision == Precision::BFloat16);
+    else
+      x = transformer_block(x, weight_for(blk.qkv, precision), weight_for(blk.proj, precision),
+                            weight_for(blk.fc1, precision), weight_for(blk.fc2, precision), config_.heads,
+                            config_.ln_eps, naive_attention_);
   }
   out.transformer_tokens = x;
 

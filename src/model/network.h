@@ -60,6 +60,12 @@ class Network {
 
   // Moves parameters (e.g. to CUDA); the bf16 weight cache is rebuilt lazily.
   void to(const torch::Device& device);
+  // Replaces the parameter tensors (order and shapes of named_parameters()), e.g. with
+  // weights computed from a training parametrisation, so gradients flow back into it.
+  void set_parameters(const std::vector<torch::Tensor>& values);
+  // Training memory: keep only each transformer block's input and recompute the block in
+  // the backward pass (the official `use_checkpoint`). Same values and gradients.
+  void set_activation_checkpointing(bool on) { checkpoint_blocks_ = on; }
   void set_requires_grad(bool requires_grad);
   // Use the textbook attention with the full score matrix (benchmark baseline only).
   void set_naive_attention(bool naive) { naive_attention_ = naive; }
@@ -82,6 +88,7 @@ class Network {
   std::vector<Block> blocks_;
   std::vector<Head> heads_;  // depth, rgb, opacity, scale, rotation
   bool naive_attention_ = false;
+  bool checkpoint_blocks_ = false;
   mutable std::map<const void*, torch::Tensor> bf16_cache_;  // keyed by the fp32 storage
 };
 

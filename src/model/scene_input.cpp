@@ -41,7 +41,7 @@ SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& opti
                                         : context_views_by_name(scene, options.context);
   for (int index : out.context) {
     const View& view = scene.views[index];
-    if (&view != &scene.views[out.context[0]] && !view.mask_path && !view.mask_from_alpha)
+    if (!options.keep_object && &view != &scene.views[out.context[0]] && !view.mask_path && !view.mask_from_alpha)
       fail("view {} has no object mask: give masks for every context view (--masks DIR or "
            "--alpha-masks)", view.name);
     out.views.push_back(prepare_view(view, options.preprocess));
@@ -49,7 +49,11 @@ SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& opti
 
   PreparedView& ref = out.views[0];
   const View& ref_view = scene.views[out.context[0]];
-  if (options.reference) {
+  if (options.keep_object) {
+    // Plain reconstruction: photos as they are, empty masks (the stage-1 input).
+    for (PreparedView& v : out.views) v.mask = Image(v.rgb.width, v.rgb.height, 1);
+    out.reference_source = "photo (object kept)";
+  } else if (options.reference) {
     ref.rgb = reference_at_working_size(*options.reference, ref_view, ref, options.preprocess);
     out.reference_source = options.reference->string();
   } else {

@@ -19,6 +19,9 @@ struct SceneInputOptions {
   // The 2D-inpainted reference image; absent = OpenCV Telea inpainting of the reference.
   std::optional<std::filesystem::path> reference;
   PreprocessOptions preprocess;
+  // Reconstruct the scene as captured: photos unmasked, mask channels zero, the reference's
+  // own photo (no masks needed; `reference` is ignored).
+  bool keep_object = false;
 };
 
 struct SceneInput {

@@ -30,6 +30,23 @@ TEST(SceneInput, StatueBuildsOfficialInputs) {
   EXPECT_LE(si.input.rays_o.abs().max().item<float>(), 1.0f + 1e-6f);
 }
 
+TEST(SceneInput, KeepObjectFeedsThePhotosUnmasked) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  Scene scene = load_scene(dir);
+  for (View& v : scene.views) v.mask_path.reset();  // no masks needed
+  SceneInputOptions opts;
+  opts.context = {"IMG_2720", "IMG_2707"};
+  opts.preprocess.height = 64;
+  opts.keep_object = true;
+  const SceneInput si = prepare_scene_input(scene, opts);
+  EXPECT_EQ(si.reference_source, "photo (object kept)");
+  EXPECT_EQ(si.input.images.narrow(1, 3, 1).abs().sum().item<float>(), 0.f);  // every mask channel zero
+  const PreparedView photo = prepare_view(*scene.find("IMG_2707"), opts.preprocess);
+  const torch::Tensor expected = torch::from_blob(const_cast<float*>(photo.rgb.pixels.data()), {64, 80, 3})
+                                     .permute({2, 0, 1}) * 2.0 - 1.0;
+  EXPECT_LT((si.input.images[1].narrow(0, 0, 3) - expected).abs().max().item<float>(), 1e-6f);
+}
+
 TEST(SceneInput, UserErrorsAreClear) {
   II_REQUIRE_SHARED(dir, "data/statue");
   const Scene scene = load_scene(dir);

@@ -1,0 +1,154 @@
+// `instainpaint eval`: the SPIn-NeRF evaluation protocol on one scene (library: eval/protocol.h).
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+
+#include "cli/commands.h"
+#include "cli/runtime.h"
+#include "eval/protocol.h"
+
+namespace ii::cli {
+
+namespace {
+
+struct EvalArgs {
+  std::string scene_dir;
+  SceneOptions scene;
+  std::string out = "eval-out";
+  std::string method = "model";
+  std::string checkpoint, gaussians, reference;
+  std::vector<std::string> context;
+  int views = 4;
+  int height = 512;
+  int sh_degree = 3;
+  std::string quantize = "round";
+  int ring_width = 8;
+  std::string lpips_vgg, lpips_alex, lpips_heads, inception;
+  std::string device = "auto";
+  bool no_report = false;
+  RuntimeOptions runtime;
+};
+
+std::optional<std::filesystem::path> optional_path(const std::string& s) {
+  if (s.empty()) return std::nullopt;
+  return std::filesystem::path(s);
+}
+
+std::string shown(const nlohmann::json& v, int decimals) {
+  if (v.is_number()) return fmt::format("{:.{}f}", v.get<double>(), decimals);
+  if (v.is_string()) return v.get<std::string>();
+  return "n/a";
+}
+
+void run(const EvalArgs& a) {
+  EvalOptions o;
+  o.precision = apply_runtime_options(a.runtime);
+  o.scene_dir = a.scene_dir;
+  o.scene = a.scene;
+  o.out = a.out;
+  o.method = parse_eval_method(a.method);
+  o.checkpoint = optional_path(a.checkpoint);
+  o.gaussians = optional_path(a.gaussians);
+  o.reference = optional_path(a.reference);
+  o.context = a.context;
+  o.num_views = a.views;
+  o.height = a.height;
+  o.sh_degree = a.sh_degree;
+  o.quantize = a.quantize;
+  o.ring_width = a.ring_width;
+  o.lpips_vgg = optional_path(a.lpips_vgg);
+  o.lpips_alex = optional_path(a.lpips_alex);
+  o.lpips_heads_dir = optional_path(a.lpips_heads);
+  o.inception = optional_path(a.inception);
+  o.device = a.device;
+  o.write_report = !a.no_report;
+  const nlohmann::json m = run_evaluation(o);
+
+  const nlohmann::json& mean = m["mean"];
+  fmt::print("{} ({}): {} test views\n", m["scene"].get<std::string>(), m["method"].get<std::string>(),
+             m["views"].size());
+  fmt::print("  PSNR {}  SSIM {}  masked PSNR {}  masked SSIM {}\n", shown(mean.value("psnr", nlohmann::json()), 2),
+             shown(mean.value("ssim", nlohmann::json()), 4), shown(mean.value("masked_psnr", nlohmann::json()), 2),
+             shown(mean.value("masked_ssim", nlohmann::json()), 4));
+  fmt::print("  LPIPS {}  masked LPIPS {}  FID {}  KID {}  C-FID {}  C-KID {}\n",
+             shown(mean.value("lpips", nlohmann::json()), 4), shown(mean.value("masked_lpips", nlohmann::json()), 4),
+             shown(m["set"].value("fid", nlohmann::json()), 2), shown(m["set"].value("kid", nlohmann::json()), 5),
+             shown(m["set"].value("c_fid", nlohmann::json()), 2), shown(m["set"].value("c_kid", nlohmann::json()), 5));
+  if (!m["unavailable"].empty()) {
+    std::string keys;
+    for (const auto& [k, reason] : m["unavailable"].items()) keys += (keys.empty() ? "" : ", ") + k;
+    fmt::print("  unavailable: {} (reasons in metrics.json)\n", keys);
+  }
+  fmt::print("wrote {}/metrics.json{}\n", a.out, a.no_report ? "" : fmt::format(", {}/report.html", a.out));
+}
+
+}  // namespace
+
+void add_eval_command(CLI::App& app) {
+  auto a = std::make_shared<EvalArgs>();
+  auto* cmd = app.add_subcommand(
+      "eval", "Evaluate on a SPIn-NeRF scene's object-free test views (PSNR, SSIM, LPIPS, FID, KID)");
+  add_scene_options(cmd, a->scene_dir, a->scene);
+  cmd->add_option("--out", a->out, "Output folder")->capture_default_str();
+  cmd->add_option("--method", a->method,
+                  "model: the Gaussians of --checkpoint or --gaussians; telea: each test view's mask filled by "
+                  "OpenCV Telea from its own ground truth; mean-fill: filled with the mean colour of a ring around "
+                  "the mask")
+      ->check(CLI::IsMember({"model", "telea", "mean-fill"}))
+      ->capture_default_str();
+  cmd->add_option("--checkpoint", a->checkpoint, "Model weights: official .pth or safetensors")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--gaussians", a->gaussians,
+                  "Splat PLY to evaluate instead of running a model, in the pose-normalised frame (as `infer` writes "
+                  "it: camera centres minus their mean over all views, divided by the largest offset)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--reference", a->reference,
+                  "The reference view with the object painted out by a 2D inpainter (default: OpenCV Telea)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--context", a->context, "Context views by name, reference first (default: automatic)")
+      ->delimiter(',');
+  cmd->add_option("--views", a->views, "Number of context views when chosen automatically")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
+  cmd->add_option("--height", a->height, "Working height: inputs and test views are resized to it (official: 512)")
+      ->capture_default_str()
+      ->check(CLI::Range(8, 4096));
+  cmd->add_option("--sh-degree", a->sh_degree, "Highest SH degree used from a --gaussians PLY")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 3));
+  cmd->add_option("--quantize", a->quantize,
+                  "Predictions to 8 bits before the metrics: round, truncate (as the official metric_output PNGs), "
+                  "none")
+      ->check(CLI::IsMember({"round", "truncate", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--ring-width", a->ring_width, "mean-fill: width in pixels of the ring around the mask")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
+  cmd->add_option("--lpips-vgg", a->lpips_vgg,
+                  "torchvision VGG16 ImageNet weights (vgg16-397923af.pth) for LPIPS; default $INSTAINPAINT_LPIPS_VGG");
+  cmd->add_option("--lpips-alex", a->lpips_alex,
+                  "torchvision AlexNet weights (alexnet-owt-7be5be79.pth), adds lpips_alex; default "
+                  "$INSTAINPAINT_LPIPS_ALEX");
+  cmd->add_option("--lpips-heads", a->lpips_heads, "Folder of the LPIPS heads (default: shared/data/lpips)")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--inception", a->inception,
+                  "pytorch-fid Inception weights (pt_inception-2015-12-05-6726825d.pth) for FID/KID/C-FID/C-KID; "
+                  "default $INSTAINPAINT_FID_INCEPTION");
+  cmd->add_option("--device", a->device, "Where rendering and the metric networks run")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda"}))
+      ->capture_default_str();
+  cmd->add_flag("--no-report", a->no_report, "Skip report.html and the contact sheets");
+  add_runtime_options(cmd, a->runtime);
+  cmd->footer(
+      "Test views are those of images_K/test_label/ (SPIn-NeRF layout); each is resized to --height rows,\n"
+      "centre-cropped to a multiple of 8, compared with the prediction quantised to 8 bits.\n"
+      "Writes OUT/metrics.json (per view and mean psnr, ssim, masked_psnr, masked_ssim, box_*, lpips,\n"
+      "masked_lpips; fid, kid, c_fid, c_kid; unavailable metrics with the reason; timings),\n"
+      "OUT/report.html, OUT/renders/<view>.png and OUT/sheets/<view>.png.\n"
+      "Example: instainpaint eval --scene spinnerf/book --checkpoint release.pth --reference book_inpainted.png \\\n"
+      "    --context 20220811_094244,20220811_094233,20220811_094251,20220811_094300 --out eval/book");
+  cmd->callback([a] { run(*a); });
+}
+
+}  // namespace ii::cli

@@ -1,0 +1,625 @@
+#include "eval/protocol.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include <fmt/core.h>
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+#include "common/error.h"
+#include "common/files.h"
+#include "common/stopwatch.h"
+#include "data/image_ops.h"
+#include "data/inpaint2d.h"
+#include "data/preprocess.h"
+#include "eval/fid.h"
+#include "eval/inception.h"
+#include "eval/lpips.h"
+#include "io/image.h"
+#include "io/ply.h"
+#include "model/checkpoint.h"
+#include "model/inference.h"
+#include "model/scene_input.h"
+#include "render/gaussians.h"
+#include "render/rasterizer.h"
+
+namespace ii {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr int kSheetPanelWidth = 480;        // contact-sheet panels are scaled down to this width
+constexpr float kErrorMapFullScale = 0.25f;  // mean absolute error shown as the top colour
+
+// JSON has no infinity: +inf (identical images' PSNR) is written as the string "inf", NaN
+// (a metric undefined for this view) as null.
+json number(double v) {
+  if (std::isnan(v)) return nullptr;
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  return v;
+}
+
+std::string format_number(double v, int decimals) {
+  if (std::isnan(v)) return "–";
+  if (std::isinf(v)) return v > 0 ? "∞" : "−∞";
+  return fmt::format("{:.{}f}", v, decimals);
+}
+
+std::string html_escape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+torch::Device pick_device(const std::string& name) {
+  if (name == "cpu") return torch::kCPU;
+  const bool cuda = torch::cuda::is_available();
+  if (name == "cuda") {
+    if (!cuda) fail("--device cuda: no CUDA device is available to LibTorch");
+    return torch::kCUDA;
+  }
+  if (name != "auto") fail("--device: unknown device '{}' (expected auto, cpu or cuda)", name);
+  return cuda ? torch::Device(torch::kCUDA) : torch::Device(torch::kCPU);
+}
+
+// Image (HWC float RGB) <-> 8-bit BGR cv::Mat, for drawing.
+cv::Mat to_bgr8(const Image& image) {
+  cv::Mat out(image.height, image.width, CV_8UC3);
+  for (int y = 0; y < image.height; ++y)
+    for (int x = 0; x < image.width; ++x)
+      for (int c = 0; c < 3; ++c)
+        out.at<cv::Vec3b>(y, x)[2 - c] = static_cast<uint8_t>(
+            std::lround(std::clamp(image.at(y, x, image.channels == 1 ? 0 : c), 0.f, 1.f) * 255.f));
+  return out;
+}
+
+Image from_bgr8(const cv::Mat& m) {
+  Image out(m.cols, m.rows, 3);
+  for (int y = 0; y < m.rows; ++y)
+    for (int x = 0; x < m.cols; ++x)
+      for (int c = 0; c < 3; ++c) out.at(y, x, c) = m.at<cv::Vec3b>(y, x)[2 - c] / 255.f;
+  return out;
+}
+
+cv::Mat mask_to_u8(const Image& mask) {
+  cv::Mat m(mask.height, mask.width, CV_8UC1);
+  for (int y = 0; y < mask.height; ++y)
+    for (int x = 0; x < mask.width; ++x) m.at<uint8_t>(y, x) = mask.at(y, x) > 0.5f ? 255 : 0;
+  return m;
+}
+
+// Mean absolute error over the channels, INFERNO colours (black = 0, yellow >= full scale).
+Image error_map(const Image& a, const Image& b) {
+  cv::Mat grey(a.height, a.width, CV_8UC1);
+  for (int y = 0; y < a.height; ++y)
+    for (int x = 0; x < a.width; ++x) {
+      float e = 0;
+      for (int c = 0; c < 3; ++c) e += std::abs(a.at(y, x, c) - b.at(y, x, c));
+      grey.at<uint8_t>(y, x) = static_cast<uint8_t>(std::lround(std::min(e / 3.f / kErrorMapFullScale, 1.f) * 255.f));
+    }
+  cv::Mat colour;
+  cv::applyColorMap(grey, colour, cv::COLORMAP_INFERNO);
+  return from_bgr8(colour);
+}
+
+Image with_mask_outline(const Image& image, const std::optional<Image>& mask) {
+  cv::Mat bgr = to_bgr8(image);
+  if (mask) {
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(mask_to_u8(*mask), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    const int thickness = std::max(1, image.height / 200);
+    cv::drawContours(bgr, contours, -1, cv::Scalar(0, 0, 255), thickness);  // red
+  }
+  return from_bgr8(bgr);
+}
+
+// Panels side by side, each scaled to kSheetPanelWidth (never up), white gaps.
+Image contact_sheet(const std::vector<Image>& panels) {
+  const int gap = 4;
+  std::vector<Image> scaled;
+  for (const Image& p : panels) {
+    const int w = std::min(p.width, kSheetPanelWidth);
+    const int h = std::max(1, static_cast<int>(std::lround(double(p.height) * w / p.width)));
+    scaled.push_back(w == p.width ? p : resize_area(p, w, h));
+  }
+  int width = gap * (static_cast<int>(scaled.size()) - 1), height = 0;
+  for (const Image& p : scaled) {
+    width += p.width;
+    height = std::max(height, p.height);
+  }
+  Image sheet(width, height, 3, 1.f);
+  int x0 = 0;
+  for (const Image& p : scaled) {
+    for (int y = 0; y < p.height; ++y)
+      for (int x = 0; x < p.width; ++x)
+        for (int c = 0; c < 3; ++c) sheet.at(y, x0 + x, c) = p.at(y, x, c);
+    x0 += p.width + gap;
+  }
+  return sheet;
+}
+
+Image image_from_hwc(const torch::Tensor& t) {
+  const torch::Tensor c = t.detach().to(torch::kCPU, torch::kFloat32).contiguous();
+  Image img(static_cast<int>(c.size(1)), static_cast<int>(c.size(0)), static_cast<int>(c.size(2)));
+  std::copy(c.data_ptr<float>(), c.data_ptr<float>() + c.numel(), img.pixels.begin());
+  return img;
+}
+
+// The metric networks: each either loaded or unavailable with the reason.
+struct MetricNetworks {
+  std::optional<Lpips> lpips_vgg, lpips_alex;
+  std::optional<InceptionFeatures> inception;
+  std::string lpips_vgg_reason, inception_reason;
+};
+
+std::optional<fs::path> heads_file(const EvalOptions& o, LpipsNet net) {
+  if (!o.lpips_heads_dir) return std::nullopt;
+  return *o.lpips_heads_dir / (std::string(lpips_net_name(net)) + ".safetensors");
+}
+
+MetricNetworks load_metric_networks(const EvalOptions& o, const torch::Device& device) {
+  MetricNetworks m;
+  // A file the user named (option or environment) that fails to load is an error; a file
+  // not named at all only makes the metric unavailable.
+  if (lpips_backbone_path(LpipsNet::vgg, o.lpips_vgg)) {
+    m.lpips_vgg.emplace(Lpips::load(LpipsNet::vgg, o.lpips_vgg, heads_file(o, LpipsNet::vgg)));
+    m.lpips_vgg->to(device);
+  } else {
+    m.lpips_vgg_reason = lpips_missing_backbone_message(LpipsNet::vgg);
+  }
+  if (lpips_backbone_path(LpipsNet::alex, o.lpips_alex)) {
+    m.lpips_alex.emplace(Lpips::load(LpipsNet::alex, o.lpips_alex, heads_file(o, LpipsNet::alex)));
+    m.lpips_alex->to(device);
+  }
+  if (auto file = inception_weights_path(o.inception)) {
+    m.inception.emplace(InceptionFeatures::load(*file));
+    m.inception->to(device);
+  } else {
+    m.inception_reason = inception_missing_message();
+  }
+  return m;
+}
+
+// The one place where evaluation gets its model.
+Network load_eval_model(const EvalOptions& o, json& info) {
+  if (!o.checkpoint)
+    fail(
+        "eval --method model needs a model: give --checkpoint CKPT (official .pth or safetensors) or "
+        "--gaussians PLY (splats in the pose-normalised frame, as `infer` writes them)");
+  const Checkpoint ck = read_checkpoint(*o.checkpoint);
+  info["checkpoint"] = o.checkpoint->string();
+  info["checkpoint_format"] = ck.format;
+  info["config"] = ck.config.to_json();
+  return network_from_checkpoint(ck, o.checkpoint->string());
+}
+
+GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const torch::Device& device, json& info,
+                              json& timings) {
+  Stopwatch watch;
+  if (o.gaussians) {
+    const SplatCloud cloud = read_splat_ply(*o.gaussians);
+    info["source"] = "gaussians";
+    info["ply"] = o.gaussians->string();
+    timings["read_gaussians_ms"] = watch.lap();
+    return gaussians_from_splats(cloud, o.sh_degree);
+  }
+  info["source"] = "network";
+  spdlog::info("loading the model");
+  Network net = load_eval_model(o, info);
+  net.to(device);
+  timings["load_model_ms"] = watch.lap();
+
+  SceneInputOptions opts;
+  opts.context = o.context;
+  opts.num_views = o.num_views;
+  opts.reference = o.reference;
+  opts.preprocess.height = o.height;
+  SceneInput si = prepare_scene_input(scene, opts);
+  for (torch::Tensor* t : {&si.input.images, &si.input.plucker, &si.input.rays_o, &si.input.rays_d_un})
+    *t = t->to(device);
+  check_model_fits_input(net.config(), si.input, o.checkpoint->string());
+  info["context"] = json::array();
+  for (const PreparedView& v : si.views) info["context"].push_back(v.name);
+  info["reference"] = si.reference_source;
+  timings["prepare_inputs_ms"] = watch.lap();
+
+  spdlog::info("running the network on {} context views ({})", si.views.size(), precision_name(o.precision));
+  const GaussianMaps maps = run_network(net, si.input, o.precision);
+  timings["network_ms"] = watch.lap();
+  GaussianSet g = gaussians_from_maps(maps);
+  for (torch::Tensor* t : {&g.means, &g.quats, &g.scales, &g.opacities, &g.colors})
+    *t = t->to(torch::kCPU, torch::kFloat32);
+  return g;
+}
+
+struct Averager {
+  double sum = 0;
+  int count = 0;
+  void add(double v) {
+    if (std::isnan(v)) return;
+    sum += v;
+    ++count;
+  }
+  double mean() const { return count ? sum / count : kNaN; }
+};
+
+FeatureMatrix to_matrix(const std::vector<std::vector<float>>& rows) {
+  FeatureMatrix m(static_cast<Eigen::Index>(rows.size()), rows.empty() ? 0 : static_cast<Eigen::Index>(rows[0].size()));
+  for (size_t i = 0; i < rows.size(); ++i)
+    for (size_t j = 0; j < rows[i].size(); ++j)
+      m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = rows[i][j];
+  return m;
+}
+
+std::vector<float> row_of(const torch::Tensor& features, int64_t i) {
+  const torch::Tensor r = features[i].to(torch::kFloat32).contiguous();
+  return std::vector<float>(r.data_ptr<float>(), r.data_ptr<float>() + r.numel());
+}
+
+// FID and KID of two feature sets into `set`, or the reason they cannot be computed.
+void distribution_metrics(const std::vector<std::vector<float>>& real, const std::vector<std::vector<float>>& fake,
+                          const std::string& fid_key, const std::string& kid_key, json& set, json& unavailable) {
+  if (real.size() < 2 || fake.size() < 2) {
+    const std::string reason = fmt::format("needs at least 2 images per set, have {} and {}", real.size(), fake.size());
+    set[fid_key] = nullptr;
+    set[kid_key] = nullptr;
+    unavailable[fid_key] = reason;
+    unavailable[kid_key] = reason;
+    return;
+  }
+  const FeatureMatrix x = to_matrix(real), y = to_matrix(fake);
+  set[fid_key] = number(frechet_distance(x, y));
+  KidOptions ko;
+  // With sets no larger than one subset every subset is the whole set: one suffices.
+  if (std::min(x.rows(), y.rows()) <= ko.subset_size) ko.subsets = 1;
+  const KidResult kid = kernel_inception_distance(x, y, ko);
+  set[kid_key] = number(kid.mean);
+  set[kid_key + "_std"] = number(kid.std);
+  set[kid_key + "_subsets"] = kid.subsets;
+  set[kid_key + "_subset_size"] = kid.subset_size;
+}
+
+std::string metric_cell(const json& v, int decimals) {
+  if (v.is_number()) return format_number(v.get<double>(), decimals);
+  if (v.is_string()) return v.get<std::string>() == "inf" ? "∞" : html_escape(v.get<std::string>());
+  return "–";
+}
+
+void write_report(const fs::path& out, const json& metrics) {
+  static const std::vector<std::pair<std::string, int>> columns = {
+      {"psnr", 2}, {"ssim", 4}, {"masked_psnr", 2}, {"masked_ssim", 4}, {"lpips", 4}, {"masked_lpips", 4}};
+  std::string h;
+  h += "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>instainpaint eval: " +
+       html_escape(metrics["scene"].get<std::string>()) + "</title>\n";
+  h += "<style>body{font-family:sans-serif;margin:1.5em}table{border-collapse:collapse}td,th{padding:3px 8px;"
+       "border-bottom:1px solid #ddd;text-align:right}th{background:#f4f4f4}img{max-width:100%}"
+       ".view{margin:1.5em 0}.note{color:#666;font-size:90%}</style></head><body>\n";
+  h += "<h1>" + html_escape(metrics["scene"].get<std::string>()) + "</h1>\n";
+  h += "<p>method <b>" + html_escape(metrics["method"].get<std::string>()) + "</b>, " +
+       std::to_string(metrics["views"].size()) + " test views at " +
+       std::to_string(metrics["working_size"][0].get<int>()) + "×" +
+       std::to_string(metrics["working_size"][1].get<int>()) +
+       ", predictions quantised: " + html_escape(metrics["quantize"].get<std::string>()) + "</p>\n";
+  h += "<h2>Summary</h2>\n<table><tr>";
+  for (const auto& [key, d] : columns) h += "<th>" + key + "</th>";
+  for (const char* key : {"fid", "kid", "c_fid", "c_kid"}) h += std::string("<th>") + key + "</th>";
+  h += "</tr>\n<tr>";
+  for (const auto& [key, d] : columns) h += "<td>" + metric_cell(metrics["mean"].value(key, json()), d) + "</td>";
+  for (const char* key : {"fid", "kid", "c_fid", "c_kid"})
+    h += "<td>" +
+         metric_cell(metrics["set"].value(key, json()), std::string(key).find("kid") != std::string::npos ? 5 : 2) +
+         "</td>";
+  h += "</tr></table>\n";
+  if (!metrics["unavailable"].empty()) {
+    h += "<p class=\"note\">Unavailable:</p><ul class=\"note\">";
+    for (const auto& [key, reason] : metrics["unavailable"].items())
+      h += "<li><b>" + html_escape(key) + "</b>: " + html_escape(reason.get<std::string>()) + "</li>";
+    h += "</ul>\n";
+  }
+  h += "<p class=\"note\">Each sheet: ground truth | prediction | error map (mean absolute error, black 0, yellow ≥ " +
+       fmt::format("{:.2f}", kErrorMapFullScale) + ") | prediction with the mask outline (red).</p>\n";
+  h += "<h2>Views</h2>\n";
+  for (const json& v : metrics["views"]) {
+    h += "<div class=\"view\"><h3>" + html_escape(v["name"].get<std::string>()) + "</h3><table><tr>";
+    for (const auto& [key, d] : columns) h += "<th>" + key + "</th>";
+    h += "</tr><tr>";
+    for (const auto& [key, d] : columns) h += "<td>" + metric_cell(v.value(key, json()), d) + "</td>";
+    h += "</tr></table>\n<img src=\"" + html_escape(v["files"]["sheet"].get<std::string>()) + "\" alt=\"" +
+         html_escape(v["name"].get<std::string>()) + "\"></div>\n";
+  }
+  h += "<h2>Timings</h2>\n<table>";
+  for (const auto& [key, ms] : metrics["timings"].items())
+    if (ms.is_number())
+      h += "<tr><th>" + html_escape(key) + "</th><td>" + fmt::format("{:.0f}", ms.get<double>()) + "</td></tr>";
+  h += "</table>\n</body></html>\n";
+  write_file_atomic(out / "report.html", h);
+}
+
+}  // namespace
+
+const char* eval_method_name(EvalMethod method) {
+  switch (method) {
+    case EvalMethod::model: return "model";
+    case EvalMethod::telea: return "telea";
+    case EvalMethod::mean_fill: return "mean-fill";
+  }
+  return "?";
+}
+
+EvalMethod parse_eval_method(const std::string& name) {
+  if (name == "model") return EvalMethod::model;
+  if (name == "telea") return EvalMethod::telea;
+  if (name == "mean-fill") return EvalMethod::mean_fill;
+  fail("--method: unknown method '{}' (expected model, telea or mean-fill)", name);
+}
+
+Image quantize_image(const Image& image, const std::string& mode) {
+  if (mode == "none") return image;
+  if (mode != "round" && mode != "truncate")
+    fail("--quantize: unknown mode '{}' (expected round, truncate or none)", mode);
+  Image out = image;
+  const bool round = mode == "round";
+  for (float& v : out.pixels) {
+    // The same expression as the PNG writer, so that a quantised image equals its PNG.
+    const float scaled = std::clamp(v, 0.f, 1.f) * 255.f;
+    v = static_cast<float>(round ? std::lround(scaled) : static_cast<long>(scaled)) / 255.f;
+  }
+  return out;
+}
+
+Image mean_fill(const Image& rgb, const Image& mask, int ring_width) {
+  if (mask.width != rgb.width || mask.height != rgb.height || mask.channels != 1)
+    fail("mean fill: the mask ({}x{}, {} channels) does not fit the {}x{} image", mask.width, mask.height,
+         mask.channels, rgb.width, rgb.height);
+  if (ring_width < 1) fail("mean fill: the ring width must be at least 1 pixel, got {}", ring_width);
+  const cv::Mat inside = mask_to_u8(mask);
+  cv::Mat dilated;
+  cv::dilate(inside, dilated,
+             cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * ring_width + 1, 2 * ring_width + 1)));
+  double sum[3] = {0, 0, 0};
+  int64_t count = 0;
+  for (int y = 0; y < rgb.height; ++y)
+    for (int x = 0; x < rgb.width; ++x)
+      if (dilated.at<uint8_t>(y, x) && !inside.at<uint8_t>(y, x)) {
+        for (int c = 0; c < 3; ++c) sum[c] += rgb.at(y, x, c);
+        ++count;
+      }
+  float fill[3] = {0.5f, 0.5f, 0.5f};
+  if (count > 0)
+    for (int c = 0; c < 3; ++c) fill[c] = static_cast<float>(sum[c] / count);
+  Image out = rgb;
+  for (int y = 0; y < rgb.height; ++y)
+    for (int x = 0; x < rgb.width; ++x)
+      if (inside.at<uint8_t>(y, x))
+        for (int c = 0; c < 3; ++c) out.at(y, x, c) = fill[c];
+  return out;
+}
+
+std::optional<PixelBox> crop_around_mask(const Image& mask) {
+  const auto box = mask_bounding_box(mask);
+  if (!box) return std::nullopt;
+  const int side = std::max(16, static_cast<int>(std::lround(1.2 * std::max(box->width(), box->height()))));
+  return grow_box(*box, side, side, mask.width, mask.height);
+}
+
+json run_evaluation(const EvalOptions& o) {
+  Stopwatch total, watch;
+  json timings = json::object();
+  json unavailable = json::object();
+  quantize_image(Image(1, 1, 1), o.quantize);  // validates the mode before any work
+  const torch::Device device = pick_device(o.device);
+  if (o.method == EvalMethod::model && o.checkpoint && o.gaussians)
+    fail("eval: give either --checkpoint or --gaussians, not both");
+  if (o.method != EvalMethod::model && (o.checkpoint || o.gaussians))
+    fail("eval --method {} fills the test views from their own ground truth: drop --checkpoint/--gaussians",
+         eval_method_name(o.method));
+
+  spdlog::info("reading scene {}", o.scene_dir.string());
+  const Scene scene = load_scene(o.scene_dir, o.scene);
+  for (const std::string& w : scene.warnings) spdlog::warn("{}", w);
+  if (scene.test_views.empty())
+    fail("{}: no object-free test views (SPIn-NeRF scenes list them by their masks in images_K/test_label/)",
+         o.scene_dir.string());
+  timings["read_scene_ms"] = watch.lap();
+
+  json prediction = {{"method", eval_method_name(o.method)}};
+  std::optional<GaussianSet> gaussians;
+  if (o.method == EvalMethod::model) {
+    json stage_timings = json::object();
+    gaussians = predict_gaussians(scene, o, device, prediction, stage_timings);
+    for (const auto& [k, v] : stage_timings.items()) timings[k] = v;
+    prediction["gaussians"] = gaussians->size();
+    if (device.is_cuda() && render_has_cuda()) gaussians = gaussians->to(device);
+    watch.lap();
+  }
+
+  const MetricNetworks nets = load_metric_networks(o, device);
+  if (!nets.lpips_vgg) {
+    unavailable["lpips"] = nets.lpips_vgg_reason;
+    unavailable["masked_lpips"] = nets.lpips_vgg_reason;
+  }
+  if (!nets.inception)
+    for (const char* k : {"fid", "kid", "c_fid", "c_kid"}) unavailable[k] = nets.inception_reason;
+  timings["load_metric_networks_ms"] = watch.lap();
+
+  const PoseNormalization normalization = scene_normalization(scene);
+  PreprocessOptions preprocess;
+  preprocess.height = o.height;
+  const fs::path out = o.out;
+  fs::create_directories(out / "renders");
+  if (o.write_report) fs::create_directories(out / "sheets");
+
+  json views = json::array();
+  std::map<std::string, Averager> means;
+  std::vector<std::vector<float>> real, fake, real_crops, fake_crops;
+  double predict_ms = 0, image_metrics_ms = 0, lpips_ms = 0, inception_ms = 0, write_ms = 0;
+  int working_width = 0, working_height = 0;
+  int index = 0;
+  for (const View& view : scene.test_views) {
+    ++index;
+    Stopwatch step;
+    PreparedView pv = prepare_view(view, preprocess);
+    const Image truth = o.quantize == "none" ? pv.rgb : quantize_image(pv.rgb, "round");
+    working_width = truth.width;
+    working_height = truth.height;
+
+    Image predicted;
+    if (o.method == EvalMethod::model) {
+      RenderCamera rc;
+      rc.camera = normalization.apply(pv.camera);
+      predicted = image_from_hwc(render(*gaussians, rc).rgb);
+    } else {
+      if (!pv.mask)
+        fail("{}: test view {} has no mask; --method {} fills the masked region", o.scene_dir.string(), view.name,
+             eval_method_name(o.method));
+      predicted =
+          o.method == EvalMethod::telea ? inpaint_telea(truth, *pv.mask) : mean_fill(truth, *pv.mask, o.ring_width);
+    }
+    predicted = quantize_image(predicted, o.quantize);
+    const double view_predict_ms = step.lap();
+    predict_ms += view_predict_ms;
+
+    json v = {{"name", view.name}};
+    const torch::Tensor a = image_to_tensor(predicted), b = image_to_tensor(truth);
+    torch::Tensor m;
+    if (pv.mask) m = image_to_tensor(*pv.mask);
+    auto put = [&](const std::string& key, double value) {
+      v[key] = number(value);
+      means[key].add(value);
+    };
+    {
+      torch::NoGradGuard no_grad;
+      put("psnr", psnr(a, b)[0].item<double>());
+      put("ssim", ssim(a, b)[0].item<double>());
+      if (pv.mask) {
+        put("masked_psnr", masked_psnr(a, b, m)[0].item<double>());
+        put("masked_ssim", masked_ssim(a, b, m)[0].item<double>());
+        put("box_psnr", box_psnr(a, b, m));
+        put("box_ssim", box_ssim(a, b, m));
+        v["mask_pixels"] = (m > 0.5).sum().item<int64_t>();
+      }
+      image_metrics_ms += step.lap();
+
+      if (nets.lpips_vgg || nets.lpips_alex) {
+        const torch::Tensor as = (a * 2 - 1).to(device), bs = (b * 2 - 1).to(device);
+        if (nets.lpips_vgg) {
+          put("lpips", nets.lpips_vgg->forward(as, bs)[0].item<double>());
+          if (pv.mask) put("masked_lpips", nets.lpips_vgg->masked(as, bs, m.to(device))[0].item<double>());
+        }
+        if (nets.lpips_alex) put("lpips_alex", nets.lpips_alex->forward(as, bs)[0].item<double>());
+        lpips_ms += step.lap();
+      }
+      if (nets.inception) {
+        const torch::Tensor pair = torch::cat({b, a}, 0);
+        const torch::Tensor f = nets.inception->forward(pair);
+        real.push_back(row_of(f, 0));
+        fake.push_back(row_of(f, 1));
+        if (pv.mask)
+          if (const auto box = crop_around_mask(*pv.mask)) {
+            const torch::Tensor fc = nets.inception->forward(crop_to_box(pair, *box));
+            real_crops.push_back(row_of(fc, 0));
+            fake_crops.push_back(row_of(fc, 1));
+          }
+        inception_ms += step.lap();
+      }
+    }
+
+    const std::string render_file = "renders/" + view.name + ".png";
+    write_png(out / render_file, predicted);
+    v["files"] = {{"render", render_file}};
+    if (o.write_report) {
+      const std::string sheet_file = "sheets/" + view.name + ".png";
+      write_png(out / sheet_file,
+                contact_sheet({truth, predicted, error_map(truth, predicted), with_mask_outline(predicted, pv.mask)}));
+      v["files"]["sheet"] = sheet_file;
+    }
+    write_ms += step.lap();
+    v["predict_ms"] = view_predict_ms;
+    spdlog::info("[{}/{}] {}: PSNR {} SSIM {}{}", index, scene.test_views.size(), view.name, metric_cell(v["psnr"], 2),
+                 metric_cell(v["ssim"], 4),
+                 pv.mask ? ", masked PSNR " + metric_cell(v["masked_psnr"], 2) : std::string());
+    views.push_back(std::move(v));
+  }
+  timings["predict_ms"] = predict_ms;
+  timings["image_metrics_ms"] = image_metrics_ms;
+  if (nets.lpips_vgg || nets.lpips_alex) timings["lpips_ms"] = lpips_ms;
+  if (nets.inception) timings["inception_ms"] = inception_ms;
+
+  json mean = json::object();
+  for (const char* key :
+       {"psnr", "ssim", "masked_psnr", "masked_ssim", "box_psnr", "box_ssim", "lpips", "masked_lpips", "lpips_alex"}) {
+    if (means.count(key))
+      mean[key] = number(means[key].mean());
+    else if (unavailable.contains(key))
+      mean[key] = nullptr;
+  }
+  if (!means.count("masked_psnr")) {
+    for (const char* key : {"masked_psnr", "masked_ssim"}) {
+      mean[key] = nullptr;
+      unavailable[key] = "no test view has a mask";
+    }
+  }
+
+  json set = json::object();
+  watch.lap();
+  if (nets.inception) {
+    distribution_metrics(real, fake, "fid", "kid", set, unavailable);
+    distribution_metrics(real_crops, fake_crops, "c_fid", "c_kid", set, unavailable);
+    timings["fid_kid_ms"] = watch.lap();
+  } else {
+    for (const char* k : {"fid", "kid", "c_fid", "c_kid"}) set[k] = nullptr;
+  }
+
+  json metrics = {
+      {"protocol", "spin-nerf"},
+      {"scene", scene.root.string()},
+      {"format", scene.format},
+      {"method", eval_method_name(o.method)},
+      {"prediction", prediction},
+      {"working_size", {working_width, working_height}},
+      {"quantize", o.quantize},
+      {"device", device.str()},
+      {"views", views},
+      {"mean", mean},
+      {"set", set},
+      {"unavailable", unavailable},
+      {"definitions",
+       {{"psnr", "-10 log10 MSE over all pixels and channels, images in [0,1]; \"inf\" for identical images"},
+        {"ssim", "Gaussian window 11, sigma 1.5, K1 0.01, K2 0.03, valid positions, mean over channels"},
+        {"masked_psnr", "PSNR over the pixels of the view's test mask"},
+        {"masked_ssim", "SSIM map averaged over valid positions whose centre is in the mask"},
+        {"box_psnr", "PSNR on the mask's bounding box"},
+        {"box_ssim", "SSIM on the mask's bounding box grown to at least 11x11"},
+        {"lpips",
+         "LPIPS v0.1 VGG, inputs in [-1,1], spatial average per stage (the official helper averages the upsampled "
+         "spatial map: the same value when the sides are multiples of 16)"},
+        {"masked_lpips", "both images multiplied by the mask, spatial LPIPS map averaged over the mask"},
+        {"fid", "Frechet distance of pytorch-fid Inception-v3 pool features, ground truth vs predictions"},
+        {"kid", "unbiased MMD^2, kernel (x.y/2048 + 1)^3"},
+        {"c_fid", "FID on square crops around the mask (1.2 x the box's longer side)"},
+        {"c_kid", "KID on the same crops"}}},
+      {"timings", timings}};
+
+  watch.lap();
+  if (o.write_report) write_report(out, metrics);
+  metrics["timings"]["write_outputs_ms"] = write_ms + watch.lap();
+  metrics["timings"]["total_ms"] = total.ms();
+  write_file_atomic(out / "metrics.json", metrics.dump(2) + "\n");
+  return metrics;
+}
+
+}  // namespace ii

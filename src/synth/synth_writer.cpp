@@ -1,0 +1,279 @@
+#include "synth/synth_writer.h"
+
+#include <algorithm>
+#include <deque>
+#include <future>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include <spdlog/spdlog.h>
+
+#include "common/error.h"
+#include "common/stopwatch.h"
+#include "common/files.h"
+#include "io/image.h"
+#include "io/npy.h"
+#include "io/ply.h"
+#include "synth/random.h"
+
+namespace ii::synth {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr uint64_t kReferenceStream = 99;
+
+// Runs file writes on background threads while the next view renders (PNG encoding and the
+// atomic writes' fsync), at most `limit` at a time; rethrows the first failure.
+class BackgroundWrites {
+ public:
+  explicit BackgroundWrites(size_t limit) : limit_(limit) {}
+  ~BackgroundWrites() {
+    for (auto& f : pending_)
+      if (f.valid()) f.wait();
+  }
+  void add(std::function<void()> job) {
+    while (pending_.size() >= limit_) {
+      pending_.front().get();
+      pending_.pop_front();
+    }
+    pending_.push_back(std::async(std::launch::async, std::move(job)));
+  }
+  void finish() {
+    while (!pending_.empty()) {
+      pending_.front().get();
+      pending_.pop_front();
+    }
+  }
+
+ private:
+  size_t limit_;
+  std::deque<std::future<void>> pending_;
+};
+
+// float32 (H, W) array.
+void write_depth(const fs::path& path, const Image& depth) {
+  NpyArray array;
+  array.dtype = "f4";
+  array.shape = {depth.height, depth.width};
+  array.data.resize(depth.pixels.size() * sizeof(float));
+  std::memcpy(array.data.data(), depth.pixels.data(), array.data.size());
+  write_npy(path, array);
+}
+
+// Depth bounds of a view for poses_bounds.npy: a margin around the depths it sees.
+std::pair<double, double> depth_bounds(const Image& depth) {
+  double lo = std::numeric_limits<double>::infinity(), hi = 0;
+  for (float z : depth.pixels)
+    if (z > 0) {
+      lo = std::min<double>(lo, z);
+      hi = std::max<double>(hi, z);
+    }
+  if (!(hi > 0)) return {0.1, 10.0};
+  return {0.9 * lo, 1.1 * hi};
+}
+
+// Pre-activation splat values (3DGS PLY) of RGB Gaussians.
+SplatCloud to_splat_cloud(const GaussianSet& g) {
+  constexpr double kShC0 = 0.28209479177387814;
+  auto values = [](const torch::Tensor& t) {
+    const torch::Tensor c = t.to(torch::kFloat32).contiguous();
+    return std::vector<float>(c.data_ptr<float>(), c.data_ptr<float>() + c.numel());
+  };
+  SplatCloud cloud;
+  cloud.means = values(g.means);
+  cloud.normals.assign(cloud.means.size(), 0.f);
+  cloud.sh_dc = values((g.colors - 0.5) / kShC0);
+  cloud.opacity_logit = values(torch::logit(g.opacities.reshape({-1}).clamp(1e-6, 1 - 1e-6)));
+  cloud.log_scales = values(g.scales.clamp_min(1e-12).log());
+  cloud.rotations = values(g.quats);
+  return cloud;
+}
+
+// An existing target may be replaced only if it is an earlier synthetic scene or empty.
+void check_replaceable(const fs::path& dir) {
+  if (!fs::exists(dir)) return;
+  if (!fs::is_directory(dir)) fail_file(dir, "exists and is not a folder");
+  if (!fs::exists(dir / "synth.json") && !fs::is_empty(dir))
+    fail_file(dir, "exists and is not a synthetic scene (no synth.json): not overwriting it");
+}
+
+// Removes the partial folder when writing fails half-way.
+struct PartialFolder {
+  fs::path path;
+  bool done = false;
+  ~PartialFolder() {
+    std::error_code ignored;
+    if (!done) fs::remove_all(path, ignored);
+  }
+};
+
+}  // namespace
+
+std::array<double, 17> llff_pose_row(const Camera& camera, int downscale, double near, double far) {
+  std::array<double, 17> row{};
+  const Eigen::Matrix4d& c2w = camera.c2w;
+  for (int r = 0; r < 3; ++r) {
+    // OpenGL columns (right, up, back) -> LLFF (down, right, back).
+    row[r * 5 + 0] = -c2w(r, 1);
+    row[r * 5 + 1] = c2w(r, 0);
+    row[r * 5 + 2] = c2w(r, 2);
+    row[r * 5 + 3] = c2w(r, 3);
+  }
+  row[0 * 5 + 4] = double(camera.K.height) * downscale;
+  row[1 * 5 + 4] = double(camera.K.width) * downscale;
+  row[2 * 5 + 4] = camera.K.fx * downscale;
+  row[15] = near;
+  row[16] = far;
+  return row;
+}
+
+SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir, const SynthWriteOptions& options) {
+  if (options.downscale < 1) fail("synth: downscale must be at least 1 (got {})", options.downscale);
+  fs::path target = dir.lexically_normal();
+  if (target.filename().empty()) target = target.parent_path();  // "scene/"
+  if (target.empty()) fail("synth: empty output folder name");
+  check_replaceable(target);
+  PartialFolder partial_guard{target.parent_path() / (target.filename().string() + ".partial")};
+  const fs::path& partial = partial_guard.path;
+  fs::remove_all(partial);
+  const std::string image_folder = "images_" + std::to_string(options.downscale);
+  const fs::path images = partial / image_folder;
+  for (const fs::path& p : {images / "label", images / "test_label", partial / "clean"}) fs::create_directories(p);
+  if (options.write_depth) fs::create_directories(partial / "depth");
+
+  SynthRenderer renderer(scene);
+  Stopwatch total_watch;
+  double render_ms = 0;
+  const int total = static_cast<int>(scene.test_views.size() + scene.views.size());
+  int done = 0;
+  std::vector<double> rows;  // poses_bounds.npy, in name-sorted order: test views first
+  auto add_row = [&](const Camera& camera, const Image& depth) {
+    const auto [near, far] = depth_bounds(depth);
+    const auto row = llff_pose_row(camera, options.downscale, near, far);
+    rows.insert(rows.end(), row.begin(), row.end());
+  };
+
+  BackgroundWrites writes(8);
+  for (const NamedCamera& view : scene.test_views) {
+    Stopwatch render_watch;
+    auto r = std::make_shared<const SynthViewImages>(renderer.render(view.camera, false));
+    render_ms += render_watch.ms();
+    add_row(view.camera, r->clean_depth);
+    const std::string file = view.name + ".png";
+    writes.add([=] { write_png(images / file, r->clean); });
+    writes.add([=] { write_png(images / "test_label" / file, r->mask); });
+    writes.add([=] { write_png(partial / "clean" / file, r->clean); });
+    if (options.write_depth)
+      writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), r->clean_depth); });
+    if (options.progress) options.progress(++done, total);
+  }
+
+  SynthWriteSummary summary;
+  nlohmann::json fractions = nlohmann::json::object();
+  std::shared_ptr<const SynthViewImages> reference_view;
+  for (size_t k = 0; k < scene.views.size(); ++k) {
+    const NamedCamera& view = scene.views[k];
+    Stopwatch render_watch;
+    auto r = std::make_shared<const SynthViewImages>(renderer.render(view.camera, true));
+    render_ms += render_watch.ms();
+    add_row(view.camera, r->depth);
+    double covered = 0;
+    for (float m : r->mask.pixels) covered += m;
+    const double fraction = covered / r->mask.pixels.size();
+    fractions[view.name] = fraction;
+    summary.object_fraction += fraction / scene.views.size();
+    if (static_cast<int>(k) == scene.reference) reference_view = r;
+    const std::string file = view.name + ".png";
+    writes.add([=] { write_png(images / file, r->with_object); });
+    writes.add([=] { write_png(images / "label" / file, r->mask); });
+    writes.add([=] { write_png(partial / "clean" / file, r->clean); });
+    if (options.write_depth)
+      writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), r->depth); });
+    if (options.progress) options.progress(++done, total);
+  }
+  writes.finish();
+  write_npy(partial / "poses_bounds.npy", rows, {static_cast<int64_t>(total), 17});
+
+  const Image reference = degrade_reference(reference_view->clean, reference_view->with_object, reference_view->mask,
+                                            options.degrade,
+                                            mix_seed(scene.seed, kReferenceStream), &summary.degradation);
+  write_png(partial / "reference.png", reference);
+
+  std::vector<NamedCamera> cameras = scene.test_views;
+  cameras.insert(cameras.end(), scene.views.begin(), scene.views.end());
+  write_camera_json(partial / "cameras.json", cameras);
+
+  if (options.save_gaussians) {
+    write_splat_ply(partial / "background.ply", to_splat_cloud(scene.background));
+    write_splat_ply(partial / "object.ply", to_splat_cloud(scene.object));
+  }
+
+  summary.views = static_cast<int>(scene.views.size());
+  summary.test_views = static_cast<int>(scene.test_views.size());
+  summary.reference = scene.views.at(scene.reference).name;
+  nlohmann::json names = nlohmann::json::array(), test_names = nlohmann::json::array(),
+                 context = nlohmann::json::array();
+  for (const NamedCamera& v : scene.views) names.push_back(v.name);
+  for (const NamedCamera& v : scene.test_views) test_names.push_back(v.name);
+  for (int i : scene.context) context.push_back(scene.views.at(i).name);
+  const Intrinsics& K = scene.views.front().camera.K;
+  nlohmann::json depth_info = nullptr;  // null: not written
+  if (options.write_depth)
+    depth_info = {{"folder", "depth"},
+                  {"encoding", "<view name>.npy, float32 (H, W)"},
+                  {"content", "expected camera z of the image in image_folder, scene units (0: nothing hit)"}};
+  nlohmann::json j = {
+      {"format", "instainpaint-synth"},
+      {"version", 1},
+      {"seed", scene.seed},
+      {"generator", options.generator},
+      {"width", K.width},
+      {"height", K.height},
+      {"intrinsics", {{"fx", K.fx}, {"fy", K.fy}, {"cx", K.cx}, {"cy", K.cy}, {"fov_y_deg", K.fov_y() * 180 / M_PI}}},
+      {"image_folder", image_folder},
+      {"views", names},
+      {"test_views", test_names},
+      {"reference", summary.reference},
+      {"reference_image", "reference.png"},
+      {"reference_degradation", summary.degradation},
+      {"context", context},
+      {"clean_folder", "clean"},
+      {"depth", depth_info},
+      {"mask",
+       {{"rule", "object weight (sum of the object's alpha*transmittance in the with-object render) >= threshold"},
+        {"threshold", kMaskWeightThreshold},
+        {"max_difference_outside", kMaskWeightThreshold + kEarlyStopSlack}}},
+      {"object_fraction", fractions},
+      {"object_bounds",
+       {{"centre", {scene.object_centre.x(), scene.object_centre.y(), scene.object_centre.z()}},
+        {"radius", scene.object_radius}}},
+      {"scene", scene.description},
+  };
+  write_file_atomic(partial / "synth.json", j.dump(1) + "\n");
+
+  spdlog::debug("{}: rendering {:.0f} ms, the rest {:.0f} ms", target.string(), render_ms,
+                total_watch.ms() - render_ms);
+  check_replaceable(target);
+  fs::remove_all(target);
+  fs::rename(partial, target);
+  partial_guard.done = true;
+  return summary;
+}
+
+nlohmann::json read_synth_json(const fs::path& scene_dir) {
+  const fs::path file = scene_dir / "synth.json";
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(read_file_text(file));
+  } catch (const nlohmann::json::exception& e) {
+    fail_file(file, "not valid JSON: {}", e.what());
+  }
+  if (!j.is_object() || j.value("format", "") != "instainpaint-synth")
+    fail_file(file, "not a synthetic scene description (format is not instainpaint-synth)");
+  return j;
+}
+
+}  // namespace ii::synth

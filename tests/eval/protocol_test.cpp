@@ -1,0 +1,298 @@
+// The SPIn-NeRF protocol end to end on a synthetic scene with exact ground truth: a perfect
+// prediction scores infinite PSNR and SSIM 1, an empty one the analytic value, a shifted one
+// what its own renders give, and the two baselines what their definitions give.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+
+#include <nlohmann/json.hpp>
+
+#include "common/files.h"
+#include "eval/lpips.h"
+#include "eval/protocol.h"
+#include "synthetic_scene.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+const fs::path& scene_dir() {
+  static const fs::path dir = [] {
+    const fs::path d = test::temp_dir("eval-scene") / "scene";
+    test::write_scene(d);
+    return d;
+  }();
+  return dir;
+}
+
+// Metric weights come only from what a test passes.
+class Protocol : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    for (const char* v : {"INSTAINPAINT_LPIPS_VGG", "INSTAINPAINT_LPIPS_ALEX", "INSTAINPAINT_FID_INCEPTION"})
+      unsetenv(v);
+  }
+  EvalOptions options(const std::string& tag) const {
+    EvalOptions o;
+    o.scene_dir = scene_dir();
+    o.out = test::temp_dir("eval-" + tag);
+    o.height = test::kSceneHeight;
+    o.device = "cpu";
+    return o;
+  }
+};
+
+bool in_mask(int y, int x) {
+  return y >= test::kMaskY0 && y < test::kMaskY1 && x >= test::kMaskX0 && x < test::kMaskX1;
+}
+
+struct Errors {
+  double mse = 0, masked_mse = 0;
+};
+// Mean squared errors of `predicted` against a view's ground-truth file, in double.
+Errors errors_against_truth(const View& view, const Image& predicted) {
+  const Image truth = load_view_image(view);
+  double sum = 0, masked = 0;
+  int masked_count = 0;
+  for (int y = 0; y < truth.height; ++y)
+    for (int x = 0; x < truth.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double d = double(truth.at(y, x, c)) - predicted.at(y, x, c);
+        sum += d * d;
+        if (in_mask(y, x)) {
+          masked += d * d;
+          ++masked_count;
+        }
+      }
+  return {sum / (truth.width * truth.height * 3), masked / masked_count};
+}
+
+double psnr_of(double mse) { return -10 * std::log10(mse); }
+
+TEST_F(Protocol, PerfectPredictionScoresInfinity) {
+  EvalOptions o = options("perfect");
+  o.gaussians = scene_dir() / "truth.ply";
+  const json m = run_evaluation(o);
+
+  ASSERT_EQ(m["views"].size(), 2u);
+  EXPECT_EQ(m["views"][0]["name"], "00_test");
+  EXPECT_EQ(m["views"][1]["name"], "01_test");
+  EXPECT_EQ(m["working_size"], json::array({test::kSceneWidth, test::kSceneHeight}));
+  for (const json& v : m["views"]) {
+    EXPECT_EQ(v["psnr"], "inf");
+    EXPECT_EQ(v["masked_psnr"], "inf");
+    EXPECT_EQ(v["box_psnr"], "inf");
+    EXPECT_NEAR(v["ssim"].get<double>(), 1.0, 1e-6);
+    EXPECT_NEAR(v["masked_ssim"].get<double>(), 1.0, 1e-6);
+    EXPECT_EQ(v["mask_pixels"], (test::kMaskX1 - test::kMaskX0) * (test::kMaskY1 - test::kMaskY0));
+  }
+  EXPECT_EQ(m["mean"]["psnr"], "inf");
+  EXPECT_NEAR(m["mean"]["ssim"].get<double>(), 1.0, 1e-6);
+  EXPECT_EQ(m["prediction"]["source"], "gaussians");
+  EXPECT_EQ(m["prediction"]["gaussians"], 71 * 51);
+
+  // Without weights, LPIPS and FID/KID are reported unavailable with the reason.
+  EXPECT_TRUE(m["mean"]["lpips"].is_null());
+  EXPECT_EQ(m["unavailable"]["lpips"], lpips_missing_backbone_message(LpipsNet::vgg));
+  EXPECT_EQ(m["unavailable"]["masked_lpips"], lpips_missing_backbone_message(LpipsNet::vgg));
+  for (const char* k : {"fid", "kid", "c_fid", "c_kid"}) {
+    EXPECT_TRUE(m["set"][k].is_null()) << k;
+    EXPECT_TRUE(m["unavailable"][k].get<std::string>().rfind("FID/KID need pytorch-fid's Inception-v3", 0) == 0) << k;
+  }
+  for (const char* k : {"read_scene_ms", "read_gaussians_ms", "predict_ms", "image_metrics_ms", "total_ms"})
+    EXPECT_TRUE(m["timings"][k].is_number()) << k;
+
+  // Files: metrics.json is what was returned; the renders equal the ground truth; the
+  // report shows every view's sheet (4 panels with 4-pixel gaps).
+  EXPECT_EQ(json::parse(read_file_text(o.out / "metrics.json")), m);
+  const Scene scene = load_scene(scene_dir());
+  for (const View& v : scene.test_views) {
+    EXPECT_EQ(read_image_rgb(o.out / "renders" / (v.name + ".png")).pixels, load_view_image(v).pixels);
+    const ImageInfo sheet = probe_image(o.out / "sheets" / (v.name + ".png"));
+    EXPECT_EQ(sheet.width, 4 * test::kSceneWidth + 3 * 4);
+    EXPECT_EQ(sheet.height, test::kSceneHeight);
+  }
+  const std::string html = read_file_text(o.out / "report.html");
+  EXPECT_NE(html.find("sheets/00_test.png"), std::string::npos);
+  EXPECT_NE(html.find("sheets/01_test.png"), std::string::npos);
+}
+
+TEST_F(Protocol, EmptyPredictionScoresTheWhiteBackground) {
+  // Every splat moved behind the cameras: the renders are the white background.
+  const fs::path ply = test::temp_dir("eval-empty-ply") / "behind.ply";
+  write_splat_ply(ply, test::wall_of_splats(0.f, 10.f));
+  EvalOptions o = options("empty");
+  o.gaussians = ply;
+  const json m = run_evaluation(o);
+  const Scene scene = load_scene(scene_dir());
+  for (size_t i = 0; i < scene.test_views.size(); ++i) {
+    const Errors e = errors_against_truth(scene.test_views[i], Image(test::kSceneWidth, test::kSceneHeight, 3, 1.f));
+    EXPECT_NEAR(m["views"][i]["psnr"].get<double>(), psnr_of(e.mse), 1e-3);
+    EXPECT_NEAR(m["views"][i]["masked_psnr"].get<double>(), psnr_of(e.masked_mse), 1e-3);
+  }
+}
+
+TEST_F(Protocol, ShiftedPredictionScoresItsOwnRenders) {
+  const fs::path ply = test::temp_dir("eval-shift-ply") / "shifted.ply";
+  const SplatCloud shifted = test::wall_of_splats(0.15f);
+  write_splat_ply(ply, shifted);
+  EvalOptions o = options("shifted");
+  o.gaussians = ply;
+  const json m = run_evaluation(o);
+  const Scene scene = load_scene(scene_dir());
+  double mean = 0;
+  for (size_t i = 0; i < scene.test_views.size(); ++i) {
+    const View& v = scene.test_views[i];
+    const Image predicted = quantize_image(test::render_view(scene, v, shifted), "round");
+    const Errors e = errors_against_truth(v, predicted);
+    ASSERT_GT(e.mse, 0);
+    EXPECT_NEAR(m["views"][i]["psnr"].get<double>(), psnr_of(e.mse), 1e-3) << v.name;
+    EXPECT_NEAR(m["views"][i]["masked_psnr"].get<double>(), psnr_of(e.masked_mse), 1e-3) << v.name;
+    EXPECT_LT(m["views"][i]["ssim"].get<double>(), 0.999);
+    mean += psnr_of(e.mse) / 2;
+  }
+  EXPECT_NEAR(m["mean"]["psnr"].get<double>(), mean, 1e-3);
+}
+
+TEST_F(Protocol, MeanFillBaseline) {
+  EvalOptions o = options("mean-fill");
+  o.method = EvalMethod::mean_fill;
+  o.ring_width = 3;
+  const json m = run_evaluation(o);
+  EXPECT_EQ(m["method"], "mean-fill");
+  const Scene scene = load_scene(scene_dir());
+  for (size_t i = 0; i < scene.test_views.size(); ++i) {
+    const Image truth = load_view_image(scene.test_views[i]);
+    // The ring: pixels within 3 (Chebyshev) of the mask rectangle, outside it.
+    double sum[3] = {0, 0, 0};
+    int count = 0;
+    for (int y = test::kMaskY0 - 3; y < test::kMaskY1 + 3; ++y)
+      for (int x = test::kMaskX0 - 3; x < test::kMaskX1 + 3; ++x)
+        if (!in_mask(y, x)) {
+          for (int c = 0; c < 3; ++c) sum[c] += truth.at(y, x, c);
+          ++count;
+        }
+    Image expected = truth;
+    for (int y = test::kMaskY0; y < test::kMaskY1; ++y)
+      for (int x = test::kMaskX0; x < test::kMaskX1; ++x)
+        for (int c = 0; c < 3; ++c) expected.at(y, x, c) = std::lround(sum[c] / count * 255) / 255.f;
+    const Errors e = errors_against_truth(scene.test_views[i], expected);
+    EXPECT_NEAR(m["views"][i]["psnr"].get<double>(), psnr_of(e.mse), 1e-3);
+    EXPECT_NEAR(m["views"][i]["masked_psnr"].get<double>(), psnr_of(e.masked_mse), 1e-3);
+    EXPECT_EQ(read_image_rgb(o.out / "renders" / (scene.test_views[i].name + ".png")).pixels, expected.pixels);
+  }
+}
+
+TEST_F(Protocol, TeleaBaselineChangesOnlyTheMask) {
+  EvalOptions o = options("telea");
+  o.method = EvalMethod::telea;
+  const json m = run_evaluation(o);
+  const Scene scene = load_scene(scene_dir());
+  for (size_t i = 0; i < scene.test_views.size(); ++i) {
+    const Image truth = load_view_image(scene.test_views[i]);
+    const Image filled = read_image_rgb(o.out / "renders" / (scene.test_views[i].name + ".png"));
+    double outside = 0;
+    for (int y = 0; y < truth.height; ++y)
+      for (int x = 0; x < truth.width; ++x)
+        if (!in_mask(y, x))
+          for (int c = 0; c < 3; ++c) outside += std::abs(truth.at(y, x, c) - filled.at(y, x, c));
+    EXPECT_EQ(outside, 0.0);
+    const double psnr = m["views"][i]["psnr"].get<double>(), masked = m["views"][i]["masked_psnr"].get<double>();
+    EXPECT_TRUE(std::isfinite(psnr));
+    // All the error lies in the mask, 256 of the 3072 pixels.
+    EXPECT_NEAR(psnr, masked + 10 * std::log10(3072.0 / 256.0), 1e-3);
+  }
+}
+
+TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
+  // The tiny official-layout model (random weights): checks the whole model path, not quality.
+  II_REQUIRE_SHARED(checkpoint, "fixtures/official-tiny/checkpoint.pth");
+  EvalOptions o = options("network");
+  o.checkpoint = checkpoint;
+  o.context = {"03", "02", "04", "05"};
+  const json m = run_evaluation(o);
+  EXPECT_EQ(m["prediction"]["source"], "network");
+  EXPECT_EQ(m["prediction"]["checkpoint"], checkpoint.string());
+  EXPECT_EQ(m["prediction"]["context"], json::array({"03", "02", "04", "05"}));
+  EXPECT_EQ(m["prediction"]["reference"], "telea");
+  EXPECT_EQ(m["prediction"]["gaussians"], 4 * test::kSceneWidth * test::kSceneHeight);
+  for (const char* k : {"load_model_ms", "prepare_inputs_ms", "network_ms", "predict_ms"})
+    EXPECT_TRUE(m["timings"][k].is_number()) << k;
+  for (const json& v : m["views"]) {
+    EXPECT_TRUE(v["psnr"].is_number());
+    EXPECT_TRUE(v["masked_ssim"].is_number());
+  }
+}
+
+TEST_F(Protocol, BadRequestsNameTheProblem) {
+  EvalOptions o = options("errors");
+  EXPECT_EQ(test::error_message([&] { run_evaluation(o); }),
+            "eval --method model needs a model: give --checkpoint CKPT (official .pth or safetensors) or --gaussians "
+            "PLY (splats in the pose-normalised frame, as `infer` writes them)");
+  o.gaussians = scene_dir() / "truth.ply";
+  o.checkpoint = scene_dir() / "truth.ply";
+  EXPECT_EQ(test::error_message([&] { run_evaluation(o); }), "eval: give either --checkpoint or --gaussians, not both");
+  o.checkpoint.reset();
+  o.method = EvalMethod::telea;
+  EXPECT_EQ(test::error_message([&] { run_evaluation(o); }),
+            "eval --method telea fills the test views from their own ground truth: drop --checkpoint/--gaussians");
+  o.method = EvalMethod::model;
+  o.quantize = "floor";
+  EXPECT_EQ(test::error_message([&] { run_evaluation(o); }),
+            "--quantize: unknown mode 'floor' (expected round, truncate or none)");
+  o.quantize = "round";
+  o.lpips_vgg = "/nonexistent/vgg16.pth";
+  EXPECT_EQ(test::error_message([&] { run_evaluation(o); }),
+            "/nonexistent/vgg16.pth: no such file (LPIPS-vgg backbone weights)");
+
+  const fs::path no_tests = test::temp_dir("eval-no-tests") / "scene";
+  test::write_scene(no_tests, /*with_test_views=*/false);
+  EvalOptions p = options("no-tests");
+  p.scene_dir = no_tests;
+  p.gaussians = no_tests / "truth.ply";
+  EXPECT_EQ(test::error_message([&] { run_evaluation(p); }),
+            no_tests.string() +
+                ": no object-free test views (SPIn-NeRF scenes list them by their masks in "
+                "images_K/test_label/)");
+}
+
+TEST(MeanFill, FillsWithTheRingMean) {
+  Image rgb(6, 5, 3, 0.f), mask(6, 5, 1, 0.f);
+  mask.at(2, 2) = mask.at(2, 3) = 1;
+  for (int x = 0; x < 6; ++x) rgb.at(1, x, 0) = 0.9f;  // row 1 lies in the 1-pixel ring: 4 of its 10 pixels
+  const Image out = mean_fill(rgb, mask, 1);
+  EXPECT_NEAR(out.at(2, 2, 0), 0.9f * 4 / 10, 1e-6);
+  EXPECT_EQ(out.at(2, 2, 1), 0.f);
+  EXPECT_EQ(out.at(0, 0, 0), 0.f);
+  EXPECT_EQ(out.at(1, 0, 0), 0.9f);  // outside the mask: unchanged
+  EXPECT_EQ(test::error_message([&] { mean_fill(rgb, Image(3, 3, 1), 1); }),
+            "mean fill: the mask (3x3, 1 channels) does not fit the 6x5 image");
+}
+
+TEST(CropAroundMask, SquareCentredOnTheBox) {
+  Image mask(100, 60, 1);
+  for (int y = 20; y < 30; ++y)
+    for (int x = 40; x < 60; ++x) mask.at(y, x) = 1;
+  const auto box = crop_around_mask(mask);
+  ASSERT_TRUE(box);
+  EXPECT_EQ(box->width(), 24);  // 1.2 x 20
+  EXPECT_EQ(box->height(), 24);
+  EXPECT_EQ(box->x0, 38);
+  EXPECT_EQ(box->y0, 13);
+  EXPECT_FALSE(crop_around_mask(Image(10, 10, 1)));
+}
+
+TEST(Quantize, RoundTruncateNone) {
+  Image image(2, 1, 1);
+  image.pixels = {0.5f, 1.2f};
+  EXPECT_EQ(quantize_image(image, "round").pixels, (std::vector<float>{128 / 255.f, 1.f}));
+  EXPECT_EQ(quantize_image(image, "truncate").pixels, (std::vector<float>{127 / 255.f, 1.f}));
+  EXPECT_EQ(quantize_image(image, "none").pixels, image.pixels);
+}
+
+}  // namespace
+}  // namespace ii

@@ -1,0 +1,112 @@
+#pragma once
+// Small in-memory training samples for the optimisation tests: 4 input views and 2 targets
+// of 32x32 around the origin, contents a pure function of (seed, index), so tests can build
+// the same batch in several processes.
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <torch/torch.h>
+
+#include "model/config.h"
+#include "model/model_input.h"
+#include "render/trajectory.h"
+#include "train/sample.h"
+
+namespace ii::test {
+
+inline ModelConfig micro_config(int image_channels = 4) {
+  ModelConfig c = ModelConfig::from_preset("tiny");
+  c.heads = 4;
+  c.image_channels = image_channels;
+  return c;
+}
+
+inline Camera ring_camera(double angle, int size) {
+  Camera c;
+  c.K = Intrinsics::from_fov(size, size, M_PI / 3, M_PI / 3);
+  c.c2w = look_at(Eigen::Vector3d(2 * std::sin(angle), 0.3, 2 * std::cos(angle)), Eigen::Vector3d::Zero(),
+                  Eigen::Vector3d::UnitY());
+  return c;
+}
+
+// Smooth colour fields in [-1, 1]: a few low-frequency waves with random phases.
+inline torch::Tensor smooth_images(int64_t n, int64_t size, torch::Generator& gen) {
+  const torch::Tensor y = torch::linspace(0, 1, size).view({1, 1, size, 1});
+  const torch::Tensor x = torch::linspace(0, 1, size).view({1, 1, 1, size});
+  const torch::Tensor a = torch::rand({n, 3, 1, 1}, gen) * 6, b = torch::rand({n, 3, 1, 1}, gen) * 6;
+  const torch::Tensor phase = torch::rand({n, 3, 1, 1}, gen) * 6.283;
+  return 0.8 * torch::sin(a * x + b * y + phase);
+}
+
+inline TrainingSample tiny_sample(uint64_t seed, int64_t index, int size = 32, int targets = 2) {
+  torch::Generator gen = at::detail::createCPUGenerator(seed * 1000003 + static_cast<uint64_t>(index));
+  TrainingSample s;
+  const double base = 0.3 * static_cast<double>(index % 5);
+  for (int v = 0; v < 4; ++v) s.input.view_cameras.push_back(ring_camera(base + 0.25 * v, size));
+  for (int m = 0; m < targets; ++m) s.target_cameras.push_back(ring_camera(base + 0.1 + 0.3 * m, size));
+  compute_ray_tensors(s.input.view_cameras, s.input.rays_o, s.input.rays_d, s.input.rays_d_un, s.input.plucker);
+  torch::Tensor mask = torch::zeros({4, 1, size, size});
+  mask.slice(2, size / 4, size / 2).slice(3, size / 4, size / 2).fill_(1.0);
+  mask[0].zero_();  // the reference has no mask
+  const torch::Tensor rgb = smooth_images(4, size, gen) * (1 - mask);
+  s.input.images = torch::cat({rgb, mask}, 1);
+  s.target_images = smooth_images(targets, size, gen);
+  s.scene = "tiny_" + std::to_string(index);
+  return s;
+}
+
+inline std::vector<TrainingSample> tiny_batch(uint64_t seed, int64_t first, int count, int stride = 1) {
+  std::vector<TrainingSample> batch;
+  for (int i = 0; i < count; ++i) batch.push_back(tiny_sample(seed, first + i * stride));
+  return batch;
+}
+
+}  // namespace ii::test
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <map>
+
+namespace ii::test {
+
+// Runs this test executable again as a worker process with extra environment variables
+// (its static worker hook acts on them before any test runs); returns the wait status.
+inline int run_self_as_worker(const std::map<std::string, std::string>& env) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    for (const auto& [k, v] : env) ::setenv(k.c_str(), v.c_str(), 1);
+    char self[] = "/proc/self/exe";
+    char* argv[] = {self, nullptr};
+    ::execv(self, argv);
+    ::_exit(127);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return status;
+}
+
+}  // namespace ii::test
+
+namespace ii::test {
+
+// Registers `work` to run instead of the tests when the environment variable `role` is set
+// (a worker process started by run_self_as_worker). It runs once main() has started, so
+// every static object of the libraries is initialised; its return value is the exit code.
+inline bool register_worker(const char* role, int (*work)(const std::string& value)) {
+  struct Worker : ::testing::Environment {
+    const char* role;
+    int (*work)(const std::string&);
+    Worker(const char* r, int (*w)(const std::string&)) : role(r), work(w) {}
+    void SetUp() override {
+      if (const char* value = std::getenv(role)) std::exit(work(value));
+    }
+  };
+  ::testing::AddGlobalTestEnvironment(new Worker(role, work));
+  return true;
+}
+
+}  // namespace ii::test

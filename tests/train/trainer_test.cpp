@@ -1,0 +1,155 @@
+// The training step: the two-phase backward of spec §6.4 equals a joint backward, block
+// recomputation gives the same gradients, the weight-norm parametrisation, and a short run
+// that overfits one sample.
+#include <gtest/gtest.h>
+
+#include "render/gaussians.h"
+#include "render/rasterizer.h"
+#include "test_support.h"
+#include "train/trainer.h"
+#include "train_test_util.h"
+
+namespace ii {
+namespace {
+
+TrainerOptions options_for_test(int64_t steps = 100, double lr = 1e-3) {
+  TrainerOptions o;
+  o.schedule.total_steps = steps;
+  o.schedule.warmup_steps = 0;
+  o.schedule.peak_lr = lr;
+  o.loss.perceptual = "ssim";
+  return o;
+}
+
+Network seeded_network(uint64_t seed, int channels = 4) {
+  torch::manual_seed(seed);
+  return Network(test::micro_config(channels));
+}
+
+double max_relative_difference(const std::vector<torch::Tensor>& a, const std::vector<torch::Tensor>& b) {
+  double worst = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!a[i].grad().defined() && !b[i].grad().defined()) continue;
+    const torch::Tensor ga = a[i].grad(), gb = b[i].grad();
+    const double scale = std::max(ga.abs().max().item<double>(), 1e-12);
+    worst = std::max(worst, (ga - gb).abs().max().item<double>() / scale);
+  }
+  return worst;
+}
+
+TEST(TrainableParameters, OfficialWeightNormNamesAndSameWeights) {
+  Network net = seeded_network(1);
+  const TrainableParameters params(net);
+  int g = 0, v = 0;
+  for (const std::string& n : params.names()) {
+    g += n.size() > 9 && n.compare(n.size() - 9, 9, ".weight_g") == 0;
+    v += n.size() > 9 && n.compare(n.size() - 9, 9, ".weight_v") == 0;
+  }
+  // 4 Linears per block, 2 per head (upsampler depth 1).
+  EXPECT_EQ(g, 4 * net.config().blocks + 2 * 5);
+  EXPECT_EQ(v, g);
+  const std::vector<torch::Tensor> w = params.network_weights();
+  for (size_t i = 0; i < w.size(); ++i)
+    EXPECT_TRUE(torch::allclose(w[i], net.named_parameters()[i].second, 1e-5, 1e-7)) << net.named_parameters()[i].first;
+}
+
+TEST(Trainer, TwoPhaseBackwardEqualsJointBackward) {
+  const std::vector<TrainingSample> batch = test::tiny_batch(3, 0, 2);
+  Trainer trainer(seeded_network(2), options_for_test());
+  trainer.compute_gradients(batch);
+
+  // The same loss with one graph from the weights to every render.
+  Network net = seeded_network(2);
+  const TrainableParameters params(net);
+  params.bind(net);
+  ImageLoss loss(options_for_test().loss);
+  std::vector<torch::Tensor> images, plucker, rays_o, rays_d_un;
+  for (const auto& s : batch) {
+    images.push_back(s.input.images);
+    plucker.push_back(s.input.plucker);
+    rays_o.push_back(s.input.rays_o);
+    rays_d_un.push_back(s.input.rays_d_un);
+  }
+  const GaussianMaps maps = net.forward(torch::stack(images), torch::stack(plucker), torch::stack(rays_o),
+                                        torch::stack(rays_d_un))
+                                .gaussians;
+  torch::Tensor total = torch::zeros({});
+  for (int64_t b = 0; b < 2; ++b) {
+    GaussianMaps one;
+    one.xyz = maps.xyz.narrow(0, b, 1);
+    one.rgb = maps.rgb.narrow(0, b, 1);
+    one.opacity = maps.opacity.narrow(0, b, 1);
+    one.scale = maps.scale.narrow(0, b, 1);
+    one.rotation = maps.rotation.narrow(0, b, 1);
+    const GaussianSet set = gaussians_from_maps(one);
+    for (int64_t m = 0; m < 2; ++m) {
+      const torch::Tensor rgb = render(set, RenderCamera{batch[b].target_cameras[m]}).rgb;
+      const torch::Tensor pred = (rgb * 2 - 1).clamp(-1, 1).permute({2, 0, 1}).unsqueeze(0);
+      total = total + loss(pred, batch[b].target_images[m].unsqueeze(0)).total;
+    }
+  }
+  (total / 4).backward();
+  EXPECT_LT(max_relative_difference(trainer.parameters().tensors(), params.tensors()), 1e-4);
+  EXPECT_GT(params.tensors()[0].grad().abs().max().item<double>(), 0);  // the patch embedding learns
+}
+
+TEST(Trainer, BlockRecomputationGivesSameGradients) {
+  const std::vector<TrainingSample> batch = test::tiny_batch(4, 0, 1);
+  Trainer plain(seeded_network(3), options_for_test());
+  TrainerOptions o = options_for_test();
+  o.checkpoint_blocks = true;
+  Trainer recomputed(seeded_network(3), o);
+  const StepStats a = plain.compute_gradients(batch), b = recomputed.compute_gradients(batch);
+  EXPECT_DOUBLE_EQ(a.loss, b.loss);
+  EXPECT_LT(max_relative_difference(plain.parameters().tensors(), recomputed.parameters().tensors()), 1e-5);
+}
+
+TEST(Network, RecomputedBlocksAreInTheGraph) {
+  Network net = seeded_network(3);
+  net.set_requires_grad(true);
+  net.set_activation_checkpointing(true);
+  const TrainingSample s = test::tiny_sample(1, 0);
+  const NetworkOutput out = net.forward(s.input.images.unsqueeze(0), s.input.plucker.unsqueeze(0),
+                                        s.input.rays_o.unsqueeze(0), s.input.rays_d_un.unsqueeze(0));
+  ASSERT_TRUE(out.transformer_tokens.grad_fn());
+  EXPECT_NE(out.transformer_tokens.grad_fn()->name().find("RecomputedBlock"), std::string::npos)
+      << out.transformer_tokens.grad_fn()->name();
+}
+
+TEST(Trainer, ShortRunOverfitsOneSample) {
+  const std::vector<TrainingSample> batch = test::tiny_batch(5, 0, 1);
+  Trainer trainer(seeded_network(4), options_for_test(40, 2e-3));
+  const double first = trainer.step(batch).loss;
+  StepStats last;
+  for (int i = 1; i < 40; ++i) last = trainer.step(batch);
+  EXPECT_EQ(last.step, 40);
+  EXPECT_TRUE(std::isfinite(last.grad_norm));
+  EXPECT_LT(last.loss, 0.6 * first) << "first " << first << " last " << last.loss;
+  // Held-out evaluation of the same sample agrees with the training loss's scale.
+  torch::Tensor renders;
+  const EvalStats e = trainer.evaluate(batch[0], &renders);
+  EXPECT_EQ(e.targets, 2);
+  EXPECT_EQ(renders.sizes(), (std::vector<int64_t>{2, 3, 32, 32}));
+  EXPECT_LT(e.loss, first);
+  EXPECT_GT(e.psnr, 0);
+}
+
+TEST(Trainer, Bf16ForwardGivesFiniteGradients) {
+  TrainerOptions o = options_for_test();
+  o.precision = Precision::BFloat16;
+  Trainer trainer(seeded_network(5), o);
+  const StepStats s = trainer.step(test::tiny_batch(6, 0, 1));
+  EXPECT_TRUE(std::isfinite(s.loss));
+  EXPECT_EQ(s.nonfinite_tensors, 0);
+  EXPECT_GT(s.grad_norm, 0);
+}
+
+TEST(Trainer, RejectsMismatchedSamples) {
+  Trainer trainer(seeded_network(6), options_for_test());
+  std::vector<TrainingSample> batch = test::tiny_batch(7, 0, 1);
+  batch[0].target_cameras.pop_back();
+  EXPECT_EQ(test::error_message([&] { trainer.step(batch); }), "training sample from tiny_0: 2 target images for 1 cameras");
+}
+
+}  // namespace
+}  // namespace ii
