@@ -39,8 +39,8 @@ struct SynthArgs {
 
 void progress_line(int scene, int scenes, int done, int total, double seconds) {
   const int width = 24, filled = total > 0 ? done * width / total : width;
-  std::fprintf(stderr, "\rscene %d/%d [%s%s] %d/%d views, %.1f s", scene + 1, scenes,
-               std::string(filled, '#').c_str(), std::string(width - filled, ' ').c_str(), done, total, seconds);
+  std::fprintf(stderr, "\rscene %d/%d [%s%s] %d/%d views, %.1f s", scene + 1, scenes, std::string(filled, '#').c_str(),
+               std::string(width - filled, ' ').c_str(), done, total, seconds);
   std::fflush(stderr);
 }
 
@@ -75,21 +75,22 @@ void run(const SynthArgs& a) {
     const uint64_t seed = synth::scene_seed(a.seed, i);
     const synth::SynthScene scene = synth::generate_scene(options, seed);
     const double generate_s = watch.ms() / 1000;
-    write.generator = {{"command", "synth"},      {"run_seed", a.seed},     {"scene_index", i},
-                       {"views", a.views},        {"test_views", a.test_views}, {"object", a.object},
-                       {"detail", a.detail},      {"degrade", a.degrade}};
+    write.generator = {{"command", "synth"}, {"run_seed", a.seed},         {"scene_index", i},
+                       {"views", a.views},   {"test_views", a.test_views}, {"object", a.object},
+                       {"detail", a.detail}, {"degrade", a.degrade}};
     const int index = i - a.first;
     write.progress = [&](int done, int views) { progress_line(index, a.scenes, done, views, watch.ms() / 1000); };
     const std::filesystem::path dir = out / fmt::format("scene_{:03d}", i);
     const synth::SynthWriteSummary s = synth::write_synth_scene(scene, dir, write);
     std::fprintf(stderr, "\n");
-    spdlog::info("{}: {} + {} test views, {} + {} Gaussians, {}, object {:.1f}% of the pixels, {:.1f} s "
-                 "({:.1f} s building the scene)",
-                 dir.string(), s.views, s.test_views, scene.background.size(), scene.object.size(),
-                 scene.description["object"].value("kind", "?") == "splat"
-                     ? "splat " + scene.description["object"].value("file", "")
-                     : "procedural " + scene.description["object"].value("shape", ""),
-                 100 * s.object_fraction, watch.ms() / 1000, generate_s);
+    spdlog::info(
+        "{}: {} + {} test views, {} + {} Gaussians, {}, object {:.1f}% of the pixels, {:.1f} s "
+        "({:.1f} s building the scene)",
+        dir.string(), s.views, s.test_views, scene.background.size(), scene.object.size(),
+        scene.description["object"].value("kind", "?") == "splat"
+            ? "splat " + scene.description["object"].value("file", "")
+            : "procedural " + scene.description["object"].value("shape", ""),
+        100 * s.object_fraction, watch.ms() / 1000, generate_s);
   }
   spdlog::info("wrote {} scene(s) to {} in {:.1f} s", a.scenes, out.string(), total.ms() / 1000);
 }
@@ -98,8 +99,7 @@ void run(const SynthArgs& a) {
 
 void add_synth_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "synth",
-      "Generate synthetic rooms with an object and exact object-removal ground truth (LLFF/SPIn-NeRF layout)");
+      "synth", "Generate synthetic rooms with an object and exact object-removal ground truth (LLFF/SPIn-NeRF layout)");
   auto a = std::make_shared<SynthArgs>();
   cmd->add_option("--out", a->out, "Output folder; scenes go to OUT/scene_000, scene_001, ...")->required();
   cmd->add_option("--scenes", a->scenes, "Number of scenes")->capture_default_str();

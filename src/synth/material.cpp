@@ -67,12 +67,18 @@ Rgb hsv(double h, double s, double v) {
   const double f = h - std::floor(h);
   const double p = v * (1 - s), q = v * (1 - s * f), t = v * (1 - s * (1 - f));
   switch (sector) {
-    case 0: return Rgb(v, t, p);
-    case 1: return Rgb(q, v, p);
-    case 2: return Rgb(p, v, t);
-    case 3: return Rgb(p, q, v);
-    case 4: return Rgb(t, p, v);
-    default: return Rgb(v, p, q);
+    case 0:
+      return Rgb(v, t, p);
+    case 1:
+      return Rgb(q, v, p);
+    case 2:
+      return Rgb(p, v, t);
+    case 3:
+      return Rgb(p, q, v);
+    case 4:
+      return Rgb(t, p, v);
+    default:
+      return Rgb(v, p, q);
   }
 }
 
@@ -91,8 +97,9 @@ Rgb Material::colour(double u, double v, const Eigen::Vector3d& p) const {
       const double shifted = u + hash01(static_cast<int64_t>(row), 1, seed) * plank_length;
       const double column = std::floor(shifted / plank_length);
       const double tint = hash01(static_cast<int64_t>(row), static_cast<int64_t>(column), seed) - 0.5;
-      const double grain_coord = v * 40.0 / s * 0.05 + fbm(Eigen::Vector3d(shifted * 1.5, v * 12.0 / s, row), seed + 3, 3) * 3.0;
-      const double grain = 0.5 + 0.5 * std::sin(grain_coord * 2.0 * M_PI);
+      // Grain: lines along the plank, bent by noise.
+      const double bend = fbm(Eigen::Vector3d(shifted * 1.5, v * 12.0 / s, row), seed + 3, 3);
+      const double grain = 0.5 + 0.5 * std::sin(2.0 * M_PI * (2.0 * v / s + 3.0 * bend));
       c = mix(base, accent, 0.25 * grain + 0.35 * (tint + 0.5));
       const double fv = fract(v / s), fu = fract(shifted / plank_length);
       if (fv < 0.04 || fv > 0.985 || fu < 0.008) c *= 0.55f;  // seams between planks
@@ -103,8 +110,7 @@ Rgb Material::colour(double u, double v, const Eigen::Vector3d& p) const {
       const double cu = std::floor(u / s), cv = std::floor(v / s);
       const double fu = fract(u / s), fv = fract(v / s);
       const double tint = hash01(static_cast<int64_t>(cu), static_cast<int64_t>(cv), seed) - 0.5;
-      if (pattern == Pattern::checker)
-        c = (static_cast<int64_t>(cu + cv) & 1) ? accent : base;
+      if (pattern == Pattern::checker) c = (static_cast<int64_t>(cu + cv) & 1) ? accent : base;
       c *= static_cast<float>(1.0 + 0.12 * tint);
       const double grout = 0.035;
       if (fu < grout || fv < grout) c = pattern == Pattern::tiles ? accent : Rgb(c * 0.6f);
@@ -127,7 +133,8 @@ Rgb Material::colour(double u, double v, const Eigen::Vector3d& p) const {
       break;
     }
     case Pattern::dots: {
-      const double fu = fract(u / s) - 0.5, fv = fract(v / s + 0.5 * (static_cast<int64_t>(std::floor(u / s)) & 1)) - 0.5;
+      const double fu = fract(u / s) - 0.5,
+                   fv = fract(v / s + 0.5 * (static_cast<int64_t>(std::floor(u / s)) & 1)) - 0.5;
       if (fu * fu + fv * fv < 0.2 * 0.2) c = accent;
       break;
     }

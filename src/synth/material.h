@@ -43,8 +43,8 @@ struct Material {
   double scale = 0.2;       // characteristic pattern size, metres
   double variation = 0.08;  // amplitude of the fine noise on top of the pattern
   uint32_t seed = 0;
-  double opacity = 0.97;    // of each Gaussian of the surface
-  bool lit = true;          // false: emissive (windows), no shading
+  double opacity = 0.97;  // of each Gaussian of the surface
+  bool lit = true;        // false: emissive (windows), no shading
 
   // Colour at surface coordinates (u, v) in metres and world point p, in [0, 1].
   Rgb colour(double u, double v, const Eigen::Vector3d& p) const;

@@ -76,7 +76,8 @@ std::string stack(Parts& p, const Vector3d& base, double height, double footprin
     const Material m = object_material(p.rng, height);
     switch (p.rng.integer(0, 3)) {
       case 0:
-        p.ellipsoid(at + Vector3d(0, h / 2, 0), {r, h / 2, r * p.rng.uniform(0.7, 1.0)}, random_rotation(p.rng, 0.0), m);
+        p.ellipsoid(at + Vector3d(0, h / 2, 0), {r, h / 2, r * p.rng.uniform(0.7, 1.0)}, random_rotation(p.rng, 0.0),
+                    m);
         break;
       case 1: {
         const double hw = r / std::sqrt(2.0);
@@ -85,7 +86,8 @@ std::string stack(Parts& p, const Vector3d& base, double height, double footprin
       }
       case 2: {
         const double top = r * p.rng.uniform(0.3, 1.0);
-        p.lathe(at, h, [=](double t) { return r + (top - r) * t; }, r, m, true, true);
+        p.lathe(
+            at, h, [=](double t) { return r + (top - r) * t; }, r, m, true, true);
         break;
       }
       default:
@@ -132,7 +134,8 @@ std::string vase(Parts& p, const Vector3d& base, double height, double footprint
       const double a = p.rng.uniform(0, 2 * M_PI), d = radii.back() * 0.4;
       const Vector3d foot = base + Vector3d(d * std::cos(a), body, d * std::sin(a));
       const double h = height - body - 0.05 * height;
-      p.lathe(foot, h, [&](double) { return 0.006 + 0.01 * footprint; }, 0.02, stem, false, false);
+      p.lathe(
+          foot, h, [&](double) { return 0.006 + 0.01 * footprint; }, 0.02, stem, false, false);
       const double r = footprint * p.rng.uniform(0.2, 0.35);
       p.ellipsoid(foot + Vector3d(0, h, 0), {r, r * 0.6, r}, Matrix3d::Identity(), object_material(p.rng, r * 4));
     }
@@ -157,13 +160,14 @@ std::string figure(Parts& p, const Vector3d& base, double height, double footpri
     p.ellipsoid(head + forward * head_r * 0.85 + side * (s * head_r * 0.35) + Vector3d(0, head_r * 0.15, 0),
                 Vector3d::Constant(head_r * 0.15), Matrix3d::Identity(), eye);
     const Matrix3d arm_rot = Eigen::AngleAxisd(s * 0.45, forward).toRotationMatrix();  // arms held out
-    p.ellipsoid(base + Vector3d(0, body_h * 0.65, 0) + side * (s * body_r * 1.05), {body_r * 0.25, body_h * 0.3, body_r * 0.25},
-                arm_rot, skin);
+    p.ellipsoid(base + Vector3d(0, body_h * 0.65, 0) + side * (s * body_r * 1.05),
+                {body_r * 0.25, body_h * 0.3, body_r * 0.25}, arm_rot, skin);
   }
   if (p.rng.chance(0.5)) {  // a hat
     const double r = head_r * 1.05;
-    p.lathe(head + Vector3d(0, head_r * 0.6, 0), head_r * 1.1, [=](double t) { return r * (1 - t * 0.9); }, r,
-            object_material(p.rng, height), true, false);
+    p.lathe(
+        head + Vector3d(0, head_r * 0.6, 0), head_r * 1.1, [=](double t) { return r * (1 - t * 0.9); }, r,
+        object_material(p.rng, height), true, false);
   }
   return "figure";
 }
@@ -173,7 +177,8 @@ std::string mushroom(Parts& p, const Vector3d& base, double height, double footp
   Material stem = object_material(p.rng, height);
   stem.pattern = Pattern::solid;
   stem.base = hsv(p.rng.uniform(0.08, 0.15), p.rng.uniform(0.05, 0.3), p.rng.uniform(0.75, 0.95));
-  p.lathe(base, stem_h, [=](double t) { return stem_r * (1.2 - 0.3 * t); }, stem_r * 1.2, stem, true, false);
+  p.lathe(
+      base, stem_h, [=](double t) { return stem_r * (1.2 - 0.3 * t); }, stem_r * 1.2, stem, true, false);
   Material cap = object_material(p.rng, height);
   if (p.rng.chance(0.6)) {
     cap.pattern = Pattern::dots;
@@ -193,11 +198,21 @@ void build_procedural_object(const Vector3d& base, double height, double footpri
   Parts parts{sampler, detail, rng};
   std::string kind;
   switch (rng.weighted({0.3, 0.2, 0.2, 0.15, 0.15})) {
-    case 0: kind = stack(parts, base, height, footprint); break;
-    case 1: kind = blob(parts, base, height, footprint); break;
-    case 2: kind = vase(parts, base, height, footprint); break;
-    case 3: kind = figure(parts, base, height, footprint); break;
-    default: kind = mushroom(parts, base, height, footprint); break;
+    case 0:
+      kind = stack(parts, base, height, footprint);
+      break;
+    case 1:
+      kind = blob(parts, base, height, footprint);
+      break;
+    case 2:
+      kind = vase(parts, base, height, footprint);
+      break;
+    case 3:
+      kind = figure(parts, base, height, footprint);
+      break;
+    default:
+      kind = mushroom(parts, base, height, footprint);
+      break;
   }
   description = {{"kind", "procedural"}, {"shape", kind}, {"height", height}, {"footprint", footprint}};
 }

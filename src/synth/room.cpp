@@ -13,8 +13,7 @@ namespace {
 using Eigen::Vector2d;
 using Eigen::Vector3d;
 
-Material material(Pattern pattern, const Rgb& base, const Rgb& accent, double scale, double variation,
-                  SynthRng& rng) {
+Material material(Pattern pattern, const Rgb& base, const Rgb& accent, double scale, double variation, SynthRng& rng) {
   Material m;
   m.pattern = pattern;
   m.base = base;
@@ -25,9 +24,7 @@ Material material(Pattern pattern, const Rgb& base, const Rgb& accent, double sc
   return m;
 }
 
-Rgb wood_colour(SynthRng& rng) {
-  return hsv(rng.uniform(0.05, 0.11), rng.uniform(0.35, 0.7), rng.uniform(0.3, 0.8));
-}
+Rgb wood_colour(SynthRng& rng) { return hsv(rng.uniform(0.05, 0.11), rng.uniform(0.35, 0.7), rng.uniform(0.3, 0.8)); }
 
 Material wood(SynthRng& rng, double plank = 0.12) {
   const Rgb base = wood_colour(rng);
@@ -94,8 +91,8 @@ Material wall_material(SynthRng& rng, std::string& kind) {
                       rng.uniform(0.08, 0.3), 0.04, rng);
     case 2: {
       kind = "bricks";
-      const Rgb brick = rng.chance(0.6) ? hsv(rng.uniform(0.0, 0.06), rng.uniform(0.4, 0.7), rng.uniform(0.4, 0.7))
-                                        : paint;
+      const Rgb brick =
+          rng.chance(0.6) ? hsv(rng.uniform(0.0, 0.06), rng.uniform(0.4, 0.7), rng.uniform(0.4, 0.7)) : paint;
       return material(Pattern::bricks, brick, hsv(0.1, 0.1, rng.uniform(0.6, 0.85)), rng.uniform(0.18, 0.28), 0.08,
                       rng);
     }
@@ -110,8 +107,7 @@ Material wall_material(SynthRng& rng, std::string& kind) {
 }
 
 // Samples spread over a rectangle (3 x 3), for the detail map.
-std::vector<Vector3d> rect_samples(const Vector3d& origin, const Vector3d& u, const Vector3d& v, double lu,
-                                   double lv) {
+std::vector<Vector3d> rect_samples(const Vector3d& origin, const Vector3d& u, const Vector3d& v, double lu, double lv) {
   std::vector<Vector3d> s;
   for (int j = 0; j < 3; ++j)
     for (int i = 0; i < 3; ++i) s.push_back(origin + u * (lu * i / 2.0) + v * (lv * j / 2.0));
@@ -229,8 +225,8 @@ void build_bookshelf(Builder& b, const Piece& p) {
       const double h = gap * b.rng.uniform(0.55, 0.85);
       const double d = p.half_d * b.rng.uniform(0.7, 0.9);
       const Rgb c = hsv(b.rng.uniform(), b.rng.uniform(0.3, 0.9), b.rng.uniform(0.2, 0.9));
-      const Material cover = material(b.rng.chance(0.2) ? Pattern::stripes : Pattern::solid, c, c * 0.5f,
-                                      h * 0.3, 0.03, b.rng);
+      const Material cover =
+          material(b.rng.chance(0.2) ? Pattern::stripes : Pattern::solid, c, c * 0.5f, h * 0.3, 0.03, b.rng);
       b.box(p.frame, {x + w, y + t + h / 2, -p.half_d + 2 * t + d}, {w, h / 2, d}, cover);
       x += 2 * w + 0.002;
     }
@@ -250,10 +246,12 @@ void build_table(Builder& b, const Piece& p) {
   if (b.rng.chance(0.6)) {
     const Rgb c = hsv(b.rng.uniform(), b.rng.uniform(0.3, 0.8), b.rng.uniform(0.4, 0.9));
     const Material m = material(b.rng.chance(0.5) ? Pattern::solid : Pattern::stripes, c, c * 0.6f, 0.04, 0.03, b.rng);
-    const Vector3d at = p.frame.world({b.rng.uniform(-0.5, 0.5) * p.half_w, p.height, b.rng.uniform(-0.4, 0.4) * p.half_d});
+    const Vector3d at =
+        p.frame.world({b.rng.uniform(-0.5, 0.5) * p.half_w, p.height, b.rng.uniform(-0.4, 0.4) * p.half_d});
     const double r = b.rng.uniform(0.04, 0.08), h = b.rng.uniform(0.08, 0.25);
     if (b.rng.chance(0.5))
-      b.lathe(at, h, [r](double t) { return r * (0.7 + 0.5 * std::sin(M_PI * t)); }, m, 1.2 * r, false, true);
+      b.lathe(
+          at, h, [r](double t) { return r * (0.7 + 0.5 * std::sin(M_PI * t)); }, m, 1.2 * r, false, true);
     else
       b.ellipsoid(at + Vector3d(0, r, 0), Vector3d::Constant(r), Eigen::Matrix3d::Identity(), m);
   }
@@ -266,7 +264,8 @@ void build_chair(Builder& b, const Piece& p) {
   b.box(p.frame, {0, seat_h, 0}, {p.half_w, th, p.half_d}, seat);
   for (int sx : {-1, 1})
     for (int sz : {-1, 1})
-      b.box(p.frame, {sx * (p.half_w - leg), (seat_h - th) / 2, sz * (p.half_d - leg)}, {leg, (seat_h - th) / 2, leg}, m);
+      b.box(p.frame, {sx * (p.half_w - leg), (seat_h - th) / 2, sz * (p.half_d - leg)}, {leg, (seat_h - th) / 2, leg},
+            m);
   b.box(p.frame, {0, (seat_h + p.height) / 2, -p.half_d + leg}, {p.half_w, (p.height - seat_h) / 2, leg}, m);
 }
 
@@ -290,11 +289,12 @@ void build_sofa(Builder& b, const Piece& p) {
 
 void build_plant(Builder& b, const Piece& p) {
   const Rgb pot_colour = hsv(b.rng.uniform(), b.rng.uniform(0.1, 0.7), b.rng.uniform(0.3, 0.9));
-  const Material pot = material(b.rng.chance(0.3) ? Pattern::stripes : Pattern::solid, pot_colour, pot_colour * 0.7f,
-                                0.05, 0.04, b.rng);
+  const Material pot =
+      material(b.rng.chance(0.3) ? Pattern::stripes : Pattern::solid, pot_colour, pot_colour * 0.7f, 0.05, 0.04, b.rng);
   const double r = p.half_w * 0.75, h = b.rng.uniform(0.2, 0.4);
   const Vector3d base = p.frame.world({0, 0, 0});
-  b.lathe(base, h, [r](double t) { return r * (0.75 + 0.25 * t); }, pot, r, false, true);
+  b.lathe(
+      base, h, [r](double t) { return r * (0.75 + 0.25 * t); }, pot, r, false, true);
   const Rgb leaf = hsv(b.rng.uniform(0.22, 0.4), b.rng.uniform(0.4, 0.8), b.rng.uniform(0.2, 0.55));
   const Material foliage = material(Pattern::noise, leaf, leaf * 0.55f, 0.05, 0.1, b.rng);
   const int blobs = b.rng.integer(3, 6);
@@ -315,11 +315,14 @@ void build_lamp(Builder& b, const Piece& p) {
                             Rgb(0.8f, 0.75f, 0.6f), 0.02, 0.02, b.rng);
   shade.lit = false;  // it glows
   const Vector3d base = p.frame.world({0, 0, 0});
-  b.lathe(base, 0.03, [&](double) { return p.half_w * 0.8; }, metal, p.half_w, false, true);
+  b.lathe(
+      base, 0.03, [&](double) { return p.half_w * 0.8; }, metal, p.half_w, false, true);
   const double pole_h = p.height - 0.3;
-  b.lathe(base, pole_h, [](double) { return 0.012; }, metal, 0.02, false, false);
+  b.lathe(
+      base, pole_h, [](double) { return 0.012; }, metal, 0.02, false, false);
   const double r0 = p.half_w, r1 = p.half_w * b.rng.uniform(0.5, 0.8);
-  b.lathe(base + Vector3d(0, pole_h, 0), 0.3, [=](double t) { return r0 + (r1 - r0) * t; }, shade, r0, false, true);
+  b.lathe(
+      base + Vector3d(0, pole_h, 0), 0.3, [=](double t) { return r0 + (r1 - r0) * t; }, shade, r0, false, true);
 }
 
 void build_boxes(Builder& b, const Piece& p) {
@@ -329,18 +332,19 @@ void build_boxes(Builder& b, const Piece& p) {
   for (int k = 0; k < n && y < p.height - 0.1; ++k) {
     const double hw = p.half_w * b.rng.uniform(0.6, 1.0), hd = p.half_d * b.rng.uniform(0.6, 1.0);
     const double hh = std::min(b.rng.uniform(0.1, 0.25), (p.height - y) / 2);
-    const Material m = material(Pattern::noise, card * static_cast<float>(b.rng.uniform(0.85, 1.1)), card * 0.8f,
-                                0.1, 0.05, b.rng);
+    const Material m =
+        material(Pattern::noise, card * static_cast<float>(b.rng.uniform(0.85, 1.1)), card * 0.8f, 0.1, 0.05, b.rng);
     const Vector3d c = p.frame.world({b.rng.uniform(-0.05, 0.05), y + hh, b.rng.uniform(-0.05, 0.05)});
-    b.sampler.box(c, {hw, hh, hd}, p.frame.yaw + b.rng.uniform(-0.25, 0.25), m, b.detail.spacing_sphere(c, hw + hh + hd));
+    b.sampler.box(c, {hw, hh, hd}, p.frame.yaw + b.rng.uniform(-0.25, 0.25), m,
+                  b.detail.spacing_sphere(c, hw + hh + hd));
     y += 2 * hh;
   }
 }
 
 void build_ball(Builder& b, const Piece& p) {
   const Rgb c = hsv(b.rng.uniform(), b.rng.uniform(0.4, 0.9), b.rng.uniform(0.5, 0.95));
-  const Material m = material(b.rng.chance(0.5) ? Pattern::stripes : Pattern::solid, c,
-                              hsv(b.rng.uniform(), 0.2, 0.95), p.half_w * 0.5, 0.03, b.rng);
+  const Material m = material(b.rng.chance(0.5) ? Pattern::stripes : Pattern::solid, c, hsv(b.rng.uniform(), 0.2, 0.95),
+                              p.half_w * 0.5, 0.03, b.rng);
   b.ellipsoid(p.frame.world({0, p.half_w, 0}), Vector3d::Constant(p.half_w),
               Eigen::AngleAxisd(b.rng.uniform(0, M_PI), Vector3d::UnitX()).toRotationMatrix(), m);
 }
@@ -349,15 +353,57 @@ void build_ball(Builder& b, const Piece& p) {
 Piece draw_piece(SynthRng& rng) {
   Piece p;
   switch (rng.weighted({0.18, 0.14, 0.14, 0.1, 0.1, 0.12, 0.08, 0.08, 0.06})) {
-    case 0: p.kind = "cabinet"; p.half_w = rng.uniform(0.25, 0.55); p.half_d = rng.uniform(0.18, 0.28); p.height = rng.uniform(0.5, 1.1); break;
-    case 1: p.kind = "bookshelf"; p.half_w = rng.uniform(0.25, 0.5); p.half_d = rng.uniform(0.13, 0.2); p.height = rng.uniform(1.1, 2.0); break;
-    case 2: p.kind = "table"; p.half_w = rng.uniform(0.3, 0.6); p.half_d = rng.uniform(0.25, 0.4); p.height = rng.uniform(0.65, 0.8); break;
-    case 3: p.kind = "chair"; p.half_w = rng.uniform(0.19, 0.24); p.half_d = rng.uniform(0.19, 0.24); p.height = rng.uniform(0.8, 1.0); break;
-    case 4: p.kind = "sofa"; p.half_w = rng.uniform(0.7, 1.1); p.half_d = rng.uniform(0.38, 0.46); p.height = rng.uniform(0.75, 0.9); break;
-    case 5: p.kind = "plant"; p.half_w = p.half_d = rng.uniform(0.16, 0.32); p.height = rng.uniform(0.6, 1.4); break;
-    case 6: p.kind = "lamp"; p.half_w = p.half_d = rng.uniform(0.15, 0.22); p.height = rng.uniform(1.3, 1.7); break;
-    case 7: p.kind = "boxes"; p.half_w = rng.uniform(0.15, 0.3); p.half_d = rng.uniform(0.15, 0.3); p.height = rng.uniform(0.3, 0.8); break;
-    default: p.kind = "ball"; p.half_w = p.half_d = rng.uniform(0.1, 0.25); p.height = 2 * p.half_w; break;
+    case 0:
+      p.kind = "cabinet";
+      p.half_w = rng.uniform(0.25, 0.55);
+      p.half_d = rng.uniform(0.18, 0.28);
+      p.height = rng.uniform(0.5, 1.1);
+      break;
+    case 1:
+      p.kind = "bookshelf";
+      p.half_w = rng.uniform(0.25, 0.5);
+      p.half_d = rng.uniform(0.13, 0.2);
+      p.height = rng.uniform(1.1, 2.0);
+      break;
+    case 2:
+      p.kind = "table";
+      p.half_w = rng.uniform(0.3, 0.6);
+      p.half_d = rng.uniform(0.25, 0.4);
+      p.height = rng.uniform(0.65, 0.8);
+      break;
+    case 3:
+      p.kind = "chair";
+      p.half_w = rng.uniform(0.19, 0.24);
+      p.half_d = rng.uniform(0.19, 0.24);
+      p.height = rng.uniform(0.8, 1.0);
+      break;
+    case 4:
+      p.kind = "sofa";
+      p.half_w = rng.uniform(0.7, 1.1);
+      p.half_d = rng.uniform(0.38, 0.46);
+      p.height = rng.uniform(0.75, 0.9);
+      break;
+    case 5:
+      p.kind = "plant";
+      p.half_w = p.half_d = rng.uniform(0.16, 0.32);
+      p.height = rng.uniform(0.6, 1.4);
+      break;
+    case 6:
+      p.kind = "lamp";
+      p.half_w = p.half_d = rng.uniform(0.15, 0.22);
+      p.height = rng.uniform(1.3, 1.7);
+      break;
+    case 7:
+      p.kind = "boxes";
+      p.half_w = rng.uniform(0.15, 0.3);
+      p.half_d = rng.uniform(0.15, 0.3);
+      p.height = rng.uniform(0.3, 0.8);
+      break;
+    default:
+      p.kind = "ball";
+      p.half_w = p.half_d = rng.uniform(0.1, 0.25);
+      p.height = 2 * p.half_w;
+      break;
   }
   return p;
 }
@@ -382,10 +428,22 @@ bool place_piece(Piece& p, const RoomPlan& plan, const std::vector<Piece>& place
     const double gap = rng.uniform(0.02, 0.08);
     Vector3d origin;
     switch (p.wall) {
-      case 0: origin = {plan.room_min.x() + gap + p.half_d, 0, s}; p.frame.yaw = M_PI / 2; break;
-      case 1: origin = {plan.room_max.x() - gap - p.half_d, 0, s}; p.frame.yaw = -M_PI / 2; break;
-      case 2: origin = {s, 0, plan.room_min.z() + gap + p.half_d}; p.frame.yaw = 0; break;
-      default: origin = {s, 0, plan.room_max.z() - gap - p.half_d}; p.frame.yaw = M_PI; break;
+      case 0:
+        origin = {plan.room_min.x() + gap + p.half_d, 0, s};
+        p.frame.yaw = M_PI / 2;
+        break;
+      case 1:
+        origin = {plan.room_max.x() - gap - p.half_d, 0, s};
+        p.frame.yaw = -M_PI / 2;
+        break;
+      case 2:
+        origin = {s, 0, plan.room_min.z() + gap + p.half_d};
+        p.frame.yaw = 0;
+        break;
+      default:
+        origin = {s, 0, plan.room_max.z() - gap - p.half_d};
+        p.frame.yaw = M_PI;
+        break;
     }
     p.frame.origin = origin;
     const Vector2d half = along_x ? Vector2d(p.half_w, p.half_d) : Vector2d(p.half_d, p.half_w);
@@ -402,15 +460,24 @@ bool place_piece(Piece& p, const RoomPlan& plan, const std::vector<Piece>& place
 }
 
 void build_piece(Builder& b, const Piece& p) {
-  if (p.kind == "cabinet") build_cabinet(b, p);
-  else if (p.kind == "bookshelf") build_bookshelf(b, p);
-  else if (p.kind == "table") build_table(b, p);
-  else if (p.kind == "chair") build_chair(b, p);
-  else if (p.kind == "sofa") build_sofa(b, p);
-  else if (p.kind == "plant") build_plant(b, p);
-  else if (p.kind == "lamp") build_lamp(b, p);
-  else if (p.kind == "boxes") build_boxes(b, p);
-  else build_ball(b, p);
+  if (p.kind == "cabinet")
+    build_cabinet(b, p);
+  else if (p.kind == "bookshelf")
+    build_bookshelf(b, p);
+  else if (p.kind == "table")
+    build_table(b, p);
+  else if (p.kind == "chair")
+    build_chair(b, p);
+  else if (p.kind == "sofa")
+    build_sofa(b, p);
+  else if (p.kind == "plant")
+    build_plant(b, p);
+  else if (p.kind == "lamp")
+    build_lamp(b, p);
+  else if (p.kind == "boxes")
+    build_boxes(b, p);
+  else
+    build_ball(b, p);
 }
 
 // Walls as (corner, u along the wall, length), v = +y, normal u x y into the room.
@@ -437,8 +504,12 @@ void decorate_wall(Builder& b, const Wall& wall, int index, const std::vector<Pi
   std::vector<std::pair<double, double>> used;  // intervals along the wall
   for (int k = 0; k < count; ++k) {
     const int kind = b.rng.weighted({0.55, 0.3, 0.15});  // painting, window, door
-    const double w = kind == 0 ? b.rng.uniform(0.3, 0.9) : kind == 1 ? b.rng.uniform(0.6, 1.3) : b.rng.uniform(0.75, 0.9);
-    const double h = kind == 0 ? b.rng.uniform(0.3, 0.7) : kind == 1 ? b.rng.uniform(0.8, 1.3) : std::min(2.05, room_height - 0.2);
+    const double w = kind == 0   ? b.rng.uniform(0.3, 0.9)
+                     : kind == 1 ? b.rng.uniform(0.6, 1.3)
+                                 : b.rng.uniform(0.75, 0.9);
+    const double h = kind == 0   ? b.rng.uniform(0.3, 0.7)
+                     : kind == 1 ? b.rng.uniform(0.8, 1.3)
+                                 : std::min(2.05, room_height - 0.2);
     if (wall.length < w + 0.3) continue;
     const double s = b.rng.uniform(0.15, wall.length - w - 0.15);
     bool clash = false;
@@ -470,8 +541,8 @@ void decorate_wall(Builder& b, const Wall& wall, int index, const std::vector<Pi
     if (kind == 0) {
       name = "painting";
       face = material(Pattern::canvas, hsv(b.rng.uniform(), b.rng.uniform(0.3, 0.9), b.rng.uniform(0.3, 0.95)),
-                      hsv(b.rng.uniform(), b.rng.uniform(0.3, 0.9), b.rng.uniform(0.3, 0.95)),
-                      b.rng.uniform(0.1, 0.3), 0.03, b.rng);
+                      hsv(b.rng.uniform(), b.rng.uniform(0.3, 0.9), b.rng.uniform(0.3, 0.95)), b.rng.uniform(0.1, 0.3),
+                      0.03, b.rng);
     } else if (kind == 1) {
       name = "window";
       face = material(Pattern::sky, hsv(b.rng.uniform(0.55, 0.62), b.rng.uniform(0.25, 0.6), b.rng.uniform(0.85, 1.0)),
@@ -485,7 +556,8 @@ void decorate_wall(Builder& b, const Wall& wall, int index, const std::vector<Pi
     if (kind == 1) {  // window bars
       const Vector3d front = normal * 0.004;
       b.sampler.rect(inner + wall.u * (iw / 2 - 0.02) + front, wall.u, Vector3d::UnitY(), 0.04, ih, frame, spacing);
-      b.sampler.rect(inner + Vector3d(0, ih / 2 - 0.02, 0) + front, wall.u, Vector3d::UnitY(), iw, 0.04, frame, spacing);
+      b.sampler.rect(inner + Vector3d(0, ih / 2 - 0.02, 0) + front, wall.u, Vector3d::UnitY(), iw, 0.04, frame,
+                     spacing);
     }
     if (kind == 2) {
       const Material knob = material(Pattern::solid, hsv(0.12, 0.3, 0.8), Rgb::Zero(), 1, 0.02, b.rng);
@@ -507,16 +579,20 @@ void build_support(Builder& b, const RoomPlan& plan, Lighting& lighting, nlohman
   std::string kind;
   if (plan.support == 1) {
     kind = "round table";
-    b.lathe(base + Vector3d(0, top - 0.03, 0), 0.03, [r](double) { return r; }, m, r, true, true);
+    b.lathe(
+        base + Vector3d(0, top - 0.03, 0), 0.03, [r](double) { return r; }, m, r, true, true);
     const double pole = b.rng.uniform(0.03, 0.06);
-    b.lathe(base, top - 0.03, [pole](double t) { return pole * (1.0 + 0.5 * (1 - t) * (1 - t)); }, m, pole * 1.5, false,
-            false);
-    b.lathe(base, 0.03, [r](double) { return r * 0.55; }, m, r, false, true);
+    b.lathe(
+        base, top - 0.03, [pole](double t) { return pole * (1.0 + 0.5 * (1 - t) * (1 - t)); }, m, pole * 1.5, false,
+        false);
+    b.lathe(
+        base, 0.03, [r](double) { return r * 0.55; }, m, r, false, true);
     lighting.contacts.push_back({Vector2d(base.x(), base.z()), Vector2d(r * 0.55, r * 0.55), 0, 0.3});
   } else if (plan.support == 2) {
     kind = "square table";
     const double yaw = b.rng.uniform(0, M_PI / 2), th = 0.02, leg = 0.025;
-    b.sampler.box(base + Vector3d(0, top - th, 0), {r, th, r}, yaw, m, b.detail.spacing_sphere(base + Vector3d(0, top, 0), r * 1.5));
+    b.sampler.box(base + Vector3d(0, top - th, 0), {r, th, r}, yaw, m,
+                  b.detail.spacing_sphere(base + Vector3d(0, top, 0), r * 1.5));
     const Frame f{base, yaw};
     for (int sx : {-1, 1})
       for (int sz : {-1, 1})
@@ -614,13 +690,18 @@ void build_room(const RoomPlan& plan, const DetailMap& detail, Lighting& lightin
   nlohmann::json furniture = nlohmann::json::array();
   for (const Piece& p : pieces) {
     build_piece(b, p);
-    furniture.push_back({{"kind", p.kind}, {"wall", p.wall}, {"footprint", {p.lo.x(), p.lo.y(), p.hi.x(), p.hi.y()}},
+    furniture.push_back({{"kind", p.kind},
+                         {"wall", p.wall},
+                         {"footprint", {p.lo.x(), p.lo.y(), p.hi.x(), p.hi.y()}},
                          {"height", p.height}});
   }
   count("furniture");
 
-  description["room"] = {{"min", {lo.x(), lo.y(), lo.z()}}, {"max", {hi.x(), hi.y(), hi.z()}}, {"floor", floor_kind},
-                         {"walls", wall_kind}, {"accent_wall", accent_wall >= 0 ? nlohmann::json(accent_kind) : nullptr}};
+  description["room"] = {{"min", {lo.x(), lo.y(), lo.z()}},
+                         {"max", {hi.x(), hi.y(), hi.z()}},
+                         {"floor", floor_kind},
+                         {"walls", wall_kind},
+                         {"accent_wall", accent_wall >= 0 ? nlohmann::json(accent_kind) : nullptr}};
   description["furniture"] = furniture;
   description["decorations"] = decorations;
   description["rug"] = rug_json;

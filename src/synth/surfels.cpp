@@ -101,8 +101,8 @@ void SurfelSampler::emit(const Eigen::Vector3d& p, const Eigen::Vector3d& t1, co
   const Eigen::Vector3d b = n.cross(a);
   Eigen::Matrix3d rotation;
   rotation << a, b, n;
-  const Eigen::Vector3d jittered = p + a * (rng_.uniform(-kJitter, kJitter) * size1) +
-                                   b * (rng_.uniform(-kJitter, kJitter) * size2);
+  const Eigen::Vector3d jittered =
+      p + a * (rng_.uniform(-kJitter, kJitter) * size1) + b * (rng_.uniform(-kJitter, kJitter) * size2);
   const Eigen::Vector3d scales(kSigmaPerCell * size1, kSigmaPerCell * size2, kThickness * std::min(size1, size2));
   const Rgb colour = material.lit ? lighting_.shade(albedo, jittered, n) : albedo;
   out_.add(jittered, rotation, scales, material.opacity, colour);
@@ -130,12 +130,12 @@ void SurfelSampler::box(const Eigen::Vector3d& centre, const Eigen::Vector3d& ha
   const Eigen::Vector3d x = r.col(0), y = r.col(1), z = r.col(2);
   const double hx = half.x(), hy = half.y(), hz = half.z();
   // Each face: corner, axes (u x v points outwards), lengths.
-  rect(centre + y * hy - x * hx + z * hz, x, -z, 2 * hx, 2 * hz, material, spacing);       // top
+  rect(centre + y * hy - x * hx + z * hz, x, -z, 2 * hx, 2 * hz, material, spacing);  // top
   if (bottom) rect(centre - y * hy - x * hx - z * hz, x, z, 2 * hx, 2 * hz, material, spacing);
-  rect(centre + z * hz - x * hx - y * hy, x, y, 2 * hx, 2 * hy, material, spacing);        // +z
-  rect(centre - z * hz + x * hx - y * hy, -x, y, 2 * hx, 2 * hy, material, spacing);       // -z
-  rect(centre + x * hx + z * hz - y * hy, -z, y, 2 * hz, 2 * hy, material, spacing);       // +x
-  rect(centre - x * hx - z * hz - y * hy, z, y, 2 * hz, 2 * hy, material, spacing);        // -x
+  rect(centre + z * hz - x * hx - y * hy, x, y, 2 * hx, 2 * hy, material, spacing);   // +z
+  rect(centre - z * hz + x * hx - y * hy, -x, y, 2 * hx, 2 * hy, material, spacing);  // -z
+  rect(centre + x * hx + z * hz - y * hy, -z, y, 2 * hz, 2 * hy, material, spacing);  // +x
+  rect(centre - x * hx - z * hz - y * hy, z, y, 2 * hz, 2 * hy, material, spacing);   // -x
 }
 
 void SurfelSampler::disc(const Eigen::Vector3d& centre, double radius, bool facing_up, const Material& material,
@@ -220,8 +220,8 @@ void SurfelSampler::ellipsoid(const Eigen::Vector3d& centre, const Eigen::Vector
       const Eigen::Vector3d d_theta = rotation * radii.cwiseProduct(Eigen::Vector3d(-sp * st, 0, sp * ct));
       const Eigen::Vector3d d_phi = rotation * radii.cwiseProduct(Eigen::Vector3d(cp * ct, -sp, cp * st));
       const Eigen::Vector3d normal = rotation * unit.cwiseQuotient(radii);
-      emit(p, d_theta, normal, d_theta.norm() * dth, d_phi.norm() * dphi,
-           material.colour(th * r_max, phi * r_max, p), material);
+      emit(p, d_theta, normal, d_theta.norm() * dth, d_phi.norm() * dphi, material.colour(th * r_max, phi * r_max, p),
+           material);
     }
   }
 }

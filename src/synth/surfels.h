@@ -25,8 +25,8 @@ inline constexpr double kMaxOpacity = 0.98;
 class GaussianBuilder {
  public:
   // rotation: columns = the Gaussian's axes (scales[0] along column 0, ...).
-  void add(const Eigen::Vector3d& mean, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& scales,
-           double opacity, const Rgb& rgb);
+  void add(const Eigen::Vector3d& mean, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& scales, double opacity,
+           const Rgb& rgb);
   // Appends a set with RGB colours (sh_degree -1), opacities clamped to kMaxOpacity.
   void append(const GaussianSet& set);
   size_t size() const { return opacities_.size(); }

@@ -2,11 +2,11 @@
 // cameras, then the Gaussians, as dense as the cameras need them.
 #include "synth/synth_scene.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
-
-#include <fmt/format.h>
 
 #include "common/error.h"
 #include "synth/random.h"
@@ -29,9 +29,9 @@ struct CameraPath {
   Vector3d target;
   double object_radius = 0.3;
   double distance = 2;
-  double theta0 = 0, span = 1;          // arc: centre angle and angular extent (radians)
+  double theta0 = 0, span = 1;  // arc: centre angle and angular extent (radians)
   double elevation = 0.3, elevation_wobble = 0.05;
-  double sweep = 0.5, bob = 0.1;        // forward: horizontal and vertical extent (metres)
+  double sweep = 0.5, bob = 0.1;  // forward: horizontal and vertical extent (metres)
   double f1 = 1, f2 = 1, f3 = 1, p1 = 0, p2 = 0, p3 = 0;
   double roll = 0.02;
   double min_height = 0.3, max_height = 2.5;
@@ -96,9 +96,12 @@ ObjectSource parse_object_source(const std::string& text, const std::string& wha
 
 std::string to_string(ObjectSource source) {
   switch (source) {
-    case ObjectSource::procedural: return "procedural";
-    case ObjectSource::splat: return "splat";
-    default: return "mixed";
+    case ObjectSource::procedural:
+      return "procedural";
+    case ObjectSource::splat:
+      return "splat";
+    default:
+      return "mixed";
   }
 }
 
@@ -125,10 +128,9 @@ double DetailMap::spacing_sphere_points(const std::vector<Eigen::Vector3d>& poin
   for (size_t k = 0; k < cameras_.size(); ++k) {
     const Intrinsics& K = cameras_[k].K;
     // Inward unit normals of the four side planes of the view frustum (OpenCV camera axes).
-    const std::array<Vector3d, 4> sides = {Vector3d(K.fx, 0, K.cx).normalized(),
-                                           Vector3d(-K.fx, 0, K.width - K.cx).normalized(),
-                                           Vector3d(0, K.fy, K.cy).normalized(),
-                                           Vector3d(0, -K.fy, K.height - K.cy).normalized()};
+    const std::array<Vector3d, 4> sides = {
+        Vector3d(K.fx, 0, K.cx).normalized(), Vector3d(-K.fx, 0, K.width - K.cx).normalized(),
+        Vector3d(0, K.fy, K.cy).normalized(), Vector3d(0, -K.fy, K.height - K.cy).normalized()};
     for (const Vector3d& p : points) {
       const Vector3d x = (w2c_[k] * p.homogeneous()).head<3>();
       if (x.z() + radius < 0.05) continue;  // behind the camera
@@ -150,8 +152,8 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
   SynthRng plan_rng(mix_seed(seed, kPlanStream));
 
   // ---- the object: where it comes from and how big it is --------------------------------
-  const bool want_splat = options.object == ObjectSource::splat ||
-                          (options.object == ObjectSource::mixed && plan_rng.chance(1.0 / 3.0));
+  const bool want_splat =
+      options.object == ObjectSource::splat || (options.object == ObjectSource::mixed && plan_rng.chance(1.0 / 3.0));
   const auto splat_files = list_splat_objects(options.splat_dir);
   const GaussianSet* splat = nullptr;
   std::filesystem::path splat_file;
@@ -213,8 +215,10 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
   // The room leaves the cameras' ring free for the object alone.
   plan.keep_out = path.distance * 1.2 + 0.3;
   const double room_height = plan_rng.uniform(2.5, 3.2);
-  plan.room_min = Vector3d(-(plan.keep_out + plan_rng.uniform(0.7, 2.0)), 0, -(plan.keep_out + plan_rng.uniform(0.7, 2.0)));
-  plan.room_max = Vector3d(plan.keep_out + plan_rng.uniform(0.7, 2.0), room_height, plan.keep_out + plan_rng.uniform(0.7, 2.0));
+  plan.room_min =
+      Vector3d(-(plan.keep_out + plan_rng.uniform(0.7, 2.0)), 0, -(plan.keep_out + plan_rng.uniform(0.7, 2.0)));
+  plan.room_max =
+      Vector3d(plan.keep_out + plan_rng.uniform(0.7, 2.0), room_height, plan.keep_out + plan_rng.uniform(0.7, 2.0));
   path.min_height = 0.25;
   path.max_height = room_height - 0.3;
 
@@ -267,8 +271,8 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
   nlohmann::json object_json;
   if (splat) {
     scene.object = place_splat_object(*splat, plan.object_base, height, object_rng.uniform(0, 2 * M_PI));
-    object_json = {{"kind", "splat"}, {"file", splat_file.filename().string()}, {"height", height},
-                   {"footprint", footprint}};
+    object_json = {
+        {"kind", "splat"}, {"file", splat_file.filename().string()}, {"height", height}, {"footprint", footprint}};
   } else {
     GaussianBuilder object;
     build_procedural_object(plan.object_base, height, footprint, detail, lighting, object_rng, object, object_json);

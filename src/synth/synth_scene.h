@@ -9,6 +9,7 @@
 //
 // World frame: y up, the floor at y = 0, the object standing near the origin. Cameras are
 // OpenGL camera-to-world (camera/camera.h), square pixels, centred principal point.
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -27,8 +28,8 @@ ObjectSource parse_object_source(const std::string& text, const std::string& wha
 std::string to_string(ObjectSource source);
 
 struct SynthOptions {
-  int views = 24;       // training views: the object is in them
-  int test_views = 8;   // object-free test views (SPIn-NeRF style), between the training views
+  int views = 24;      // training views: the object is in them
+  int test_views = 8;  // object-free test views (SPIn-NeRF style), between the training views
   int width = 256;
   int height = 256;
   // procedural: composed primitives; splat: a real captured splat from splat_dir (error if
@@ -43,16 +44,16 @@ struct SynthOptions {
 
 struct SynthScene {
   uint64_t seed = 0;
-  GaussianSet background;  // everything except the object, RGB colours
-  GaussianSet object;      // the inserted object, RGB colours
+  GaussianSet background;               // everything except the object, RGB colours
+  GaussianSet object;                   // the inserted object, RGB colours
   std::vector<NamedCamera> views;       // training views, in path order ("view_000", ...)
   std::vector<NamedCamera> test_views;  // test views, in path order ("test_000", ...)
   int reference = 0;                    // index into `views` of the reference view
   std::vector<int> context;             // reference first, then 3 views spanning the path
   Eigen::Vector3d object_centre = Eigen::Vector3d::Zero();
-  double object_radius = 0;             // bounding sphere around object_centre
+  double object_radius = 0;                                  // bounding sphere around object_centre
   std::array<float, 3> render_background{0.5f, 0.5f, 0.5f};  // shows only through gaps
-  nlohmann::json description;           // room, furniture, object, camera path
+  nlohmann::json description;                                // room, furniture, object, camera path
 };
 
 // The captured splat objects of a folder (*.ply), sorted by name; empty when the folder is

@@ -1,10 +1,10 @@
 #include "synth/synth_views.h"
 
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-
-#include <opencv2/imgproc.hpp>
 
 #include "common/error.h"
 #include "data/inpaint2d.h"
@@ -66,8 +66,8 @@ GaussianSet SynthRenderer::rows(const std::vector<int64_t>& rows) const {
 // are cut at 3 sigma and alpha < 1/255 is skipped (beyond 3.4 sigma of the 2D covariance,
 // which the perspective Jacobian stretches by at most ~1.5 and the rasterizer's 0.3 px^2 blur
 // widens by < 2 px), so nothing outside this reach is ever drawn.
-std::vector<int64_t> SynthRenderer::visible_rows(const Camera& camera, const std::vector<float>& points, int x0,
-                                                 int y0, int x1, int y1) const {
+std::vector<int64_t> SynthRenderer::visible_rows(const Camera& camera, const std::vector<float>& points, int x0, int y0,
+                                                 int x1, int y1) const {
   const Intrinsics& K = camera.K;
   const double pixel = 4.0 / std::min(K.fx, K.fy);
   // Inward unit normals of the window's four side planes: u >= x0, u <= x1, v >= y0, v <= y1.
@@ -105,8 +105,8 @@ SynthViewImages SynthRenderer::render(const Camera& camera, bool with_object) co
   std::vector<float> points(3 * n);
   const float* m = means_.data_ptr<float>();
   for (int64_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d x = w2c.topLeftCorner<3, 3>() * Eigen::Vector3d(m[3 * i], m[3 * i + 1], m[3 * i + 2]) +
-                              w2c.topRightCorner<3, 1>();
+    const Eigen::Vector3d x =
+        w2c.topLeftCorner<3, 3>() * Eigen::Vector3d(m[3 * i], m[3 * i + 1], m[3 * i + 2]) + w2c.topRightCorner<3, 1>();
     for (int c = 0; c < 3; ++c) points[3 * i + c] = static_cast<float>(x[c]);
   }
 
@@ -184,12 +184,18 @@ Degradation parse_degradation(const std::string& text, const std::string& what) 
 
 std::string to_string(Degradation mode) {
   switch (mode) {
-    case Degradation::none: return "none";
-    case Degradation::blur: return "blur";
-    case Degradation::color: return "color";
-    case Degradation::noise: return "noise";
-    case Degradation::telea: return "telea";
-    default: return "mixed";
+    case Degradation::none:
+      return "none";
+    case Degradation::blur:
+      return "blur";
+    case Degradation::color:
+      return "color";
+    case Degradation::noise:
+      return "noise";
+    case Degradation::telea:
+      return "telea";
+    default:
+      return "mixed";
   }
 }
 

@@ -64,7 +64,7 @@ class SynthRenderer {
   const SynthScene& scene_;
   int64_t background_count_;
   torch::Tensor means_, quats_, scales_, opacities_, colors_;  // combined, float32, contiguous
-  std::vector<float> reach_;  // per Gaussian: 6 x its largest scale
+  std::vector<float> reach_;                                   // per Gaussian: 6 x its largest scale
 };
 
 // RGB HxWx3 or HxWx1 tensor to an Image (float32, CPU).

@@ -1,17 +1,17 @@
 #include "synth/synth_writer.h"
 
-#include <algorithm>
-#include <deque>
-#include <future>
-#include <cmath>
-#include <cstring>
-#include <limits>
-
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <deque>
+#include <future>
+#include <limits>
+
 #include "common/error.h"
-#include "common/stopwatch.h"
 #include "common/files.h"
+#include "common/stopwatch.h"
 #include "io/image.h"
 #include "io/npy.h"
 #include "io/ply.h"
@@ -166,8 +166,7 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
     writes.add([=] { write_png(images / file, r->clean); });
     writes.add([=] { write_png(images / "test_label" / file, r->mask); });
     writes.add([=] { write_png(partial / "clean" / file, r->clean); });
-    if (options.write_depth)
-      writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), r->clean_depth); });
+    if (options.write_depth) writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), r->clean_depth); });
     if (options.progress) options.progress(++done, total);
   }
 
@@ -190,16 +189,15 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
     writes.add([=] { write_png(images / file, r->with_object); });
     writes.add([=] { write_png(images / "label" / file, r->mask); });
     writes.add([=] { write_png(partial / "clean" / file, r->clean); });
-    if (options.write_depth)
-      writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), r->depth); });
+    if (options.write_depth) writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), r->depth); });
     if (options.progress) options.progress(++done, total);
   }
   writes.finish();
   write_npy(partial / "poses_bounds.npy", rows, {static_cast<int64_t>(total), 17});
 
-  const Image reference = degrade_reference(reference_view->clean, reference_view->with_object, reference_view->mask,
-                                            options.degrade,
-                                            mix_seed(scene.seed, kReferenceStream), &summary.degradation);
+  const Image reference =
+      degrade_reference(reference_view->clean, reference_view->with_object, reference_view->mask, options.degrade,
+                        mix_seed(scene.seed, kReferenceStream), &summary.degradation);
   write_png(partial / "reference.png", reference);
 
   std::vector<NamedCamera> cameras = scene.test_views;

@@ -32,8 +32,8 @@ struct SynthWriteOptions {
   Degradation degrade = Degradation::none;  // applied to reference.png only
   int downscale = 4;                        // the K of images_K
   bool save_gaussians = false;
-  bool write_depth = true;                  // depth/*.npy (float32: the largest part of a scene)
-  nlohmann::json generator;                 // recorded in synth.json (e.g. the options used)
+  bool write_depth = true;                            // depth/*.npy (float32: the largest part of a scene)
+  nlohmann::json generator;                           // recorded in synth.json (e.g. the options used)
   std::function<void(int done, int total)> progress;  // after each view
 };
 
@@ -41,8 +41,8 @@ struct SynthWriteSummary {
   int views = 0;
   int test_views = 0;
   std::string reference;
-  std::string degradation;       // the one applied (mixed resolved)
-  double object_fraction = 0;    // mean fraction of training-view pixels inside the mask
+  std::string degradation;     // the one applied (mixed resolved)
+  double object_fraction = 0;  // mean fraction of training-view pixels inside the mask
 };
 
 // One LLFF row: the 3x5 matrix [R | t | (H, W, f)] row-major with rotation columns (down,

@@ -1,6 +1,6 @@
 #include "train/trainer.h"
 
-#include <spdlog/spdlog.h>
+#include <fmt/ranges.h>
 
 #include <cmath>
 #include <cstring>
@@ -64,20 +64,16 @@ torch::Tensor to_signed_image(const torch::Tensor& rgb) {
   return (rgb * 2.0 - 1.0).clamp(-1.0, 1.0).permute({2, 0, 1}).unsqueeze(0);
 }
 
-}  // namespace
-
-struct Trainer::Batch {
-  torch::Tensor images, plucker, rays_o, rays_d_un;  // (B, V, ...)
-};
-
-namespace {
-
 Network& moved_to(Network& network, const torch::Device& device) {
   network.to(device);
   return network;
 }
 
 }  // namespace
+
+struct Trainer::Batch {
+  torch::Tensor images, plucker, rays_o, rays_d_un;  // (B, V, ...)
+};
 
 Trainer::Trainer(Network network, TrainerOptions options, std::shared_ptr<ProcessGroup> group)
     : network_(std::move(network)),
@@ -107,7 +103,7 @@ Trainer::Batch Trainer::collate(const std::vector<TrainingSample>& samples) cons
     const torch::Tensor& im = s.input.images;
     if (im.dim() != 4 || im.size(1) < channels)
       fail("training sample from {}: images [{}] do not have the model's {} channels", s.scene,
-           fmt::format("{}", fmt::join(im.sizes(), ", ")), channels);
+           fmt::join(im.sizes(), ", "), channels);
     if (s.target_images.size(0) != static_cast<int64_t>(s.target_cameras.size()) || s.target_cameras.empty())
       fail("training sample from {}: {} target images for {} cameras", s.scene, s.target_images.size(0),
            s.target_cameras.size());

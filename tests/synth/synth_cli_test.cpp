@@ -1,7 +1,6 @@
 // `instainpaint synth` end to end: runs the built executable (beside the tests' folder);
 // skipped when it has not been built.
 #include <gtest/gtest.h>
-
 #include <sys/wait.h>
 
 #include <cstdlib>
@@ -17,8 +16,8 @@ namespace fs = std::filesystem;
 
 fs::path executable() { return fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "instainpaint"; }
 
-#define II_REQUIRE_CLI(var)              \
-  const fs::path var = executable();     \
+#define II_REQUIRE_CLI(var)          \
+  const fs::path var = executable(); \
   if (!fs::exists(var)) GTEST_SKIP() << "not built: " << var.string()
 
 int run(const std::string& args, const fs::path& log) {

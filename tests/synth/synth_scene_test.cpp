@@ -180,7 +180,8 @@ TEST(SynthScene, SplatRequestedWithoutSplatsIsAnError) {
             "synth: --object splat needs captured splats (*.ply) in '/nonexistent/splats'");
   // mixed falls back to procedural objects.
   o.object = ObjectSource::mixed;
-  for (uint64_t seed = 0; seed < 4; ++seed) EXPECT_EQ(generate_scene(o, seed).description["object"]["kind"], "procedural");
+  for (uint64_t seed = 0; seed < 4; ++seed)
+    EXPECT_EQ(generate_scene(o, seed).description["object"]["kind"], "procedural");
 }
 
 TEST(SynthScene, RejectsBadOptions) {
@@ -207,8 +208,8 @@ TEST(DegradeReference, ChangesOnlyAroundTheMaskAndIsDeterministic) {
       for (int c = 0; c < 3; ++c) with_object.at(y, x, c) = in ? 1.f : clean.at(y, x, c);
     }
   EXPECT_EQ(degrade_reference(clean, with_object, mask, Degradation::none, 1).pixels, clean.pixels);
-  for (Degradation mode : {Degradation::blur, Degradation::color, Degradation::noise, Degradation::telea,
-                           Degradation::mixed}) {
+  for (Degradation mode :
+       {Degradation::blur, Degradation::color, Degradation::noise, Degradation::telea, Degradation::mixed}) {
     std::string applied;
     const Image a = degrade_reference(clean, with_object, mask, mode, 9, &applied);
     EXPECT_EQ(a.pixels, degrade_reference(clean, with_object, mask, mode, 9).pixels) << applied;

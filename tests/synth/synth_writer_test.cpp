@@ -118,9 +118,9 @@ TEST(SynthWriter, PoseRowsInvertTheReadersConversion) {
   const SynthScene scene = generate_scene(tiny(), 5);
   const Camera& c = scene.views[1].camera;
   const auto row = llff_pose_row(c, 4, 0.5, 9.0);
-  EXPECT_DOUBLE_EQ(row[4], 40 * 4);      // H
-  EXPECT_DOUBLE_EQ(row[9], 48 * 4);      // W
-  EXPECT_DOUBLE_EQ(row[14], c.K.fx * 4); // f
+  EXPECT_DOUBLE_EQ(row[4], 40 * 4);       // H
+  EXPECT_DOUBLE_EQ(row[9], 48 * 4);       // W
+  EXPECT_DOUBLE_EQ(row[14], c.K.fx * 4);  // f
   EXPECT_DOUBLE_EQ(row[15], 0.5);
   EXPECT_DOUBLE_EQ(row[16], 9.0);
   for (int r = 0; r < 3; ++r) {
