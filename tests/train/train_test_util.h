@@ -1,8 +1,13 @@
 #pragma once
 // Small in-memory training samples for the optimisation tests: 4 input views and 2 targets
 // of 32x32 around the origin, contents a pure function of (seed, index), so tests can build
-// the same batch in several processes.
+// the same batch in several processes; and running the test executable as a worker process.
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdlib>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -63,25 +68,21 @@ inline std::vector<TrainingSample> tiny_batch(uint64_t seed, int64_t first, int 
   return batch;
 }
 
-}  // namespace ii::test
-
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <cstdlib>
-#include <map>
-
-namespace ii::test {
-
-// Runs this test executable again as a worker process with extra environment variables
-// (its static worker hook acts on them before any test runs); returns the wait status.
+// Runs this test executable again, with extra environment variables, as a worker process
+// (see register_worker); returns its wait status.
 inline int run_self_as_worker(const std::map<std::string, std::string>& env) {
+  // Everything is built before fork: the child of a multi-threaded process only calls execve.
+  std::vector<std::string> entries;
+  for (char** e = environ; *e; ++e) entries.emplace_back(*e);
+  for (const auto& [k, v] : env) entries.push_back(k + "=" + v);
+  std::vector<char*> envp;
+  for (std::string& e : entries) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  char self[] = "/proc/self/exe";
+  char* argv[] = {self, nullptr};
   const pid_t pid = ::fork();
   if (pid == 0) {
-    for (const auto& [k, v] : env) ::setenv(k.c_str(), v.c_str(), 1);
-    char self[] = "/proc/self/exe";
-    char* argv[] = {self, nullptr};
-    ::execv(self, argv);
+    ::execve(self, argv, envp.data());
     ::_exit(127);
   }
   int status = 0;
@@ -89,13 +90,10 @@ inline int run_self_as_worker(const std::map<std::string, std::string>& env) {
   return status;
 }
 
-}  // namespace ii::test
-
-namespace ii::test {
-
 // Registers `work` to run instead of the tests when the environment variable `role` is set
-// (a worker process started by run_self_as_worker). It runs once main() has started, so
-// every static object of the libraries is initialised; its return value is the exit code.
+// (a worker process started by run_self_as_worker or a launcher). It runs once main() has
+// started, so every static object of the libraries is initialised; its return value is the
+// exit code.
 inline bool register_worker(const char* role, int (*work)(const std::string& value)) {
   struct Worker : ::testing::Environment {
     const char* role;
