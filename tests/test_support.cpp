@@ -5,6 +5,8 @@
 #include <iterator>
 #include <random>
 
+#include <sys/wait.h>
+
 namespace ii::test {
 
 namespace fs = std::filesystem;
@@ -45,6 +47,16 @@ fs::path temp_dir(const std::string& tag) {
   fs::path p = root.path / (tag + "-" + std::to_string(counter++));
   fs::create_directories(p);
   return p;
+}
+
+fs::path cli_executable() {
+  return fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "instainpaint";
+}
+
+int run_command(const std::string& command, const fs::path& log) {
+  const std::string cmd = command + " > '" + log.string() + "' 2>&1";
+  const int status = std::system(cmd.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 }  // namespace ii::test

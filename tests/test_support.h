@@ -25,6 +25,12 @@ std::string raw(const std::vector<T>& v) {
   return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
 }
 
+// The built `instainpaint` executable (beside the tests' folder), for end-to-end CLI tests.
+std::filesystem::path cli_executable();
+// Runs a shell command with stdout and stderr to `log`; returns its exit code (-1 when it
+// did not exit normally).
+int run_command(const std::string& command, const std::filesystem::path& log);
+
 // Runs `fn` and returns the Error message it throws; fails the test if it throws nothing
 // or something else.
 template <typename Fn>
@@ -36,6 +42,11 @@ std::string error_message(Fn&& fn);
 #define II_REQUIRE_SHARED(var, relative)                                               \
   const std::filesystem::path var = ::ii::test::shared_path(relative);                 \
   if (!std::filesystem::exists(var)) GTEST_SKIP() << "shared data missing: " << var.string()
+
+// Skips the current test when the CLI has not been built; binds its path to `var`.
+#define II_REQUIRE_CLI(var)                                         \
+  const std::filesystem::path var = ::ii::test::cli_executable();  \
+  if (!std::filesystem::exists(var)) GTEST_SKIP() << "not built: " << var.string()
 
 #include "common/error.h"
 

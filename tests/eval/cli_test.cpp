@@ -2,8 +2,6 @@
 // (beside the tests' folder); skipped when it has not been built.
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-
 #include <nlohmann/json.hpp>
 
 #include "common/files.h"
@@ -17,18 +15,10 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-fs::path executable() { return fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "instainpaint"; }
-
-#define II_REQUIRE_CLI(var)          \
-  const fs::path var = executable(); \
-  if (!fs::exists(var)) GTEST_SKIP() << "not built: " << var.string()
-
 // Runs the command without the metric-weight environment variables; returns the exit code.
 int run(const std::string& args, const fs::path& log) {
-  const std::string cmd = "env -u INSTAINPAINT_LPIPS_VGG -u INSTAINPAINT_LPIPS_ALEX -u INSTAINPAINT_FID_INCEPTION " +
-                          args + " > '" + log.string() + "' 2>&1";
-  const int status = std::system(cmd.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return test::run_command("env -u INSTAINPAINT_LPIPS_VGG -u INSTAINPAINT_LPIPS_ALEX -u INSTAINPAINT_FID_INCEPTION " + args,
+                           log);
 }
 
 TEST(MetricsCli, JsonOfAPair) {

@@ -16,19 +16,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path executable() {
-  return fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "instainpaint";
-}
-
-#define II_REQUIRE_CLI(var)                                                 \
-  const fs::path var = executable();                                        \
-  if (!fs::exists(var)) GTEST_SKIP() << "not built: " << var.string()
-
-int run(const std::string& args, const fs::path& log) {
-  const std::string cmd = args + " > '" + log.string() + "' 2>&1";
-  return std::system(cmd.c_str());
-}
-
 // A small cloud of splats around the origin (pre-activation values, as PLYs store them).
 SplatCloud small_cloud() {
   SplatCloud c;
@@ -61,7 +48,8 @@ TEST(RenderCli, CameraListWithDepthAndAlpha) {
   write_camera_json(dir / "cams.json", {cam, side});
 
   const fs::path out = dir / "out";
-  ASSERT_EQ(run(fmt::format("'{}' render --ply '{}' --cameras '{}' --out '{}' --depth --alpha --no-video --threads 1",
+  ASSERT_EQ(test::run_command(
+                fmt::format("'{}' render --ply '{}' --cameras '{}' --out '{}' --depth --alpha --no-video --threads 1",
                             exe.string(), (dir / "cloud.ply").string(), (dir / "cams.json").string(), out.string()),
                 dir / "log.txt"),
             0)
@@ -87,10 +75,12 @@ TEST(RenderCli, TurntableVideo) {
   const fs::path dir = test::temp_dir("render-cli-video");
   write_splat_ply(dir / "cloud.ply", small_cloud());
   const fs::path out = dir / "out";
-  ASSERT_EQ(run(fmt::format("'{}' render --ply '{}' --trajectory turntable --frames 4 --width 33 --height 21 --out '{}'",
-                            exe.string(), (dir / "cloud.ply").string(), out.string()),
-                dir / "log.txt"),
-            0)
+  ASSERT_EQ(
+      test::run_command(
+          fmt::format("'{}' render --ply '{}' --trajectory turntable --frames 4 --width 33 --height 21 --out '{}'",
+                      exe.string(), (dir / "cloud.ply").string(), out.string()),
+          dir / "log.txt"),
+      0)
       << read_file_text(dir / "log.txt");
   EXPECT_TRUE(fs::exists(out / "rgb" / "0003.png"));
   ASSERT_TRUE(fs::exists(out / "rgb.mp4"));
@@ -102,14 +92,14 @@ TEST(RenderCli, MissingCamerasIsAnError) {
   II_REQUIRE_CLI(exe);
   const fs::path dir = test::temp_dir("render-cli-err");
   write_splat_ply(dir / "cloud.ply", small_cloud());
-  EXPECT_NE(run(fmt::format("'{}' render --ply '{}' --out '{}'", exe.string(), (dir / "cloud.ply").string(),
-                            (dir / "o").string()),
-                dir / "log.txt"),
+  EXPECT_NE(test::run_command(fmt::format("'{}' render --ply '{}' --out '{}'", exe.string(),
+                                          (dir / "cloud.ply").string(), (dir / "o").string()),
+                              dir / "log.txt"),
             0);
   EXPECT_NE(read_file_text(dir / "log.txt").find("no cameras"), std::string::npos);
-  EXPECT_NE(run(fmt::format("'{}' render --ply '{}' --trajectory orbit --out '{}'", exe.string(),
-                            (dir / "cloud.ply").string(), (dir / "o").string()),
-                dir / "log.txt"),
+  EXPECT_NE(test::run_command(fmt::format("'{}' render --ply '{}' --trajectory orbit --out '{}'", exe.string(),
+                                          (dir / "cloud.ply").string(), (dir / "o").string()),
+                              dir / "log.txt"),
             0);
   EXPECT_NE(read_file_text(dir / "log.txt").find("needs --scene"), std::string::npos);
 }

@@ -1,9 +1,6 @@
 // `instainpaint synth` end to end: runs the built executable (beside the tests' folder);
 // skipped when it has not been built.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-
-#include <cstdlib>
 
 #include "data/scene.h"
 #include "synth/synth_writer.h"
@@ -14,27 +11,16 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path executable() { return fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "instainpaint"; }
-
-#define II_REQUIRE_CLI(var)          \
-  const fs::path var = executable(); \
-  if (!fs::exists(var)) GTEST_SKIP() << "not built: " << var.string()
-
-int run(const std::string& args, const fs::path& log) {
-  const std::string cmd = args + " > '" + log.string() + "' 2>&1";
-  const int status = std::system(cmd.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
 TEST(SynthCli, WritesScenesTheReaderLoads) {
   II_REQUIRE_CLI(exe);
   const fs::path dir = test::temp_dir("synth-cli");
   const fs::path log = dir / "log.txt";
-  ASSERT_EQ(run(exe.string() + " synth --out '" + (dir / "out").string() +
-                    "' --scenes 2 --seed 3 --views 4 --test-views 2 --width 32 --height 24 --object procedural "
-                    "--degrade telea --threads 1",
-                log),
-            0)
+  ASSERT_EQ(
+      test::run_command(exe.string() + " synth --out '" + (dir / "out").string() +
+                            "' --scenes 2 --seed 3 --views 4 --test-views 2 --width 32 --height 24 --object procedural "
+                            "--degrade telea --threads 1",
+                        log),
+      0)
       << test::file_bytes(log);
   const std::string output = test::file_bytes(log);
   EXPECT_NE(output.find("scene 2/2"), std::string::npos) << output;
@@ -51,7 +37,8 @@ TEST(SynthCli, WritesScenesTheReaderLoads) {
   EXPECT_NE(test::file_bytes(dir / "out" / "scene_000" / "poses_bounds.npy"),
             test::file_bytes(dir / "out" / "scene_001" / "poses_bounds.npy"));
   // scene-info reads what synth wrote.
-  ASSERT_EQ(run(exe.string() + " scene-info --scene '" + (dir / "out" / "scene_001").string() + "'", log), 0)
+  ASSERT_EQ(test::run_command(exe.string() + " scene-info --scene '" + (dir / "out" / "scene_001").string() + "'", log),
+            0)
       << test::file_bytes(log);
   EXPECT_NE(test::file_bytes(log).find("views   4 (4 with object masks), test views 2"), std::string::npos)
       << test::file_bytes(log);
@@ -61,12 +48,13 @@ TEST(SynthCli, BadArgumentsAreClearErrors) {
   II_REQUIRE_CLI(exe);
   const fs::path dir = test::temp_dir("synth-cli-bad");
   const fs::path log = dir / "log.txt";
-  EXPECT_EQ(run(exe.string() + " synth --out '" + (dir / "o").string() + "' --views 2", log), 1);
+  EXPECT_EQ(test::run_command(exe.string() + " synth --out '" + (dir / "o").string() + "' --views 2", log), 1);
   EXPECT_NE(test::file_bytes(log).find("error: synth: need at least 4 views (got 2)"), std::string::npos)
       << test::file_bytes(log);
-  EXPECT_NE(run(exe.string() + " synth --out '" + (dir / "o").string() + "' --object cube", log), 0);
+  EXPECT_NE(test::run_command(exe.string() + " synth --out '" + (dir / "o").string() + "' --object cube", log), 0);
   EXPECT_NE(test::file_bytes(log).find("--object"), std::string::npos) << test::file_bytes(log);
-  EXPECT_EQ(run(exe.string() + " synth --out '" + (dir / "o").string() + "' --object splat --splats /nonexistent", log),
+  EXPECT_EQ(test::run_command(
+                exe.string() + " synth --out '" + (dir / "o").string() + "' --object splat --splats /nonexistent", log),
             1);
   EXPECT_NE(test::file_bytes(log).find("needs captured splats"), std::string::npos) << test::file_bytes(log);
 }

@@ -25,11 +25,6 @@ TrainerOptions test_options() {
   return o;
 }
 
-Network seeded_network(uint64_t seed) {
-  torch::manual_seed(seed);
-  return Network(test::micro_config());
-}
-
 // Steps [first, last) of a run whose step k trains on samples 2k and 2k+1.
 std::vector<double> train_steps(Trainer& trainer, int first, int last) {
   std::vector<double> losses;
@@ -47,7 +42,7 @@ bool same_parameters(const Trainer& a, const Trainer& b) {
 // the checkpoint on disk, then saves with a file-size limit below the checkpoint's size, so
 // the kernel kills it (SIGXFSZ) in the middle of writing the temporary file.
 int die_while_saving(const std::string& file) {
-  Trainer trainer(seeded_network(1), test_options());
+  Trainer trainer(test::seeded_network(1), test_options());
   train_steps(trainer, 0, 3);
   const rlimit limit{64 * 1024, 64 * 1024};
   ::setrlimit(RLIMIT_FSIZE, &limit);
@@ -59,14 +54,14 @@ const bool worker_registered = test::register_worker("II_TEST_DIE_WHILE_SAVING",
 
 TEST(TrainingCheckpoint, ResumeGivesIdenticalLosses) {
   const fs::path dir = test::temp_dir("resume");
-  Trainer straight(seeded_network(1), test_options());
+  Trainer straight(test::seeded_network(1), test_options());
   const std::vector<double> all = train_steps(straight, 0, 5);
 
-  Trainer first(seeded_network(1), test_options());
+  Trainer first(test::seeded_network(1), test_options());
   const std::vector<double> head = train_steps(first, 0, 2);
   first.save(dir / "ck.safetensors", {{"sampler_next_index", 4}});
   // Another process would start from scratch: different initial weights, then load.
-  Trainer resumed(seeded_network(77), test_options());
+  Trainer resumed(test::seeded_network(77), test_options());
   const nlohmann::json state = resumed.load(dir / "ck.safetensors");
   EXPECT_EQ(state.at("sampler_next_index"), 4);
   EXPECT_EQ(resumed.steps_done(), 2);
@@ -82,7 +77,7 @@ TEST(TrainingCheckpoint, ResumeGivesIdenticalLosses) {
 TEST(TrainingCheckpoint, InterruptedWriteKeepsPreviousCheckpoint) {
   const fs::path dir = test::temp_dir("interrupted");
   const fs::path file = dir / "checkpoint.safetensors";
-  Trainer before(seeded_network(1), test_options());
+  Trainer before(test::seeded_network(1), test_options());
   train_steps(before, 0, 2);
   before.save(file);
   ASSERT_GT(fs::file_size(file), 64u * 1024u);
@@ -94,7 +89,7 @@ TEST(TrainingCheckpoint, InterruptedWriteKeepsPreviousCheckpoint) {
   for (const auto& e : fs::directory_iterator(dir)) temporaries += e.path().filename().string().rfind(".checkpoint", 0) == 0;
   EXPECT_EQ(temporaries, 1);  // the cut write went to a temporary file
 
-  Trainer after(seeded_network(5), test_options());
+  Trainer after(test::seeded_network(5), test_options());
   after.load(file);
   EXPECT_EQ(after.steps_done(), 2);
   EXPECT_TRUE(same_parameters(before, after));
@@ -102,7 +97,7 @@ TEST(TrainingCheckpoint, InterruptedWriteKeepsPreviousCheckpoint) {
 
 TEST(TrainingCheckpoint, ExportAndCheckpointLoadAsModels) {
   const fs::path dir = test::temp_dir("export");
-  Trainer trainer(seeded_network(2), test_options());
+  Trainer trainer(test::seeded_network(2), test_options());
   train_steps(trainer, 0, 1);
   trainer.export_model(dir / "model.safetensors", {{"step", 1}});
   trainer.save(dir / "checkpoint.safetensors");
@@ -129,7 +124,7 @@ TEST(TrainingCheckpoint, ExportAndCheckpointLoadAsModels) {
 
 TEST(TrainingCheckpoint, FineTuningKeepsTheFilesWeightNormSplit) {
   const fs::path dir = test::temp_dir("split");
-  Trainer trainer(seeded_network(4), test_options());
+  Trainer trainer(test::seeded_network(4), test_options());
   train_steps(trainer, 0, 2);  // v is no longer W after updates
   trainer.export_model(dir / "model.safetensors");
   const Checkpoint ck = read_checkpoint(dir / "model.safetensors", /*keep_weight_norm=*/true);
@@ -141,7 +136,7 @@ TEST(TrainingCheckpoint, FineTuningKeepsTheFilesWeightNormSplit) {
 
 TEST(TrainingCheckpoint, RejectsAnotherModelOrAModelFile) {
   const fs::path dir = test::temp_dir("mismatch");
-  Trainer trainer(seeded_network(3), test_options());
+  Trainer trainer(test::seeded_network(3), test_options());
   trainer.save(dir / "checkpoint.safetensors");
   trainer.export_model(dir / "model.safetensors");
   ModelConfig other = test::micro_config();

@@ -30,11 +30,6 @@ TrainerOptions test_options() {
   return o;
 }
 
-Network seeded_network(uint64_t seed) {
-  torch::manual_seed(seed);
-  return Network(test::micro_config());
-}
-
 // Step k of the global run trains on samples 2k and 2k + 1; rank r of 2 takes 2k + r.
 std::vector<TrainingSample> global_batch(int k) { return test::tiny_batch(21, 2 * k, 2); }
 
@@ -49,7 +44,7 @@ int data_parallel_worker(const std::string& spec) {
   try {
     auto group = std::make_shared<ProcessGroup>(config);
     // Different seeds per rank: the broadcast from rank 0 must make them equal.
-    Trainer trainer(seeded_network(config.rank == 0 ? 1 : 2), test_options(), group);
+    Trainer trainer(test::seeded_network(config.rank == 0 ? 1 : 2), test_options(), group);
     for (int k = 0; k < kSteps; ++k) {
       trainer.step({test::tiny_sample(21, 2 * k + config.rank)});
       if (mode == "die" && config.rank == 1) ::_exit(3);
@@ -83,7 +78,7 @@ TEST(DataParallel, TwoProcessesMatchOneWithTheCombinedBatch) {
   const fs::path dir = test::temp_dir("ddp");
   ASSERT_EQ(launch_two("train:" + dir.string()), 0);
 
-  Trainer single(seeded_network(1), test_options());
+  Trainer single(test::seeded_network(1), test_options());
   for (int k = 0; k < kSteps; ++k) single.step(global_batch(k));
   const auto& names = single.parameters().names();
   for (int rank = 0; rank < 2; ++rank) {

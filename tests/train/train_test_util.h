@@ -16,6 +16,7 @@
 
 #include "model/config.h"
 #include "model/model_input.h"
+#include "model/network.h"
 #include "render/trajectory.h"
 #include "train/sample.h"
 
@@ -26,6 +27,12 @@ inline ModelConfig micro_config(int image_channels = 4) {
   c.heads = 4;
   c.image_channels = image_channels;
   return c;
+}
+
+// A micro network with weights drawn from `seed` (torch's global generator).
+inline Network seeded_network(uint64_t seed, int image_channels = 4) {
+  torch::manual_seed(seed);
+  return Network(micro_config(image_channels));
 }
 
 inline Camera ring_camera(double angle, int size) {

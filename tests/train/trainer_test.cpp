@@ -21,11 +21,6 @@ TrainerOptions options_for_test(int64_t steps = 100, double lr = 1e-3) {
   return o;
 }
 
-Network seeded_network(uint64_t seed, int channels = 4) {
-  torch::manual_seed(seed);
-  return Network(test::micro_config(channels));
-}
-
 double max_relative_difference(const std::vector<torch::Tensor>& a, const std::vector<torch::Tensor>& b) {
   double worst = 0;
   for (size_t i = 0; i < a.size(); ++i) {
@@ -38,7 +33,7 @@ double max_relative_difference(const std::vector<torch::Tensor>& a, const std::v
 }
 
 TEST(TrainableParameters, OfficialWeightNormNamesAndSameWeights) {
-  Network net = seeded_network(1);
+  Network net = test::seeded_network(1);
   const TrainableParameters params(net);
   int g = 0, v = 0;
   for (const std::string& n : params.names()) {
@@ -55,11 +50,11 @@ TEST(TrainableParameters, OfficialWeightNormNamesAndSameWeights) {
 
 TEST(Trainer, TwoPhaseBackwardEqualsJointBackward) {
   const std::vector<TrainingSample> batch = test::tiny_batch(3, 0, 2);
-  Trainer trainer(seeded_network(2), options_for_test());
+  Trainer trainer(test::seeded_network(2), options_for_test());
   trainer.compute_gradients(batch);
 
   // The same loss with one graph from the weights to every render.
-  Network net = seeded_network(2);
+  Network net = test::seeded_network(2);
   const TrainableParameters params(net);
   params.bind(net);
   ImageLoss loss(options_for_test().loss);
@@ -95,17 +90,17 @@ TEST(Trainer, TwoPhaseBackwardEqualsJointBackward) {
 
 TEST(Trainer, BlockRecomputationGivesSameGradients) {
   const std::vector<TrainingSample> batch = test::tiny_batch(4, 0, 1);
-  Trainer plain(seeded_network(3), options_for_test());
+  Trainer plain(test::seeded_network(3), options_for_test());
   TrainerOptions o = options_for_test();
   o.checkpoint_blocks = true;
-  Trainer recomputed(seeded_network(3), o);
+  Trainer recomputed(test::seeded_network(3), o);
   const StepStats a = plain.compute_gradients(batch), b = recomputed.compute_gradients(batch);
   EXPECT_DOUBLE_EQ(a.loss, b.loss);
   EXPECT_LT(max_relative_difference(plain.parameters().tensors(), recomputed.parameters().tensors()), 1e-5);
 }
 
 TEST(Network, RecomputedBlocksAreInTheGraph) {
-  Network net = seeded_network(3);
+  Network net = test::seeded_network(3);
   net.set_requires_grad(true);
   net.set_activation_checkpointing(true);
   const TrainingSample s = test::tiny_sample(1, 0);
@@ -118,7 +113,7 @@ TEST(Network, RecomputedBlocksAreInTheGraph) {
 
 TEST(Trainer, ShortRunOverfitsOneSample) {
   const std::vector<TrainingSample> batch = test::tiny_batch(5, 0, 1);
-  Trainer trainer(seeded_network(4), options_for_test(40, 2e-3));
+  Trainer trainer(test::seeded_network(4), options_for_test(40, 2e-3));
   const double first = trainer.step(batch).loss;
   StepStats last;
   for (int i = 1; i < 40; ++i) last = trainer.step(batch);
@@ -137,7 +132,7 @@ TEST(Trainer, ShortRunOverfitsOneSample) {
 TEST(Trainer, Bf16ForwardGivesFiniteGradients) {
   TrainerOptions o = options_for_test();
   o.precision = Precision::BFloat16;
-  Trainer trainer(seeded_network(5), o);
+  Trainer trainer(test::seeded_network(5), o);
   const StepStats s = trainer.step(test::tiny_batch(6, 0, 1));
   EXPECT_TRUE(std::isfinite(s.loss));
   EXPECT_EQ(s.nonfinite_tensors, 0);
@@ -145,7 +140,7 @@ TEST(Trainer, Bf16ForwardGivesFiniteGradients) {
 }
 
 TEST(Trainer, RejectsMismatchedSamples) {
-  Trainer trainer(seeded_network(6), options_for_test());
+  Trainer trainer(test::seeded_network(6), options_for_test());
   std::vector<TrainingSample> batch = test::tiny_batch(7, 0, 1);
   batch[0].target_cameras.pop_back();
   EXPECT_EQ(test::error_message([&] { trainer.step(batch); }), "training sample from tiny_0: 2 target images for 1 cameras");
