@@ -15,7 +15,10 @@ if(EXISTS ${DEFAULT_MODEL_FILE})
     "  .section .note.GNU-stack,\"\",@progbits\n")
   set_source_files_properties(${DEFAULT_MODEL_ASM} PROPERTIES OBJECT_DEPENDS ${DEFAULT_MODEL_FILE})
   target_sources(instainpaint PRIVATE ${DEFAULT_MODEL_ASM})
-  target_compile_definitions(instainpaint PRIVATE INSTAINPAINT_DEFAULT_MODEL)
+  # Only the one source that references the symbols knows: the model appearing or going away
+  # recompiles that file, not the library (and keeps the shared precompiled header valid).
+  set_source_files_properties(${PROJECT_SOURCE_DIR}/src/model/default_model.cpp PROPERTIES
+    COMPILE_DEFINITIONS INSTAINPAINT_DEFAULT_MODEL SKIP_PRECOMPILE_HEADERS ON)
   message(STATUS "Default model: embedded (${DEFAULT_MODEL_FILE})")
 else()
   message(STATUS "Default model: none (models/default.safetensors absent)")

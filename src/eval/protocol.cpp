@@ -21,6 +21,7 @@
 #include "io/image.h"
 #include "io/ply.h"
 #include "model/checkpoint.h"
+#include "model/default_model.h"
 #include "model/inference.h"
 #include "model/scene_input.h"
 #include "render/gaussians.h"
@@ -195,16 +196,15 @@ MetricNetworks load_metric_networks(const EvalOptions& o, const torch::Device& d
 }
 
 // The one place where evaluation gets its model.
+std::string eval_model_name(const EvalOptions& o) { return o.checkpoint ? o.checkpoint->string() : kDefaultModelName; }
+
+// --checkpoint, else the default model built into the library.
 Network load_eval_model(const EvalOptions& o, json& info) {
-  if (!o.checkpoint)
-    fail(
-        "eval --method model needs a model: give --checkpoint CKPT (official .pth or safetensors) or "
-        "--gaussians PLY (splats in the pose-normalised frame, as `infer` writes them)");
-  const Checkpoint ck = read_checkpoint(*o.checkpoint);
-  info["checkpoint"] = o.checkpoint->string();
+  const Checkpoint ck = checkpoint_or_default(o.checkpoint ? o.checkpoint->string() : "");
+  info["checkpoint"] = eval_model_name(o);
   info["checkpoint_format"] = ck.format;
   info["config"] = ck.config.to_json();
-  return network_from_checkpoint(ck, o.checkpoint->string());
+  return network_from_checkpoint(ck, eval_model_name(o));
 }
 
 GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const torch::Device& device, json& info,
@@ -218,7 +218,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
     return gaussians_from_splats(cloud, o.sh_degree);
   }
   info["source"] = "network";
-  spdlog::info("loading the model");
+  spdlog::info("loading the model {}", eval_model_name(o));
   Network net = load_eval_model(o, info);
   net.to(device);
   timings["load_model_ms"] = watch.lap();
@@ -231,7 +231,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   SceneInput si = prepare_scene_input(scene, opts);
   for (torch::Tensor* t : {&si.input.images, &si.input.plucker, &si.input.rays_o, &si.input.rays_d_un})
     *t = t->to(device);
-  check_model_fits_input(net.config(), si.input, o.checkpoint->string());
+  check_model_fits_input(net.config(), si.input, eval_model_name(o));
   info["context"] = json::array();
   for (const PreparedView& v : si.views) info["context"].push_back(v.name);
   info["reference"] = si.reference_source;

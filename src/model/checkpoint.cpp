@@ -118,7 +118,7 @@ ModelConfig infer_config(const StateDict& state, const nlohmann::json& hints, co
   // The head count is not visible in shapes: it comes from the stored arguments, else the
   // official 16 (ModelConfig's default).
   c.preset = "custom";
-  for (const char* name : {"release", "base", "small", "tiny"}) {
+  for (const char* name : {"release", "base", "small", "mini", "tiny"}) {
     ModelConfig p = ModelConfig::from_preset(name);
     if (p.embed_dim == c.embed_dim && p.blocks == c.blocks && p.heads == c.heads &&
         p.upsampler_dim == c.upsampler_dim && p.patch == c.patch)

@@ -32,6 +32,8 @@ ModelConfig ModelConfig::from_preset(const std::string& name) {
     // trained briefly from scratch would spend most of its steps unlearning.
     c.depth_far = 20.0;
     c.depth_bias = -2.0;
+    c.scale_bias = -3.3;  // about a pixel wide at 64-128 px instead of 2-5 px
+    c.rgb_from_input = true;
     return c;
   }
   if (name == "tiny") {  // the official-layout parity fixture
@@ -97,7 +99,8 @@ nlohmann::json ModelConfig::to_json() const {
           {"scale_bias", scale_bias},
           {"scale_min", scale_min},
           {"scale_max", scale_max},
-          {"opacity_bias", opacity_bias}};
+          {"opacity_bias", opacity_bias},
+          {"rgb_from_input", rgb_from_input}};
 }
 
 ModelConfig ModelConfig::from_json(const nlohmann::json& j) {
@@ -121,6 +124,7 @@ ModelConfig ModelConfig::from_json(const nlohmann::json& j) {
   get("scale_min", c.scale_min);
   get("scale_max", c.scale_max);
   get("opacity_bias", c.opacity_bias);
+  get("rgb_from_input", c.rgb_from_input);
   return c;
 }
 

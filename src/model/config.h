@@ -22,6 +22,10 @@ struct ModelConfig {
   double depth_near = 0.0, depth_far = 500.0, depth_bias = -4.0;
   double scale_bias = -2.3, scale_min = 1e-4, scale_max = 0.3;
   double opacity_bias = -2.0;
+  // Ours, not official: the colour head predicts a correction to the input pixel's colour
+  // instead of the colour itself. A small model trained briefly otherwise spends its steps
+  // learning to copy colours through the transformer (and renders blurry averages).
+  bool rgb_from_input = false;
   double encoder_ln_eps = 1e-6, ln_eps = 1e-5;
 
   static ModelConfig from_preset(const std::string& name);  // throws Error on unknown names

@@ -2,7 +2,9 @@
 
 #include "common/error.h"
 
-// Symbols from the assembler file CMake generates around models/default.safetensors.
+// Symbols of the assembler file CMake generates around models/default.safetensors; it defines
+// INSTAINPAINT_DEFAULT_MODEL for this file only (cmake/default_model.cmake). The references
+// must be strong: a weak one would not pull the assembler object out of the static library.
 #ifdef INSTAINPAINT_DEFAULT_MODEL
 extern "C" const unsigned char ii_default_model_begin[];
 extern "C" const unsigned char ii_default_model_end[];

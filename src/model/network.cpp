@@ -276,7 +276,8 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   GaussianMaps& g = out.gaussians;
   const torch::Tensor s = torch::sigmoid(raw[0] + config_.depth_bias);
   g.depth = config_.depth_near * (1.0 - s) + config_.depth_far * s;
-  g.rgb = raw[1];
+  // Input RGB is in [-1,1], splat colours in [0,1] (spec §3.3).
+  g.rgb = config_.rgb_from_input ? raw[1] + (images.slice(2, 0, 3).to(torch::kFloat32) + 1.0) * 0.5 : raw[1];
   g.opacity = torch::sigmoid(raw[2] + config_.opacity_bias);
   g.scale = torch::clamp(torch::exp(raw[3] + config_.scale_bias), config_.scale_min, config_.scale_max);
   g.rotation = raw[4] / torch::clamp_min(raw[4].norm(2, 2, true), 1e-5);

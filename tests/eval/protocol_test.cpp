@@ -11,6 +11,7 @@
 #include "common/files.h"
 #include "eval/lpips.h"
 #include "eval/protocol.h"
+#include "model/default_model.h"
 #include "synthetic_scene.h"
 #include "test_support.h"
 
@@ -228,11 +229,23 @@ TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
   }
 }
 
+TEST_F(Protocol, WithoutACheckpointTheDefaultModelRuns) {
+  EvalOptions o = options("default-model");
+  o.context = {"03", "02", "04", "05"};
+  if (!has_default_model()) {
+    EXPECT_EQ(test::error_message([&] { run_evaluation(o); }),
+              "this build has no default model (models/default.safetensors was absent when it was configured): "
+              "give --checkpoint");
+    return;
+  }
+  const json m = run_evaluation(o);
+  EXPECT_EQ(m["prediction"]["checkpoint"], kDefaultModelName);
+  EXPECT_EQ(m["prediction"]["config"]["preset"], "mini");
+  EXPECT_TRUE(std::isfinite(m["mean"]["masked_psnr"].get<double>()));
+}
+
 TEST_F(Protocol, BadRequestsNameTheProblem) {
   EvalOptions o = options("errors");
-  EXPECT_EQ(test::error_message([&] { run_evaluation(o); }),
-            "eval --method model needs a model: give --checkpoint CKPT (official .pth or safetensors) or --gaussians "
-            "PLY (splats in the pose-normalised frame, as `infer` writes them)");
   o.gaussians = scene_dir() / "truth.ply";
   o.checkpoint = scene_dir() / "truth.ply";
   EXPECT_EQ(test::error_message([&] { run_evaluation(o); }), "eval: give either --checkpoint or --gaussians, not both");

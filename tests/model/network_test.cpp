@@ -107,5 +107,24 @@ TEST(Checkpoint, WeightNormFoldsAndModulePrefixIsStripped) {
             "gaudecoder.blocks.0.attn.proj.weight_v");
 }
 
+TEST(Network, RgbFromInputAddsTheHeadToTheInputColour) {
+  torch::manual_seed(5);
+  ModelConfig c = ModelConfig::from_preset("tiny");
+  c.rgb_from_input = true;
+  Network net(c);
+  const torch::Tensor images = torch::rand({1, 2, 4, 16, 16}) * 2 - 1;
+  const torch::Tensor plucker = torch::randn({1, 2, 6, 16, 16});
+  const torch::Tensor rays = torch::randn({1, 2, 16, 16, 3});
+  const torch::Tensor with_skip = net.forward(images, plucker, rays, rays).gaussians.rgb;
+  c.rgb_from_input = false;
+  Network plain(c, false);
+  std::map<std::string, torch::Tensor> state(net.named_parameters().begin(), net.named_parameters().end());
+  plain.load(state, "test");
+  const torch::Tensor head_only = plain.forward(images, plucker, rays, rays).gaussians.rgb;
+  // Input RGB in [-1,1] becomes a colour in [0,1].
+  const torch::Tensor expected = head_only + (images.slice(2, 0, 3) + 1) / 2;
+  EXPECT_LT((with_skip - expected).abs().max().item<float>(), 1e-6);
+}
+
 }  // namespace
 }  // namespace ii

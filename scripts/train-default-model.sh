@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# How models/default.safetensors was made (see models/MODEL_CARD.md): synthetic rooms plus the
+# real scenes of ../shared/data, stage 1 (RGB-only reconstruction) then stage 2 (masked
+# inpainting) on the `mini` preset, on 2 CPU cores. Usage:
+#   scripts/train-default-model.sh [WORK_DIR]      (default: runs/default-model)
+# Each stage resumes after an interruption: run the script again.
+set -euo pipefail
+BIN=${BIN:-build/instainpaint}
+SHARED=${SHARED:-../shared}
+WORK=${1:-runs/default-model}
+STAGE1_STEPS=${STAGE1_STEPS:-2500}
+STAGE2_STEPS=${STAGE2_STEPS:-2500}
+mkdir -p "$WORK"
+
+# Training rooms (seed 1001) and validation rooms (seed 777001); the evaluation rooms of the
+# model card use seed 9000 and are never seen in training.
+[ -d "$WORK/train" ] || "$BIN" synth --out "$WORK/train" --scenes 40 --seed 1001 --views 20 --test-views 4 \
+  --width 128 --height 128 --degrade mixed
+[ -d "$WORK/val" ] || "$BIN" synth --out "$WORK/val" --scenes 6 --seed 777001 --views 20 --test-views 4 \
+  --width 128 --height 128 --degrade mixed
+SCENES="$WORK/train,$SHARED/data/fern,$SHARED/data/fox,$SHARED/data/statue"
+
+resume() { [ -f "$1/checkpoint.safetensors" ] && echo --resume || true; }
+
+"$BIN" train --scenes "$SCENES" --val-scenes "$WORK/val" --out "$WORK/stage1" $(resume "$WORK/stage1") \
+  --stage reconstruct --preset mini --width 64 --height 64 --inputs 4 --targets 4 --batch 2 \
+  --steps "$STAGE1_STEPS" --lr 1e-3 --warmup 100 --val-every 250 --val-samples 6 --save-every 250
+
+"$BIN" train --scenes "$SCENES" --val-scenes "$WORK/val" --out "$WORK/stage2" $(resume "$WORK/stage2") \
+  --stage inpaint --init "$WORK/stage1/model.safetensors" --width 64 --height 64 --inputs 4 --targets 4 \
+  --batch 2 --steps "$STAGE2_STEPS" --lr 5e-4 --warmup 100 --val-every 250 --val-samples 6 --save-every 250
+
+cp "$WORK/stage2/model.safetensors" models/default.safetensors
+echo "wrote models/default.safetensors; reconfigure (cmake) and rebuild to embed it"
