@@ -9,7 +9,7 @@ BIN=${BIN:-build/instainpaint}
 SHARED=${SHARED:-../shared}
 WORK=${1:-runs/default-model}
 STAGE1_STEPS=${STAGE1_STEPS:-2500}
-STAGE2_STEPS=${STAGE2_STEPS:-2500}
+STAGE2_STEPS=${STAGE2_STEPS:-1500}
 mkdir -p "$WORK"
 
 # Training rooms (seed 1001) and validation rooms (seed 777001); the evaluation rooms of the
