@@ -30,5 +30,10 @@ resume() { [ -f "$1/checkpoint.safetensors" ] && echo --resume || true; }
   --stage inpaint --init "$WORK/stage1/model.safetensors" --width 64 --height 64 --inputs 4 --targets 4 \
   --batch 2 --steps "$STAGE2_STEPS" --lr 5e-4 --warmup 100 --val-every 250 --val-samples 6 --save-every 250
 
-cp "$WORK/stage2/model.safetensors" models/default.safetensors
+# Stage 2 continued at the demo's and the evaluation's 128 x 128.
+"$BIN" train --scenes "$SCENES" --val-scenes "$WORK/val" --out "$WORK/stage2-128" $(resume "$WORK/stage2-128") \
+  --stage inpaint --init "$WORK/stage2/model.safetensors" --width 128 --height 128 --inputs 4 --targets 4 \
+  --batch 2 --steps 200 --lr 1.5e-4 --warmup 20 --val-every 0 --save-every 100
+
+cp "$WORK/stage2-128/model.safetensors" models/default.safetensors
 echo "wrote models/default.safetensors; reconfigure (cmake) and rebuild to embed it"
