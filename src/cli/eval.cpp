@@ -97,7 +97,8 @@ void add_eval_command(CLI::App& app) {
                   "the mask")
       ->check(CLI::IsMember({"model", "telea", "mean-fill"}))
       ->capture_default_str();
-  cmd->add_option("--checkpoint", a->checkpoint, "Model weights: official .pth or safetensors (default: the embedded default model)")
+  cmd->add_option("--checkpoint", a->checkpoint,
+                  "Model weights: official .pth or safetensors (default: the embedded default model)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--gaussians", a->gaussians,
                   "Splat PLY to evaluate instead of running a model, in the pose-normalised frame (as `infer` writes "

@@ -195,10 +195,10 @@ MetricNetworks load_metric_networks(const EvalOptions& o, const torch::Device& d
   return m;
 }
 
-// The one place where evaluation gets its model.
 std::string eval_model_name(const EvalOptions& o) { return o.checkpoint ? o.checkpoint->string() : kDefaultModelName; }
 
-// --checkpoint, else the default model built into the library.
+// The one place where evaluation gets its model: --checkpoint, else the default model built
+// into the library.
 Network load_eval_model(const EvalOptions& o, json& info) {
   const Checkpoint ck = checkpoint_or_default(o.checkpoint ? o.checkpoint->string() : "");
   info["checkpoint"] = eval_model_name(o);

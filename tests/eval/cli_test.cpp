@@ -65,7 +65,7 @@ TEST(MetricsCli, JsonOfAPair) {
                                                  " is 32x24: the images must have the same size\n");
 }
 
-TEST(EvalCli, PerfectGaussiansAndMissingModel) {
+TEST(EvalCli, PerfectGaussians) {
   II_REQUIRE_CLI(exe);
   const fs::path dir = test::temp_dir("eval-cli");
   test::write_scene(dir / "scene");
@@ -80,7 +80,6 @@ TEST(EvalCli, PerfectGaussiansAndMissingModel) {
   EXPECT_TRUE(fs::exists(dir / "out" / "report.html"));
   EXPECT_NE(read_file_text(dir / "log.txt").find("PSNR inf  SSIM 1.0000"), std::string::npos)
       << read_file_text(dir / "log.txt");
-
 }
 
 }  // namespace
