@@ -349,62 +349,35 @@ void build_ball(Builder& b, const Piece& p) {
               Eigen::AngleAxisd(b.rng.uniform(0, M_PI), Vector3d::UnitX()).toRotationMatrix(), m);
 }
 
-// Piece dimensions by kind.
+// Piece kinds, how often each is drawn, and their size ranges. A footprint without a depth
+// range is square; a height range of {0, 0} makes the piece as tall as it is wide (a ball).
+struct PieceKind {
+  const char* kind;
+  double weight;
+  double half_w[2], half_d[2], height[2];
+};
+constexpr PieceKind kPieceKinds[] = {
+    {"cabinet", 0.18, {0.25, 0.55}, {0.18, 0.28}, {0.5, 1.1}},
+    {"bookshelf", 0.14, {0.25, 0.5}, {0.13, 0.2}, {1.1, 2.0}},
+    {"table", 0.14, {0.3, 0.6}, {0.25, 0.4}, {0.65, 0.8}},
+    {"chair", 0.1, {0.19, 0.24}, {0.19, 0.24}, {0.8, 1.0}},
+    {"sofa", 0.1, {0.7, 1.1}, {0.38, 0.46}, {0.75, 0.9}},
+    {"plant", 0.12, {0.16, 0.32}, {0, 0}, {0.6, 1.4}},
+    {"lamp", 0.08, {0.15, 0.22}, {0, 0}, {1.3, 1.7}},
+    {"boxes", 0.08, {0.15, 0.3}, {0.15, 0.3}, {0.3, 0.8}},
+    {"ball", 0.06, {0.1, 0.25}, {0, 0}, {0, 0}},
+};
+
+// Piece dimensions by kind (the draws in the order width, depth, height).
 Piece draw_piece(SynthRng& rng) {
+  std::vector<double> weights;
+  for (const PieceKind& k : kPieceKinds) weights.push_back(k.weight);
+  const PieceKind& k = kPieceKinds[rng.weighted(weights)];
   Piece p;
-  switch (rng.weighted({0.18, 0.14, 0.14, 0.1, 0.1, 0.12, 0.08, 0.08, 0.06})) {
-    case 0:
-      p.kind = "cabinet";
-      p.half_w = rng.uniform(0.25, 0.55);
-      p.half_d = rng.uniform(0.18, 0.28);
-      p.height = rng.uniform(0.5, 1.1);
-      break;
-    case 1:
-      p.kind = "bookshelf";
-      p.half_w = rng.uniform(0.25, 0.5);
-      p.half_d = rng.uniform(0.13, 0.2);
-      p.height = rng.uniform(1.1, 2.0);
-      break;
-    case 2:
-      p.kind = "table";
-      p.half_w = rng.uniform(0.3, 0.6);
-      p.half_d = rng.uniform(0.25, 0.4);
-      p.height = rng.uniform(0.65, 0.8);
-      break;
-    case 3:
-      p.kind = "chair";
-      p.half_w = rng.uniform(0.19, 0.24);
-      p.half_d = rng.uniform(0.19, 0.24);
-      p.height = rng.uniform(0.8, 1.0);
-      break;
-    case 4:
-      p.kind = "sofa";
-      p.half_w = rng.uniform(0.7, 1.1);
-      p.half_d = rng.uniform(0.38, 0.46);
-      p.height = rng.uniform(0.75, 0.9);
-      break;
-    case 5:
-      p.kind = "plant";
-      p.half_w = p.half_d = rng.uniform(0.16, 0.32);
-      p.height = rng.uniform(0.6, 1.4);
-      break;
-    case 6:
-      p.kind = "lamp";
-      p.half_w = p.half_d = rng.uniform(0.15, 0.22);
-      p.height = rng.uniform(1.3, 1.7);
-      break;
-    case 7:
-      p.kind = "boxes";
-      p.half_w = rng.uniform(0.15, 0.3);
-      p.half_d = rng.uniform(0.15, 0.3);
-      p.height = rng.uniform(0.3, 0.8);
-      break;
-    default:
-      p.kind = "ball";
-      p.half_w = p.half_d = rng.uniform(0.1, 0.25);
-      p.height = 2 * p.half_w;
-      break;
-  }
+  p.kind = k.kind;
+  p.half_w = rng.uniform(k.half_w[0], k.half_w[1]);
+  p.half_d = k.half_d[1] > 0 ? rng.uniform(k.half_d[0], k.half_d[1]) : p.half_w;
+  p.height = k.height[1] > 0 ? rng.uniform(k.height[0], k.height[1]) : 2 * p.half_w;
   return p;
 }
 
