@@ -96,7 +96,12 @@ ModelConfig infer_config(const StateDict& state, const nlohmann::json& hints, co
     if (it == state.end()) fail("{}: not an InstaInpaint checkpoint: no tensor {}", source, key);
     return it->second;
   };
-  ModelConfig c = ModelConfig::from_json(hints);
+  ModelConfig c;
+  try {
+    c = ModelConfig::from_json(hints);
+  } catch (const Error& e) {
+    fail("{}: {}", source, e.what());
+  }
   const torch::Tensor& proj = get("mvencoder.patch_embed.proj.weight");
   if (proj.dim() != 4 || proj.size(2) != proj.size(3))
     fail("{}: mvencoder.patch_embed.proj.weight has an unexpected shape", source);

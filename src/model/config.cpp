@@ -106,7 +106,12 @@ nlohmann::json ModelConfig::to_json() const {
 ModelConfig ModelConfig::from_json(const nlohmann::json& j) {
   ModelConfig c;
   auto get = [&](const char* key, auto& field) {
-    if (j.contains(key) && !j[key].is_null()) field = j[key].get<std::decay_t<decltype(field)>>();
+    if (!j.contains(key) || j[key].is_null()) return;
+    try {
+      field = j[key].get<std::decay_t<decltype(field)>>();
+    } catch (const nlohmann::json::exception&) {
+      fail("model config: {} has the wrong type ({})", key, j[key].dump());
+    }
   };
   get("preset", c.preset);
   get("embed_dim", c.embed_dim);

@@ -52,6 +52,9 @@ TEST(ModelConfig, PresetSizes) {
   ModelConfig bad = release;
   bad.heads = 5;
   EXPECT_EQ(test::error_message([&] { bad.validate(); }), "model config: embed_dim 1024 is not divisible by 5 heads");
+  EXPECT_EQ(test::error_message([] { ModelConfig::from_json({{"rgb_from_input", "yes"}}); }),
+            "model config: rgb_from_input has the wrong type (\"yes\")");
+  EXPECT_TRUE(ModelConfig::from_json({{"rgb_from_input", true}}).rgb_from_input);
 }
 
 TEST(Checkpoint, SafetensorsRoundTripKeepsWeightsAndArchitecture) {
