@@ -128,13 +128,13 @@ void add_synth_command(CLI::App& app) {
   cmd->add_option("--downscale", a->downscale, "K of the images_K folder (poses describe K x larger images)")
       ->capture_default_str();
   cmd->add_flag("--save-gaussians", a->save_gaussians, "Also write background.ply and object.ply");
-  cmd->add_flag("--no-depth", a->no_depth, "Skip depth/*.npy (float32 maps: half of a scene's size)");
+  cmd->add_flag("--no-depth", a->no_depth, "Skip depth/ and depth_clean/ (float32 maps: most of a scene's size)");
   cmd->add_option("--threads", a->threads, "CPU threads for rendering (0 = all cores)")->capture_default_str();
   cmd->footer(
       "Each scene folder holds poses_bounds.npy, images_K/ (test_* object-free test views first, then view_* with\n"
       "the object), images_K/label/ and images_K/test_label/ (object masks), clean/ (every view without the\n"
-      "object), depth/ (float32 .npy z-depth), reference.png, cameras.json and synth.json (seed, reference,\n"
-      "context views).\n"
+      "object), depth/ and depth_clean/ (float32 .npy z-depth of images_K/ and clean/), reference.png,\n"
+      "cameras.json and synth.json (seed, reference, context views).\n"
       "Example: instainpaint synth --out synth-data --scenes 4 --seed 7 --views 24 --test-views 8");
   cmd->callback([a] { run(*a); });
 }

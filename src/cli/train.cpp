@@ -35,7 +35,7 @@ struct TrainArgs {
   double lr = 8e-5, lr_start = 1e-10, lr_final = 1e-6;
   int64_t warmup = -1;
   double weight_decay = 0.05, clip_norm = 1.0;
-  double mse_weight = 1.0, perceptual_weight = 0.5;
+  double mse_weight = 1.0, perceptual_weight = 0.5, depth_weight = 0.0;
   std::string perceptual = "auto", lpips_vgg, lpips_heads;
   std::string precision = "fp32", device = "cpu";
   bool checkpoint_blocks = false;
@@ -103,6 +103,7 @@ TrainRunOptions run_options(const TrainArgs& a) {
   t.loss.mse_weight = a.mse_weight;
   t.loss.perceptual_weight = a.perceptual_weight;
   t.loss.perceptual = a.perceptual;
+  t.loss.depth_weight = a.depth_weight;
   if (!a.lpips_vgg.empty()) t.loss.lpips_backbone = fs::path(a.lpips_vgg);
   if (!a.lpips_heads.empty()) t.loss.lpips_heads = fs::path(a.lpips_heads);
   t.precision = a.precision == "bf16" ? Precision::BFloat16 : Precision::Float32;
@@ -201,6 +202,11 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--clip-norm", args->clip_norm, "Per-tensor gradient norm limit")->capture_default_str();
   cmd->add_option("--mse-weight", args->mse_weight, "Weight of the MSE term")->capture_default_str();
   cmd->add_option("--perceptual-weight", args->perceptual_weight, "Weight of the perceptual term")->capture_default_str();
+  cmd->add_option("--depth-weight", args->depth_weight,
+                  "Weight of a log-depth L1 loss on the inputs' predicted depth, for scenes with depth maps\n"
+                  "(synthetic: depth/, depth_clean/); not in the official recipe")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   cmd->add_option("--perceptual", args->perceptual,
                   "Perceptual term: auto (LPIPS-VGG when its backbone is available, else 1 - SSIM), lpips, ssim, none")
       ->check(CLI::IsMember({"auto", "lpips", "ssim", "none"}))

@@ -187,8 +187,8 @@ std::vector<Image> carry_mask_through_depth(const Image& reference_mask, const I
   return out;
 }
 
-std::optional<Image> load_view_depth(const Scene& scene, const View& view) {
-  const fs::path file = scene.root / "depth" / (view.name + ".npy");
+std::optional<Image> load_view_depth(const Scene& scene, const View& view, const std::string& folder) {
+  const fs::path file = scene.root / folder / (view.name + ".npy");
   if (!fs::exists(file)) return std::nullopt;
   const NpyArray array = read_npy(file);
   const bool shape_ok = (array.shape.size() == 2 || (array.shape.size() == 3 && array.shape[2] == 1));

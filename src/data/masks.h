@@ -73,10 +73,11 @@ std::vector<Image> carry_mask_through_depth(const Image& reference_mask, const I
                                             const Camera& reference_camera,
                                             const std::vector<Camera>& cameras, int dilations = 2);
 
-// Per-view depth of a scene, when it has one: `<scene root>/depth/<view stem>.npy`, a float
+// Per-view depth of a scene, when it has one: `<scene root>/<folder>/<view stem>.npy`, a float
 // array of shape (H, W) or (H, W, 1) at the view image's size holding z-depth in the scene's
-// units (0, negative or non-finite = unknown). nullopt when the file does not exist.
-std::optional<Image> load_view_depth(const Scene& scene, const View& view);
+// units (0, negative or non-finite = unknown). nullopt when the file does not exist. Synthetic
+// scenes also have `depth_clean/`: the depth of the object-free image in `clean/`.
+std::optional<Image> load_view_depth(const Scene& scene, const View& view, const std::string& folder = "depth");
 
 // The depth of a fronto-parallel plane that stands in for the scene when it has no depth
 // maps, seen from `reference` (a camera of the scene, scene units). Sources, first that

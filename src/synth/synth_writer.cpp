@@ -142,7 +142,8 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
   const std::string image_folder = "images_" + std::to_string(options.downscale);
   const fs::path images = partial / image_folder;
   for (const fs::path& p : {images / "label", images / "test_label", partial / "clean"}) fs::create_directories(p);
-  if (options.write_depth) fs::create_directories(partial / "depth");
+  if (options.write_depth)
+    for (const char* folder : {"depth", "depth_clean"}) fs::create_directories(partial / folder);
 
   SynthRenderer renderer(scene);
   Stopwatch total_watch;
@@ -166,7 +167,9 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
     writes.add([=] { write_png(images / file, r->clean); });
     writes.add([=] { write_png(images / "test_label" / file, r->mask); });
     writes.add([=] { write_png(partial / "clean" / file, r->clean); });
-    if (options.write_depth) writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), r->clean_depth); });
+    if (options.write_depth)
+      for (const char* folder : {"depth", "depth_clean"})
+        writes.add([=] { write_depth(partial / folder / (view.name + ".npy"), r->clean_depth); });
     if (options.progress) options.progress(++done, total);
   }
 
@@ -189,7 +192,10 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
     writes.add([=] { write_png(images / file, r->with_object); });
     writes.add([=] { write_png(images / "label" / file, r->mask); });
     writes.add([=] { write_png(partial / "clean" / file, r->clean); });
-    if (options.write_depth) writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), r->depth); });
+    if (options.write_depth) {
+      writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), r->depth); });
+      writes.add([=] { write_depth(partial / "depth_clean" / (view.name + ".npy"), r->clean_depth); });
+    }
     if (options.progress) options.progress(++done, total);
   }
   writes.finish();
@@ -222,7 +228,9 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
   if (options.write_depth)
     depth_info = {{"folder", "depth"},
                   {"encoding", "<view name>.npy, float32 (H, W)"},
-                  {"content", "expected camera z of the image in image_folder, scene units (0: nothing hit)"}};
+                  {"content", "expected camera z of the image in image_folder, scene units (0: nothing hit)"},
+                  {"clean_folder", "depth_clean"},
+                  {"clean_content", "the same for the image in clean_folder"}};
   nlohmann::json j = {
       {"format", "instainpaint-synth"},
       {"version", 1},

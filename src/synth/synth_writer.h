@@ -12,6 +12,7 @@
 //   depth/<name>.npy         float32 (H, W) expected camera z (metres, the scene's units) of
 //                            the image in images_<K>/; 0 where nothing was hit (the format
 //                            data/masks.h load_view_depth() reads)
+//   depth_clean/<name>.npy   the same for clean/<name>.png (depth supervision in training)
 //   reference.png            object-free image of the reference view, degraded if asked
 //   cameras.json             every camera (render/trajectory.h camera-list format)
 //   synth.json               seed, options, names, reference, context views, mask rule, ...
@@ -32,7 +33,7 @@ struct SynthWriteOptions {
   Degradation degrade = Degradation::none;  // applied to reference.png only
   int downscale = 4;                        // the K of images_K
   bool save_gaussians = false;
-  bool write_depth = true;                            // depth/*.npy (float32: the largest part of a scene)
+  bool write_depth = true;                            // depth/, depth_clean/ (float32: the largest part of a scene)
   nlohmann::json generator;                           // recorded in synth.json (e.g. the options used)
   std::function<void(int done, int total)> progress;  // after each view
 };

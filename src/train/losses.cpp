@@ -50,6 +50,17 @@ LossTerms ImageLoss::operator()(const torch::Tensor& prediction, const torch::Te
   return t;
 }
 
+torch::Tensor depth_loss(const torch::Tensor& predicted, const torch::Tensor& target) {
+  if (predicted.sizes() != target.sizes())
+    fail("depth loss: prediction [{}] and target [{}] differ in shape", fmt::join(predicted.sizes(), ", "),
+         fmt::join(target.sizes(), ", "));
+  const torch::Tensor known = target > 0;
+  const torch::Tensor count = known.sum();
+  // The clamp keeps log finite where the prediction underflows; masked pixels get no gradient.
+  const torch::Tensor error = (predicted.clamp_min(1e-6).log() - target.clamp_min(1e-6).log()).abs();
+  return torch::where(known, error, torch::zeros_like(error)).sum() / count.clamp_min(1);
+}
+
 void ImageLoss::to(const torch::Device& device) {
   if (lpips_) lpips_->to(device);
 }

@@ -5,6 +5,7 @@
 // Gaussian window, on the images mapped to [0, 1]). SSIM compares local means, contrasts and
 // structure like LPIPS's feature statistics do, needs no weights, and is differentiable.
 // Loss values are therefore only comparable between runs with the same perceptual term.
+// An optional depth term (depth_weight) supervises the inputs' own predicted depth.
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -23,7 +24,15 @@ struct LossOptions {
   // 1 − SSIM.  lpips: LPIPS-VGG or an error.  ssim: 1 − SSIM.  none: MSE only.
   std::string perceptual = "auto";
   std::optional<std::filesystem::path> lpips_backbone, lpips_heads;
+  // Weight of depth_loss on the inputs' predicted depth where samples carry depth maps
+  // (synthetic scenes). Not in the official recipe, hence 0 by default; it teaches a small
+  // model geometry far sooner than rendering losses alone.
+  double depth_weight = 0.0;
 };
+
+// Mean |log(predicted) − log(target)| over the pixels where target > 0 (0 when there are
+// none): scale-free, so near and far surfaces count alike. Shapes must match.
+torch::Tensor depth_loss(const torch::Tensor& predicted, const torch::Tensor& target);
 
 struct LossTerms {
   torch::Tensor total;       // weighted sum (scalar)

@@ -91,7 +91,8 @@ nlohmann::json options_json(const TrainRunOptions& o, const DistributedConfig& d
           {"adamw", {{"beta1", t.adamw.beta1}, {"beta2", t.adamw.beta2}, {"eps", t.adamw.eps},
                      {"weight_decay", t.adamw.weight_decay}}},
           {"clip_norm", t.clip_norm},
-          {"loss", {{"mse", t.loss.mse_weight}, {"perceptual", t.loss.perceptual_weight}, {"kind", perceptual}}},
+          {"loss", {{"mse", t.loss.mse_weight}, {"perceptual", t.loss.perceptual_weight}, {"kind", perceptual},
+                    {"depth", t.loss.depth_weight}}},
           {"precision", precision_name(t.precision)},
           {"checkpoint_blocks", t.checkpoint_blocks},
           {"device", t.device.str()}};
@@ -244,7 +245,7 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
 
   // Loss and PSNR over the validation samples (each process its share), into `line`.
   auto validate = [&](int64_t step, nlohmann::json& line) {
-    std::vector<double> sums(5, 0.0);
+    std::vector<double> sums(7, 0.0);  // loss, mse, perceptual, psnr, count, depth, depth count
     int images_written = 0;  // rank 0 writes the images of its first val_images samples
     for (const auto& [index, sample] : val_set) {
       torch::Tensor renders;
@@ -255,6 +256,10 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
       sums[2] += e.perceptual;
       sums[3] += e.psnr;
       sums[4] += 1;
+      if (e.depth) {
+        sums[5] += *e.depth;
+        sums[6] += 1;
+      }
       if (renders.defined())
         write_png(options.out / "val" / fmt::format("step_{:06}_{}.png", step, index),
                   comparison_image(sample.target_images, renders));
@@ -271,11 +276,12 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
     line["val_mse"] = sums[1] / n;
     line["val_perceptual"] = sums[2] / n;
     line["val_psnr"] = sums[3] / n;
+    if (sums[6] > 0) line["val_depth"] = sums[5] / sums[6];
     if (lead) {
       if (progress_open) std::fputc('\n', stderr);
       progress_open = false;
-      spdlog::info("step {}: validation loss {:.4f}, PSNR {:.2f} dB ({} samples)", step, sums[0] / n, sums[3] / n,
-                   static_cast<int>(n));
+      spdlog::info("step {}: validation loss {:.4f}, PSNR {:.2f} dB{} ({} samples)", step, sums[0] / n, sums[3] / n,
+                   sums[6] > 0 ? fmt::format(", depth error {:.3f}", sums[5] / sums[6]) : "", static_cast<int>(n));
     }
   };
   // The starting point, as step 0 of the log.
@@ -319,6 +325,7 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
                            {"loss", s.loss},
                            {"mse", s.mse},
                            {"perceptual", s.perceptual},
+                           {"depth", s.depth},
                            {"lr", s.lr},
                            {"grad_norm", s.grad_norm},
                            {"clipped_tensors", s.clipped_tensors},
@@ -345,10 +352,13 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
     if (lead) {
       const double done = static_cast<double>(step - start_step);
       const double eta = run_clock.ms() / 1000.0 / done * static_cast<double>(end_step - step);
+      const std::string depth_text =
+          options.trainer.loss.depth_weight > 0 ? fmt::format(", depth {:.4f}", s.depth) : std::string();
       const std::string text =
-          fmt::format("step {}/{} ({:.0f}%) loss {:.4f} (mse {:.4f}, perceptual {:.4f}) lr {:.2e} | {:.0f} ms/step, "
+          fmt::format("step {}/{} ({:.0f}%) loss {:.4f} (mse {:.4f}, perceptual {:.4f}{}) lr {:.2e} | {:.0f} ms/step, "
                       "{:.2f} samples/s | ETA {}",
-                      step, options.steps, 100.0 * step / options.steps, s.loss, s.mse, s.perceptual, s.lr, step_ms,
+                      step, options.steps, 100.0 * step / options.steps, s.loss, s.mse, s.perceptual, depth_text, s.lr,
+                      step_ms,
                       1000.0 * s.samples / step_ms, duration_text(eta));
       if (tty) {
         std::fprintf(stderr, "\r%s\033[K", text.c_str());

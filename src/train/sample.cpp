@@ -214,6 +214,18 @@ Image depth_at_working_size(const Image& depth, const View& view, const ViewGeom
   return crop(resize_nearest(depth, g.resized_width, g.resized_height), g.crop_x, g.crop_y, o.width, o.height);
 }
 
+// A depth map of the scene's `folder` (data/masks.h load_view_depth) at the working size, or
+// nullopt when the scene has none for this view.
+std::optional<Image> stored_depth_at_working_size(const Scene& scene, const View& view, const std::string& folder,
+                                                  const ViewGeometry& g, const SamplerOptions& o) {
+  const fs::path file = scene.root / folder / (view.name + ".npy");
+  if (!fs::exists(file)) return std::nullopt;
+  const auto resized = image_cache().get(cache_key("depth", file, g.resized_width, g.resized_height), [&] {
+    return resize_nearest(*load_view_depth(scene, view, folder), g.resized_width, g.resized_height);
+  });
+  return crop(*resized, g.crop_x, g.crop_y, o.width, o.height);
+}
+
 // Reference depth at the working size for 3D-consistent masks, and where it came from.
 Image reference_depth(const Scene& scene, const View& view, const ViewGeometry& g, const SamplerOptions& o,
                       const std::vector<Camera>& clip_cameras, const DepthProvider& provider, std::string& source) {
@@ -222,13 +234,9 @@ Image reference_depth(const Scene& scene, const View& view, const ViewGeometry& 
       source = "injected";
       return depth_at_working_size(*depth, view, g, o, "injected");
     }
-  const fs::path file = scene.root / "depth" / (view.name + ".npy");
-  if (fs::exists(file)) {
+  if (auto depth = stored_depth_at_working_size(scene, view, "depth", g, o)) {
     source = "depth/";
-    const auto resized = image_cache().get(cache_key("depth", file, g.resized_width, g.resized_height), [&] {
-      return resize_nearest(*load_view_depth(scene, view), g.resized_width, g.resized_height);
-    });
-    return crop(*resized, g.crop_x, g.crop_y, o.width, o.height);
+    return *depth;
   }
   source = "plane";
   return Image(o.width, o.height, 1, static_cast<float>(typical_scene_depth(scene, view.camera, clip_cameras)));
@@ -349,6 +357,22 @@ TrainingSample make_scene_sample(const Scene& scene, const SamplerOptions& o, ui
   TrainingSample sample;
   sample.scene = scene_name(scene);
   sample.input = build_model_input(prepared, normalization);
+  // Depth of what each input should show: the object-free scene where the reference and the
+  // targets are clean, the photos as they are otherwise. All inputs or none.
+  const char* depth_folder = info.clean_reference ? "depth_clean" : "depth";
+  std::vector<torch::Tensor> depths;
+  for (int k = 0; k < K; ++k) {
+    const auto depth = stored_depth_at_working_size(scene, scene.views[info.inputs[k]], depth_folder,
+                                                    input_geometry[k], o);
+    if (!depth) break;
+    depths.push_back(torch::from_blob(const_cast<float*>(depth->pixels.data()), {1, o.height, o.width}, torch::kFloat32)
+                         .clone());
+  }
+  if (static_cast<int>(depths.size()) == K) {
+    sample.input_depths = torch::stack(depths) / normalization.scale;
+    sample.input_depths.masked_fill_(~torch::isfinite(sample.input_depths) | (sample.input_depths <= 0), 0);
+    info.input_depth_folder = depth_folder;
+  }
   std::vector<torch::Tensor> targets;
   for (int v : info.targets) {
     const View& view = scene.views[v];

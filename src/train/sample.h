@@ -16,6 +16,8 @@
 //    stage 2 the reference input and all targets are the clean images and every non-reference
 //    input's mask also covers that view's own (dilated) object mask, so the object never shows
 //    in an input while the targets lack it. Stage 1 uses the photos as they are.
+//  - Scenes with depth maps (synthetic ones) give each input's depth for an optional depth
+//    loss: depth_clean/ where the reference and targets are clean, depth/ otherwise.
 //  - The reference's mask channel is zero (as inference feeds it; the official training kept
 //    the mask there, spec §9.1).
 #include <array>
@@ -54,6 +56,9 @@ struct TrainingSample {
   torch::Tensor target_images;         // (M, 3, H, W) float32 in [-1,1]
   std::vector<Camera> target_cameras;  // normalised like input.view_cameras, exact intrinsics at H x W
   std::string scene;                   // scene folder name, for logs
+  // (V, 1, H, W) float32 z-depth of each input in the normalised camera units, 0 = unknown;
+  // undefined when the scene has no depth maps (only synthetic scenes have them).
+  torch::Tensor input_depths;
 };
 
 // Sample i of the stream is a pure function of (seed, i): no hidden RNG state, so resuming at
@@ -80,6 +85,7 @@ struct SampleInfo {
   int crop_x = 0, crop_y = 0;
   bool clean_reference = false;  // reference and targets from <root>/clean
   std::string depth_source;      // 3D-consistent masks: "injected", "depth/", "plane"
+  std::string input_depth_folder;  // where input_depths came from: "depth", "depth_clean" or "" (none)
 };
 
 // Reference depth for 3D-consistent masks: z-depth in scene units at the view image's own

@@ -2,6 +2,7 @@
 
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -145,14 +146,16 @@ StepStats Trainer::step(const std::vector<TrainingSample>& batch) {
     for (const torch::Tensor& p : params_.tensors())
       if (p.grad().defined()) grads.push_back(p.grad());
     group_->allreduce_mean(grads, "the gradient allreduce");
-    const torch::Tensor terms = torch::tensor({stats.loss, stats.mse, stats.perceptual, double(stats.samples)},
-                                              torch::TensorOptions().dtype(torch::kFloat64).device(options_.device));
+    const torch::Tensor terms =
+        torch::tensor({stats.loss, stats.mse, stats.perceptual, double(stats.samples), stats.depth},
+                      torch::TensorOptions().dtype(torch::kFloat64).device(options_.device));
     group_->allreduce_mean({terms}, "the loss allreduce");
     const torch::Tensor t = terms.cpu();
     stats.loss = t[0].item<double>();
     stats.mse = t[1].item<double>();
     stats.perceptual = t[2].item<double>();
     stats.samples = static_cast<int>(std::lround(t[3].item<double>() * group_->world_size()));
+    stats.depth = t[4].item<double>();
   }
   const ClipStats clip = clip_gradients_per_tensor(params_.tensors(), options_.clip_norm);
   stats.lr = options_.schedule.at(optimizer_->steps());
@@ -172,8 +175,8 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
   params_.bind(network_);  // with autograd history back to the trainable tensors
   network_current_ = false;
 
-  double loss_sum = 0, mse_sum = 0, perceptual_sum = 0;
-  int64_t targets = 0;
+  double loss_sum = 0, mse_sum = 0, perceptual_sum = 0, depth_sum = 0;
+  int64_t targets = 0, depth_samples = 0;
   Stopwatch clock;
   double forward_ms = 0, render_ms = 0;
   for (const TrainingSample& s : batch) targets += static_cast<int64_t>(s.target_cameras.size());
@@ -183,7 +186,13 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
     forward_ms = clock.lap();
     // Spec §6.4 memory saving: renders back-propagate one at a time into detached copies of
     // the maps; the network's backward then runs once with the accumulated gradients.
-    const std::vector<torch::Tensor> roots{maps.xyz, maps.rgb, maps.opacity, maps.scale, maps.rotation};
+    std::vector<torch::Tensor> roots{maps.xyz, maps.rgb, maps.opacity, maps.scale, maps.rotation};
+    // xyz is made from depth, so a depth loss enters through a sixth leaf of its own.
+    const double depth_weight = options_.loss.depth_weight;
+    const bool supervise_depth =
+        depth_weight > 0 &&
+        std::any_of(batch.begin(), batch.end(), [](const TrainingSample& s) { return s.input_depths.defined(); });
+    if (supervise_depth) roots.push_back(maps.depth);
     std::vector<torch::Tensor> leaves;
     for (const torch::Tensor& r : roots) leaves.push_back(r.detach().requires_grad_(true));
     GaussianMaps detached;
@@ -196,6 +205,12 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
     const double weight = 1.0 / static_cast<double>(targets);
     for (size_t b = 0; b < batch.size(); ++b) {
       const TrainingSample& s = batch[b];
+      if (supervise_depth && s.input_depths.defined()) {
+        const torch::Tensor d = depth_loss(leaves[5][static_cast<int64_t>(b)], s.input_depths.to(options_.device));
+        (d * (depth_weight / static_cast<double>(batch.size()))).backward();
+        depth_sum += d.item<double>();
+        ++depth_samples;
+      }
       const GaussianSet set = gaussians_from_maps(slice(detached, static_cast<int64_t>(b)));
       const torch::Tensor target_images = s.target_images.to(options_.device);
       for (size_t m = 0; m < s.target_cameras.size(); ++m) {
@@ -214,9 +229,10 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
   }
 
   StepStats stats;
-  stats.loss = loss_sum / targets;
   stats.mse = mse_sum / targets;
   stats.perceptual = perceptual_sum / targets;
+  stats.depth = depth_samples > 0 ? depth_sum / depth_samples : 0.0;
+  stats.loss = loss_sum / targets + options_.loss.depth_weight * depth_sum / static_cast<double>(batch.size());
   stats.samples = static_cast<int>(batch.size());
   stats.step = optimizer_->steps();
   stats.forward_ms = forward_ms;
@@ -233,6 +249,8 @@ EvalStats Trainer::evaluate(const TrainingSample& sample, torch::Tensor* renders
   const GaussianSet set = gaussians_from_maps(out.gaussians);
   const torch::Tensor targets = sample.target_images.to(options_.device);
   EvalStats stats;
+  if (sample.input_depths.defined())
+    stats.depth = depth_loss(out.gaussians.depth[0], sample.input_depths.to(options_.device)).item<double>();
   std::vector<torch::Tensor> images;
   for (size_t m = 0; m < sample.target_cameras.size(); ++m) {
     const torch::Tensor pred = to_signed_image(render(set, RenderCamera{sample.target_cameras[m]}).rgb);

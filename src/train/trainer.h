@@ -4,13 +4,15 @@
 //   network forward on a batch (optionally bf16, optionally recomputing transformer blocks
 //   in the backward pass) → per-pixel Gaussian maps, detached into leaf tensors → for each
 //   sample and each target camera: render, map C to clamp(2C − 1, −1, 1), loss / (B·M),
-//   backward into the leaves → one backward through the network → gradients averaged over
-//   processes → per-tensor clipping → AdamW with the warm-up + cosine learning rate.
+//   backward into the leaves (plus, optionally, a depth loss on the inputs' depth / B) →
+//   one backward through the network → gradients averaged over processes → per-tensor
+//   clipping → AdamW with the warm-up + cosine learning rate.
 // The checkpoint holds the trainable tensors under official names (so every model loader
 // reads it), the AdamW moments, the step, the RNG state and caller-provided state such as
 // the data sampler position; resuming from it reproduces the uninterrupted run exactly.
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -41,6 +43,8 @@ struct TrainerOptions {
 struct StepStats {
   int64_t step = 0;  // the step just taken (1-based count of completed steps)
   double loss = 0, mse = 0, perceptual = 0;  // means over all targets of all processes
+  double depth = 0;  // depth_loss, mean over the samples with depth maps (0: none); its weighted
+                     // mean over all samples is part of `loss`
   double lr = 0;
   double grad_norm = 0;  // global norm after zeroing non-finite values, before clipping
   int clipped_tensors = 0, nonfinite_tensors = 0;
@@ -52,7 +56,8 @@ struct StepStats {
 };
 
 struct EvalStats {
-  double loss = 0, mse = 0, perceptual = 0;
+  double loss = 0, mse = 0, perceptual = 0;  // image terms (no depth term)
+  std::optional<double> depth;  // depth_loss of the inputs when the sample has depth maps
   double psnr = 0;  // mean over targets, images mapped to [0, 1]
   int targets = 0;
 };

@@ -100,6 +100,10 @@ TEST(SynthWriter, ReaderLoadsViewsTestViewsMasksAndCameras) {
   EXPECT_EQ(depth.as_float(), r.depth.pixels);
   EXPECT_EQ(read_npy(dir / "depth" / "test_001.npy").as_float(),
             renderer.render(scene.test_views[1].camera, false).clean_depth.pixels);
+  // depth_clean/: the depth of clean/, which differs from depth/ where the object stands.
+  const std::vector<float> clean_depth = read_npy(dir / "depth_clean" / "view_002.npy").as_float();
+  EXPECT_EQ(clean_depth, r.clean_depth.pixels);
+  EXPECT_NE(clean_depth, r.depth.pixels);
 
   // synth.json names the reference and context views; reference.png exists.
   const nlohmann::json j = read_synth_json(dir);
@@ -151,6 +155,7 @@ TEST(SynthWriter, DepthIsOptional) {
   options.write_depth = false;
   write_synth_scene(generate_scene(tiny(), 4), dir, options);
   EXPECT_FALSE(fs::exists(dir / "depth"));
+  EXPECT_FALSE(fs::exists(dir / "depth_clean"));
   EXPECT_TRUE(read_synth_json(dir)["depth"].is_null());
   EXPECT_EQ(load_scene(dir).views.size(), 6u);
 }

@@ -256,6 +256,31 @@ TEST(Sample, DepthSourcesForConsistentMasks) {
   EXPECT_EQ(test::error_message([&] { make_scene_sample(scene, o, 1, wrong); }).rfind("view frame", 0), 0u);
 }
 
+TEST(Sample, InputDepthsFollowTheImagesTheInputsShouldShow) {
+  const fs::path dir = write_scene(16, SceneFiles::with(true, true, true));
+  SamplerOptions o = small_options();
+  // Without depth_clean/ a stage-2 sample of a clean scene has no depth it could trust.
+  EXPECT_FALSE(make_scene_sample(load_scene(dir), o, 3).input_depths.defined());
+  fs::create_directories(dir / "depth_clean");
+  for (const auto& entry : fs::directory_iterator(dir / "depth"))
+    write_npy(dir / "depth_clean" / entry.path().filename(), std::vector<double>(kW * kH, 7.0), {kH, kW});
+  const Scene scene = load_scene(dir);
+  for (TrainStage stage : {TrainStage::Inpaint, TrainStage::Reconstruct}) {
+    SampleInfo info;
+    const TrainingSample sample = make_scene_sample(scene, small_options(stage), 3, {}, &info);
+    const bool clean = stage == TrainStage::Inpaint;
+    EXPECT_EQ(info.input_depth_folder, clean ? "depth_clean" : "depth");
+    ASSERT_TRUE(sample.input_depths.defined());
+    EXPECT_EQ(sample.input_depths.sizes(), (std::vector<int64_t>{4, 1, o.height, o.width}));
+    // In the normalised units of the sample's cameras.
+    const double expected = (clean ? 7.0 : -kMarker.z()) / clip_normalization(scene, info).scale;
+    EXPECT_NEAR(sample.input_depths.min().item<double>(), expected, 1e-5);
+    EXPECT_NEAR(sample.input_depths.max().item<double>(), expected, 1e-5);
+  }
+  // Scenes without depth maps: none.
+  EXPECT_FALSE(make_scene_sample(load_scene(write_scene(16)), o, 3).input_depths.defined());
+}
+
 TEST(Sample, CleanFolderGivesTheReferenceAndTargets) {
   const Scene scene = load_scene(write_scene(16, SceneFiles::with(true, true, false)));
   SamplerOptions o = small_options();

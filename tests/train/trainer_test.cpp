@@ -48,16 +48,14 @@ TEST(TrainableParameters, OfficialWeightNormNamesAndSameWeights) {
     EXPECT_TRUE(torch::allclose(w[i], net.named_parameters()[i].second, 1e-5, 1e-7)) << net.named_parameters()[i].first;
 }
 
-TEST(Trainer, TwoPhaseBackwardEqualsJointBackward) {
-  const std::vector<TrainingSample> batch = test::tiny_batch(3, 0, 2);
-  Trainer trainer(test::seeded_network(2), options_for_test());
-  trainer.compute_gradients(batch);
-
-  // The same loss with one graph from the weights to every render.
-  Network net = test::seeded_network(2);
-  const TrainableParameters params(net);
+// The trainer's loss on `batch` with one graph from the weights to every render, its
+// gradients left in the returned parameters.
+TrainableParameters joint_backward(const std::vector<TrainingSample>& batch, const LossOptions& options,
+                                   uint64_t network_seed) {
+  Network net = test::seeded_network(network_seed);
+  TrainableParameters params(net);
   params.bind(net);
-  ImageLoss loss(options_for_test().loss);
+  ImageLoss loss(options);
   std::vector<torch::Tensor> images, plucker, rays_o, rays_d_un;
   for (const auto& s : batch) {
     images.push_back(s.input.images);
@@ -68,8 +66,12 @@ TEST(Trainer, TwoPhaseBackwardEqualsJointBackward) {
   const GaussianMaps maps = net.forward(torch::stack(images), torch::stack(plucker), torch::stack(rays_o),
                                         torch::stack(rays_d_un))
                                 .gaussians;
-  torch::Tensor total = torch::zeros({});
-  for (int64_t b = 0; b < 2; ++b) {
+  const auto B = static_cast<int64_t>(batch.size());
+  torch::Tensor total = torch::zeros({}), image_total = torch::zeros({});
+  int64_t targets = 0;
+  for (int64_t b = 0; b < B; ++b) {
+    if (batch[b].input_depths.defined())
+      total = total + depth_loss(maps.depth[b], batch[b].input_depths) * (options.depth_weight / B);
     GaussianMaps one;
     one.xyz = maps.xyz.narrow(0, b, 1);
     one.rgb = maps.rgb.narrow(0, b, 1);
@@ -77,15 +79,61 @@ TEST(Trainer, TwoPhaseBackwardEqualsJointBackward) {
     one.scale = maps.scale.narrow(0, b, 1);
     one.rotation = maps.rotation.narrow(0, b, 1);
     const GaussianSet set = gaussians_from_maps(one);
-    for (int64_t m = 0; m < 2; ++m) {
+    for (size_t m = 0; m < batch[b].target_cameras.size(); ++m, ++targets) {
       const torch::Tensor rgb = render(set, RenderCamera{batch[b].target_cameras[m]}).rgb;
       const torch::Tensor pred = (rgb * 2 - 1).clamp(-1, 1).permute({2, 0, 1}).unsqueeze(0);
-      total = total + loss(pred, batch[b].target_images[m].unsqueeze(0)).total;
+      image_total = image_total + loss(pred, batch[b].target_images[static_cast<int64_t>(m)].unsqueeze(0)).total;
     }
   }
-  (total / 4).backward();
+  (total + image_total / static_cast<double>(targets)).backward();
+  return params;
+}
+
+TEST(Trainer, TwoPhaseBackwardEqualsJointBackward) {
+  const std::vector<TrainingSample> batch = test::tiny_batch(3, 0, 2);
+  Trainer trainer(test::seeded_network(2), options_for_test());
+  trainer.compute_gradients(batch);
+  const TrainableParameters params = joint_backward(batch, options_for_test().loss, 2);
   EXPECT_LT(max_relative_difference(trainer.parameters().tensors(), params.tensors()), 1e-4);
   EXPECT_GT(params.tensors()[0].grad().abs().max().item<double>(), 0);  // the patch embedding learns
+}
+
+TEST(Trainer, DepthLossEntersTheTwoPhaseBackward) {
+  std::vector<TrainingSample> batch = test::tiny_batch(3, 0, 2);
+  // Depth for the first sample only (the second stands for a real scene without depth maps),
+  // with unknown (0) pixels.
+  const torch::Tensor& images = batch[0].input.images;
+  batch[0].input_depths = torch::rand({images.size(0), 1, images.size(2), images.size(3)}) * 3 + 0.5;
+  batch[0].input_depths.select(3, 0).zero_();
+  TrainerOptions o = options_for_test();
+  o.loss.depth_weight = 0.7;
+  Trainer trainer(test::seeded_network(2), o);
+  const StepStats stats = trainer.compute_gradients(batch);
+  const TrainableParameters params = joint_backward(batch, o.loss, 2);
+  EXPECT_LT(max_relative_difference(trainer.parameters().tensors(), params.tensors()), 1e-4);
+  EXPECT_GT(stats.depth, 0);
+  // The same batch without the depth term gives other gradients and a smaller loss.
+  Trainer image_only(test::seeded_network(2), options_for_test());
+  const StepStats plain = image_only.compute_gradients(batch);
+  EXPECT_NEAR(stats.loss - plain.loss, 0.7 * stats.depth / 2, 1e-6);
+  EXPECT_GT(max_relative_difference(trainer.parameters().tensors(), image_only.parameters().tensors()), 1e-3);
+  // evaluate() reports the depth error of samples that have depth maps only.
+  EXPECT_TRUE(trainer.evaluate(batch[0]).depth.has_value());
+  EXPECT_FALSE(trainer.evaluate(batch[1]).depth.has_value());
+}
+
+TEST(DepthLoss, LogL1OverKnownPixelsWithItsGradient) {
+  const torch::Tensor target = torch::tensor({2.0, 0.0, 4.0, 1.0}, torch::kFloat64);
+  const torch::Tensor predicted = torch::tensor({1.0, 5.0, 4.0, 3.0}, torch::kFloat64).requires_grad_(true);
+  const torch::Tensor loss = depth_loss(predicted, target);
+  EXPECT_NEAR(loss.item<double>(), (std::log(2.0) + 0 + std::log(3.0)) / 3, 1e-12);
+  loss.backward();
+  // d/dp |log p − log t| = sign(log p − log t) / p, over the 3 known pixels; none at target 0.
+  const torch::Tensor expected = torch::tensor({-1.0 / 3, 0.0, 0.0, 1.0 / 9}, torch::kFloat64);
+  EXPECT_TRUE(torch::allclose(predicted.grad(), expected, 1e-12, 1e-12)) << predicted.grad();
+  EXPECT_EQ(depth_loss(predicted, torch::zeros({4}, torch::kFloat64)).item<double>(), 0.0);
+  EXPECT_EQ(test::error_message([&] { depth_loss(predicted, torch::ones({3})); }),
+            "depth loss: prediction [4] and target [3] differ in shape");
 }
 
 TEST(Trainer, BlockRecomputationGivesSameGradients) {
