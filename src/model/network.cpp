@@ -105,7 +105,7 @@ void Network::load(const std::map<std::string, torch::Tensor>& state, const std:
   }
   torch::NoGradGuard no_grad;
   for (auto& [name, param] : params_) param.copy_(state.at(name));
-  bf16_cache_.clear();
+  clear_weight_caches();
 }
 
 void Network::to(const torch::Device& device) {
@@ -135,12 +135,27 @@ void Network::set_parameters(const std::vector<torch::Tensor>& values) {
   }
   for (Head& h : heads_)
     for (torch::Tensor& l : h.layers) l = params_[i++].second;
-  bf16_cache_.clear();
+  clear_weight_caches();
 }
 
 void Network::set_requires_grad(bool requires_grad) {
   for (auto& kv : params_) kv.second.set_requires_grad(requires_grad);
+  clear_weight_caches();
+}
+
+void Network::clear_weight_caches() {
   bf16_cache_.clear();
+  fused_head_input_.reset();
+}
+
+torch::Tensor Network::fused_head_input_weight() const {
+  std::vector<torch::Tensor> firsts;
+  for (const Head& h : heads_) firsts.push_back(h.layers.front());
+  // Training binds weights with autograd history each step: concatenate afresh so gradients
+  // reach them. Inference concatenates once.
+  if (firsts.front().requires_grad()) return torch::cat(firsts);
+  if (!fused_head_input_) fused_head_input_ = torch::cat(firsts);
+  return *fused_head_input_;
 }
 
 torch::Tensor Network::weight_for(const torch::Tensor& weight, Precision precision) const {
@@ -261,14 +276,16 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   out.transformer_tokens = x;
 
   const torch::Tensor normed = torch::layer_norm(x, {D}, {}, {}, config_.ln_eps);
+  // The five heads read the same tokens: their first Linears run as one matrix product.
+  const torch::Tensor first = linear(normed, fused_head_input_weight(), precision);
   std::vector<torch::Tensor> raw;
+  int64_t offset = 0;
   for (int k = 0; k < GaussianHeads::count; ++k) {
-    torch::Tensor y = normed;
     const auto& layers = heads_[k].layers;
-    for (size_t l = 0; l < layers.size(); ++l) {
-      y = linear(y, layers[l], precision);
-      if (l + 1 < layers.size()) y = torch::gelu(y);
-    }
+    const int64_t width = layers.front().size(0);
+    torch::Tensor y = first.narrow(-1, offset, width);
+    offset += width;
+    for (size_t l = 1; l < layers.size(); ++l) y = linear(torch::gelu(y), layers[l], precision);
     raw.push_back(unpatchify(y.to(torch::kFloat32), static_cast<int>(V), static_cast<int>(h), static_cast<int>(w), p,
                              GaussianHeads::channels[k]));
   }

@@ -6,6 +6,7 @@
 // Parameters are plain tensors under the official key names with weight norm folded
 // (`...weight` instead of `weight_g`/`weight_v`); see model/checkpoint.h for loading.
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -81,6 +82,9 @@ class Network {
   torch::Tensor& add(const std::string& name, torch::Tensor value);
   torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, Precision precision) const;
   torch::Tensor weight_for(const torch::Tensor& weight, Precision precision) const;
+  // The heads' first Linear weights stacked along the output dimension.
+  torch::Tensor fused_head_input_weight() const;
+  void clear_weight_caches();
 
   ModelConfig config_;
   std::vector<std::pair<std::string, torch::Tensor>> params_;
@@ -90,6 +94,7 @@ class Network {
   bool naive_attention_ = false;
   bool checkpoint_blocks_ = false;
   mutable std::map<const void*, torch::Tensor> bf16_cache_;  // keyed by the fp32 storage
+  mutable std::optional<torch::Tensor> fused_head_input_;      // inference only
 };
 
 // Unpatchify (spec §3.2): (B, V*h*w, p*p*C) head output -> (B, V, C, h*p, w*p).

@@ -129,5 +129,36 @@ TEST(Network, RgbFromInputAddsTheHeadToTheInputColour) {
   EXPECT_LT((with_skip - expected).abs().max().item<float>(), 1e-6);
 }
 
+// The heads' first Linears run as one product over a concatenation kept between inference
+// calls; loading other weights must not leave the old concatenation (or its bf16 copy) behind.
+TEST(Network, FusedHeadsFollowEveryLoad) {
+  const ModelConfig c = ModelConfig::from_preset("tiny");
+  torch::manual_seed(6);
+  Network first(c), second(c);
+  const torch::Tensor images = torch::rand({1, 2, 4, 16, 16}) * 2 - 1;
+  const torch::Tensor plucker = torch::randn({1, 2, 6, 16, 16});
+  const torch::Tensor rays = torch::randn({1, 2, 16, 16, 3});
+  torch::NoGradGuard no_grad;
+  for (Precision precision : {Precision::Float32, Precision::BFloat16}) {
+    Network net = first;
+    net.forward(images, plucker, rays, rays, precision);  // builds the caches from `first`
+    std::map<std::string, torch::Tensor> state(second.named_parameters().begin(), second.named_parameters().end());
+    net.load(state, "test");
+    const GaussianMaps got = net.forward(images, plucker, rays, rays, precision).gaussians;
+    const GaussianMaps expected = second.forward(images, plucker, rays, rays, precision).gaussians;
+    EXPECT_TRUE(torch::equal(got.opacity, expected.opacity)) << precision_name(precision);
+    EXPECT_TRUE(torch::equal(got.rotation, expected.rotation)) << precision_name(precision);
+  }
+  // One head by hand (float32): opacity = sigmoid(W2 gelu(W1 LN(tokens)) + bias), unpatchified.
+  const NetworkOutput out = second.forward(images, plucker, rays, rays);
+  std::map<std::string, torch::Tensor> w(second.named_parameters().begin(), second.named_parameters().end());
+  const torch::Tensor normed = torch::layer_norm(out.transformer_tokens, {c.embed_dim}, {}, {}, c.ln_eps);
+  const torch::Tensor hidden = torch::gelu(torch::matmul(normed, w.at("gauupsampler.mlp_opacity.0.weight").t()));
+  const torch::Tensor raw = torch::matmul(hidden, w.at("gauupsampler.mlp_opacity.2.weight").t());
+  const int h = 16 / c.patch;
+  const torch::Tensor opacity = torch::sigmoid(unpatchify(raw, 2, h, h, c.patch, 1) + c.opacity_bias);
+  EXPECT_LT((opacity - out.gaussians.opacity).abs().max().item<float>(), 1e-6);
+}
+
 }  // namespace
 }  // namespace ii
