@@ -145,7 +145,7 @@ void Network::set_requires_grad(bool requires_grad) {
 
 void Network::clear_weight_caches() {
   bf16_cache_.clear();
-  fused_head_input_.reset();
+  fused_head_input_ = torch::Tensor();
 }
 
 torch::Tensor Network::fused_head_input_weight() const {
@@ -154,8 +154,8 @@ torch::Tensor Network::fused_head_input_weight() const {
   // Training binds weights with autograd history each step: concatenate afresh so gradients
   // reach them. Inference concatenates once.
   if (firsts.front().requires_grad()) return torch::cat(firsts);
-  if (!fused_head_input_) fused_head_input_ = torch::cat(firsts);
-  return *fused_head_input_;
+  if (!fused_head_input_.defined()) fused_head_input_ = torch::cat(firsts);
+  return fused_head_input_;
 }
 
 torch::Tensor Network::weight_for(const torch::Tensor& weight, Precision precision) const {

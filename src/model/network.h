@@ -6,7 +6,6 @@
 // Parameters are plain tensors under the official key names with weight norm folded
 // (`...weight` instead of `weight_g`/`weight_v`); see model/checkpoint.h for loading.
 #include <map>
-#include <optional>
 #include <string>
 #include <vector>
 
@@ -94,7 +93,7 @@ class Network {
   bool naive_attention_ = false;
   bool checkpoint_blocks_ = false;
   mutable std::map<const void*, torch::Tensor> bf16_cache_;  // keyed by the fp32 storage
-  mutable std::optional<torch::Tensor> fused_head_input_;      // inference only
+  mutable torch::Tensor fused_head_input_;                     // inference only; undefined = not built
 };
 
 // Unpatchify (spec §3.2): (B, V*h*w, p*p*C) head output -> (B, V, C, h*p, w*p).

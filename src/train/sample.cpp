@@ -10,6 +10,7 @@
 #include "common/error.h"
 #include "data/image_ops.h"
 #include "data/preprocess.h"
+#include "eval/metrics.h"
 
 namespace ii {
 
@@ -365,8 +366,7 @@ TrainingSample make_scene_sample(const Scene& scene, const SamplerOptions& o, ui
     const auto depth = stored_depth_at_working_size(scene, scene.views[info.inputs[k]], depth_folder,
                                                     input_geometry[k], o);
     if (!depth) break;
-    depths.push_back(torch::from_blob(const_cast<float*>(depth->pixels.data()), {1, o.height, o.width}, torch::kFloat32)
-                         .clone());
+    depths.push_back(image_to_tensor(*depth)[0]);
   }
   if (static_cast<int>(depths.size()) == K) {
     sample.input_depths = torch::stack(depths) / normalization.scale;

@@ -206,7 +206,8 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
     for (size_t b = 0; b < batch.size(); ++b) {
       const TrainingSample& s = batch[b];
       if (supervise_depth && s.input_depths.defined()) {
-        const torch::Tensor d = depth_loss(leaves[5][static_cast<int64_t>(b)], s.input_depths.to(options_.device));
+        const torch::Tensor& depth_leaf = leaves.back();
+        const torch::Tensor d = depth_loss(depth_leaf[static_cast<int64_t>(b)], s.input_depths.to(options_.device));
         (d * (depth_weight / static_cast<double>(batch.size()))).backward();
         depth_sum += d.item<double>();
         ++depth_samples;
