@@ -205,7 +205,7 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--depth-weight", args->depth_weight,
                   "Weight of a log-depth L1 loss on the inputs' predicted depth, for scenes with depth maps\n"
                   "(synthetic: depth/, depth_clean/); not in the official recipe")
-      ->check(CLI::NonNegativeNumber)
+      ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
   cmd->add_option("--perceptual", args->perceptual,
                   "Perceptual term: auto (LPIPS-VGG when its backbone is available, else 1 - SSIM), lpips, ssim, none")

@@ -1,0 +1,58 @@
+// `instainpaint train --depth-weight` end to end: runs the built executable (beside the tests'
+// folder); skipped when it has not been built.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "common/files.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+TEST(TrainCli, DepthWeightReachesTheLossAndTheLogs) {
+  II_REQUIRE_CLI(exe);
+  const fs::path dir = test::temp_dir("train-cli");
+  const fs::path log = dir / "log.txt";
+  ASSERT_EQ(test::run_command(exe.string() + " synth --out '" + (dir / "rooms").string() +
+                                  "' --scenes 1 --seed 5 --views 8 --test-views 1 --width 32 --height 32 --threads 1",
+                              log),
+            0)
+      << read_file_text(log);
+  const std::string common = exe.string() + " train --scenes '" + (dir / "rooms").string() +
+                             "' --stage inpaint --preset tiny --width 32 --height 32 --inputs 4 --targets 2 --batch 1 "
+                             "--steps 2 --val-every 2 --val-samples 1 --perceptual ssim --out '";
+  ASSERT_EQ(test::run_command(common + (dir / "run").string() + "' --depth-weight 0.5", log), 0) << read_file_text(log);
+
+  EXPECT_EQ(json::parse(read_file_text(dir / "run" / "run.json"))["loss"]["depth"], 0.5)
+      << read_file_text(dir / "run" / "run.json");
+  std::ifstream lines(dir / "run" / "log.jsonl");
+  std::string line;
+  int steps = 0, validations = 0;
+  while (std::getline(lines, line)) {
+    const json j = json::parse(line);
+    if (j.contains("loss")) {
+      ++steps;
+      // The synthetic room has depth maps: the term is measured and part of the loss.
+      EXPECT_GT(j["depth"].get<double>(), 0) << line;
+      EXPECT_GT(j["loss"].get<double>(), 0.5 * j["depth"].get<double>()) << line;
+    }
+    if (j.contains("val_depth")) ++validations;
+  }
+  EXPECT_EQ(steps, 2);
+  EXPECT_GE(validations, 1);
+
+  // A negative weight is refused before anything runs.
+  EXPECT_NE(test::run_command(common + (dir / "bad").string() + "' --depth-weight -1", log), 0);
+  EXPECT_NE(read_file_text(log).find("--depth-weight: Value -1 not in range 0.000000 to 100.000000"), std::string::npos)
+      << read_file_text(log);
+  EXPECT_FALSE(fs::exists(dir / "bad"));
+}
+
+}  // namespace
+}  // namespace ii
