@@ -1,14 +1,18 @@
-// `instainpaint bench`: speed of the network on this machine, against a straightforward
-// float32 LibTorch implementation (materialised attention) measured in the same run.
-#include <spdlog/spdlog.h>
+// `instainpaint bench`: speed of the network (random weights) on this machine, against a
+// baseline implementation measured in the same run: on a GPU the official code's way of
+// computing (eager, weights cast on every call as autocast does, the heads one by one), on
+// the CPU a straightforward float32 one (attention with the full score matrix).
 #include <fmt/core.h>
 
 #include <fstream>
-#include <sstream>
+#include <optional>
 
 #include "cli/commands.h"
 #include "cli/runtime.h"
+#include "common/error.h"
 #include "common/stopwatch.h"
+#include "model/cuda_graph.h"
+#include "model/device.h"
 #include "model/network.h"
 
 namespace ii::cli {
@@ -17,13 +21,36 @@ namespace {
 
 struct BenchArgs {
   std::vector<std::string> presets = {"small", "base", "release"};
-  std::vector<int> sizes = {256, 512};
+  std::vector<std::string> sizes = {"256", "512"};
   int views = 4;
-  int repeat = 1;
-  bool baseline = true;
+  int repeat = 0;  // 0 = 1 on the CPU, 20 on a GPU
+  std::string baseline = "auto";
+  bool cuda_graph = true;
   double baseline_max_gb = 6.0;
   RuntimeOptions runtime;
 };
+
+struct InputSize {
+  int width = 0, height = 0;
+};
+
+// "512" (square) or "904x512" (width x height).
+InputSize parse_size(const std::string& text) {
+  InputSize s;
+  const size_t x = text.find('x');
+  try {
+    size_t used = 0;
+    s.width = std::stoi(text.substr(0, x), &used);
+    if (used != (x == std::string::npos ? text.size() : x)) throw std::invalid_argument(text);
+    s.height = x == std::string::npos ? s.width : std::stoi(text.substr(x + 1), &used);
+    if (x != std::string::npos && used != text.size() - x - 1) throw std::invalid_argument(text);
+  } catch (const std::exception&) {
+    fail("--sizes: '{}' is not a size (expected N for N x N, or WIDTHxHEIGHT)", text);
+  }
+  if (s.width < 8 || s.height < 8 || s.width > 8192 || s.height > 8192)
+    fail("--sizes: {}x{} is outside 8..8192 pixels", s.width, s.height);
+  return s;
+}
 
 // Peak resident memory since the last reset, in GiB (Linux VmHWM).
 double peak_rss_gb() {
@@ -35,58 +62,131 @@ double peak_rss_gb() {
 }
 void reset_peak_rss() { std::ofstream("/proc/self/clear_refs") << "5"; }
 
-double time_forward(const Network& net, int views, int size, Precision precision, int repeat) {
-  const auto images = torch::rand({1, views, 4, size, size}) * 2 - 1;
-  const auto plucker = torch::randn({1, views, 6, size, size});
-  const auto rays = torch::randn({1, views, size, size, 3});
-  torch::InferenceMode guard;
+struct Inputs {
+  torch::Tensor images, plucker, rays;
+};
+
+Inputs random_inputs(int views, const InputSize& s, const torch::Device& device) {
+  Inputs in;
+  in.images = (torch::rand({1, views, 4, s.height, s.width}) * 2 - 1).to(device);
+  in.plucker = torch::randn({1, views, 6, s.height, s.width}).to(device);
+  in.rays = torch::randn({1, views, s.height, s.width, 3}).to(device);
+  return in;
+}
+
+// Best of `repeat` timed calls of `step`, each waited for; after one untimed warm-up call on a
+// GPU, and on a CPU when several calls are asked for (one call of a large model can take minutes).
+template <class Step>
+double best_ms(const torch::Device& device, int repeat, Step&& step) {
+  if (device.is_cuda() || repeat > 1) {
+    step();
+    synchronize(device);
+  }
   double best = 1e30;
   for (int r = 0; r < repeat; ++r) {
     Stopwatch w;
-    net.forward(images, plucker, rays, rays, precision);
+    step();
+    synchronize(device);
     best = std::min(best, w.ms());
   }
   return best;
 }
 
+double time_forward(const Network& net, const Inputs& in, Precision precision, const torch::Device& device,
+                    int repeat) {
+  torch::InferenceMode guard;
+  return best_ms(device, repeat, [&] { net.forward(in.images, in.plucker, in.rays, in.rays, precision); });
+}
+
+// The official implementation's way of computing, in this code: eager, bf16 weights cast on
+// every call (autocast), the five heads one by one; attention as in the fast path (the
+// official code also calls the fused kernels).
+ExecutionOptions official_equivalent() {
+  ExecutionOptions o;
+  o.fused_heads = false;
+  o.cached_weights = false;
+  return o;
+}
+
+ExecutionOptions textbook() {
+  ExecutionOptions o = official_equivalent();
+  o.naive_attention = true;
+  return o;
+}
+
 void run(const BenchArgs& a) {
-  const Precision precision = apply_runtime_options(a.runtime);
-  fmt::print("network benchmark: {} threads, {} ({} views, best of {})\n", torch::get_num_threads(),
-             precision_name(precision), a.views, a.repeat);
-  fmt::print("{:<8} {:>5} {:>7} {:>10} {:>9} {:>8} | {:>12} {:>9} {:>8} {:>7}\n", "preset", "size", "tokens",
-             "ms", "GFLOP/s", "peak GB", "baseline ms", "GFLOP/s", "peak GB", "ratio");
+  const Runtime rt = apply_runtime_options(a.runtime);
+  const bool gpu = rt.device.is_cuda();
+  const int repeat = a.repeat > 0 ? a.repeat : (gpu ? 20 : 1);
+  const std::string baseline = a.baseline == "auto" ? (gpu ? "official" : "textbook") : a.baseline;
+  const bool graphs = gpu && a.cuda_graph && GraphedForward::available();
+  std::vector<InputSize> sizes;
+  for (const std::string& s : a.sizes) sizes.push_back(parse_size(s));
+  for (const std::string& preset : a.presets) {
+    const int patch = ModelConfig::from_preset(preset).patch;
+    for (const InputSize& size : sizes)
+      if (size.width % patch || size.height % patch)
+        fail("--sizes: {}x{} is not a multiple of the {} model's patch size {}", size.width, size.height, preset, patch);
+  }
+
+  fmt::print("network benchmark on {}: {} ({} views, best of {}{})\n",
+             gpu ? rt.device.str() : fmt::format("cpu, {} threads", torch::get_num_threads()),
+             precision_name(rt.precision), a.views, repeat, gpu || repeat > 1 ? " after a warm-up" : "");
+  fmt::print("{:<8} {:>9} {:>7} {:>9} {:>9} {:>8} | {:>11} {:>8} {:>7}{}\n", "preset", "size", "tokens", "ms",
+             "GFLOP/s", gpu ? "" : "peak GB", "baseline ms", gpu ? "" : "peak GB", "ratio",
+             graphs ? fmt::format(" | {:>9} {:>9} {:>7}", "graph ms", "GFLOP/s", "ratio") : "");
   for (const std::string& preset : a.presets) {
     const ModelConfig config = ModelConfig::from_preset(preset);
     Network net(config);
-    for (int size : a.sizes) {
-      const double flops = config.forward_flops(a.views, size, size);
-      const int64_t tokens = static_cast<int64_t>(a.views) * (size / config.patch) * (size / config.patch);
+    net.to(rt.device);
+    for (const InputSize& size : sizes) {
+      const Inputs in = random_inputs(a.views, size, rt.device);
+      const double flops = config.forward_flops(a.views, size.height, size.width);
+      const int64_t tokens =
+          static_cast<int64_t>(a.views) * (size.width / config.patch) * (size.height / config.patch);
+      auto gb = [&](double v) { return gpu ? std::string() : fmt::format("{:.2f}", v); };
+
       reset_peak_rss();
-      net.set_naive_attention(false);
-      const double ms = time_forward(net, a.views, size, precision, a.repeat);
+      net.set_execution(ExecutionOptions());
+      const double ms = time_forward(net, in, rt.precision, rt.device, repeat);
       const double peak = peak_rss_gb();
-      std::string base = fmt::format("{:>12} {:>9} {:>8} {:>7}", "-", "-", "-", "-");
-      // Score matrix of the textbook attention: heads x N x N floats (plus softmax copy).
+
+      std::string base = fmt::format("{:>11} {:>8} {:>7}", "-", "", "-");
+      std::optional<double> base_ms;
+      // The textbook attention's score matrix: heads x N x N floats, plus the softmax copy.
       const double naive_gb = 2.0 * config.heads * tokens * tokens * 4 / 1e9;
-      if (a.baseline && naive_gb <= a.baseline_max_gb) {
+      if (baseline == "textbook" && naive_gb > a.baseline_max_gb) {
+        base = fmt::format("{:>11} {:>8} {:>7}", "skipped", fmt::format("{:.0f}", naive_gb), "-");
+      } else if (baseline != "none") {
         reset_peak_rss();
-        net.set_naive_attention(true);
-        const double base_ms = time_forward(net, a.views, size, Precision::Float32, a.repeat);
-        net.set_naive_attention(false);
-        base = fmt::format("{:>12.0f} {:>9.1f} {:>8.2f} {:>6.2f}x", base_ms, flops / base_ms / 1e6,
-                           peak_rss_gb(), base_ms / ms);
-      } else if (a.baseline) {
-        base = fmt::format("{:>12} {:>9} {:>8} {:>7}", "skipped", "-",
-                           fmt::format("{:.0f}", naive_gb), "-");
+        net.set_execution(baseline == "official" ? official_equivalent() : textbook());
+        const Precision p = baseline == "official" ? rt.precision : Precision::Float32;
+        base_ms = time_forward(net, in, p, rt.device, repeat);
+        net.set_execution(ExecutionOptions());
+        base = fmt::format("{:>11.1f} {:>8} {:>6.2f}x", *base_ms, gb(peak_rss_gb()), *base_ms / ms);
       }
-      fmt::print("{:<8} {:>5} {:>7} {:>10.0f} {:>9.1f} {:>8.2f} | {}\n", preset, size, tokens, ms,
-                 flops / ms / 1e6, peak, base);
+
+      std::string graph;
+      if (graphs) {
+        GraphedForward g(net, in.images, in.plucker, in.rays, in.rays, rt.precision);
+        const double graph_ms =
+            best_ms(rt.device, repeat, [&] { g.run(in.images, in.plucker, in.rays, in.rays); });
+        graph = fmt::format(" | {:>9.1f} {:>9.1f} {:>7}", graph_ms, flops / graph_ms / 1e6,
+                            base_ms ? fmt::format("{:.2f}x", *base_ms / graph_ms) : "-");
+      }
+      fmt::print("{:<8} {:>9} {:>7} {:>9.1f} {:>9.1f} {:>8} | {}{}\n", preset,
+                 fmt::format("{}x{}", size.width, size.height), tokens, ms, flops / ms / 1e6, gb(peak), base, graph);
       std::fflush(stdout);
     }
   }
-  fmt::print("baseline: float32, unfused, attention with the full score matrix "
-             "(skipped when that matrix needs more than {:.0f} GB; its size is shown)\n",
-             a.baseline_max_gb);
+  if (baseline == "official")
+    fmt::print("baseline: the official code's way of computing (eager, weights converted on every call as autocast "
+               "does, the five heads one by one, the same attention kernels)\n");
+  else if (baseline == "textbook")
+    fmt::print("baseline: float32, unfused, attention with the full score matrix "
+               "(skipped when that matrix needs more than {:.0f} GB; its size is shown)\n",
+               a.baseline_max_gb);
+  if (graphs) fmt::print("graph: the fast path captured once as a CUDA graph and replayed (inputs copied in)\n");
 }
 
 }  // namespace
@@ -95,15 +195,26 @@ void add_bench_command(CLI::App& app) {
   auto args = std::make_shared<BenchArgs>();
   auto* cmd = app.add_subcommand("bench", "Time the network (random weights) on this machine");
   cmd->add_option("--presets", args->presets, "Model presets")->delimiter(',')->capture_default_str();
-  cmd->add_option("--sizes", args->sizes, "Square input sizes in pixels")->delimiter(',')->capture_default_str();
-  cmd->add_option("--views", args->views, "Input views")->capture_default_str();
-  cmd->add_option("--repeat", args->repeat, "Runs per configuration (best is reported)")->capture_default_str();
-  cmd->add_flag("!--no-baseline", args->baseline, "Skip the float32 textbook baseline");
+  cmd->add_option("--sizes", args->sizes, "Input sizes in pixels: N for N x N, or WIDTHxHEIGHT")
+      ->delimiter(',')
+      ->capture_default_str();
+  cmd->add_option("--views", args->views, "Input views")->capture_default_str()->check(CLI::Range(1, 64));
+  cmd->add_option("--repeat", args->repeat, "Timed runs per configuration, best reported (0 = 1 on a CPU, 20 on a GPU)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 10000));
+  cmd->add_option("--baseline", args->baseline,
+                  "What the fast path is compared with: official (the official code's way of computing), textbook "
+                  "(float32, full attention score matrix), none; auto = official on a GPU, textbook on a CPU")
+      ->check(CLI::IsMember({"auto", "official", "textbook", "none"}))
+      ->capture_default_str();
+  cmd->add_flag("!--no-cuda-graph", args->cuda_graph, "On a GPU, skip the CUDA graph column");
   cmd->add_option("--baseline-max-gb", args->baseline_max_gb,
-                  "Largest attention score matrix the baseline may allocate")
+                  "Largest attention score matrix the textbook baseline may allocate")
       ->capture_default_str();
   add_runtime_options(cmd, args->runtime);
-  cmd->footer("Example: instainpaint bench --presets release --sizes 256");
+  cmd->footer(
+      "Examples: instainpaint bench --presets release --sizes 256\n"
+      "          instainpaint bench --device cuda --presets release --sizes 512,904x512   (issue 9's configurations)");
   cmd->callback([args] { run(*args); });
 }
 

@@ -25,7 +25,6 @@ struct EvalArgs {
   std::string quantize = "round";
   int ring_width = 8;
   std::string lpips_vgg, lpips_alex, lpips_heads, inception;
-  std::string device = "auto";
   bool no_report = false;
   RuntimeOptions runtime;
 };
@@ -43,7 +42,9 @@ std::string shown(const nlohmann::json& v, int decimals) {
 
 void run(const EvalArgs& a) {
   EvalOptions o;
-  o.precision = apply_runtime_options(a.runtime);
+  const Runtime runtime = apply_runtime_options(a.runtime);
+  o.precision = runtime.precision;
+  o.device = runtime.device;
   o.scene_dir = a.scene_dir;
   o.scene = a.scene;
   o.out = a.out;
@@ -61,7 +62,6 @@ void run(const EvalArgs& a) {
   o.lpips_alex = optional_path(a.lpips_alex);
   o.lpips_heads_dir = optional_path(a.lpips_heads);
   o.inception = optional_path(a.inception);
-  o.device = a.device;
   o.write_report = !a.no_report;
   const nlohmann::json m = run_evaluation(o);
 
@@ -80,6 +80,10 @@ void run(const EvalArgs& a) {
     for (const auto& [k, reason] : m["unavailable"].items()) keys += (keys.empty() ? "" : ", ") + k;
     fmt::print("  unavailable: {} (reasons in metrics.json)\n", keys);
   }
+  const nlohmann::json& t = m["timings"];
+  fmt::print("  on {}: {:.0f} ms of computation (inputs to the device, network, renders, metrics), {:.0f} ms in all "
+             "with reading and writing files\n",
+             m["device"].get<std::string>(), t["compute_ms"].get<double>(), t["total_ms"].get<double>());
   fmt::print("wrote {}/metrics.json{}\n", a.out, a.no_report ? "" : fmt::format(", {}/report.html", a.out));
 }
 
@@ -136,9 +140,6 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--inception", a->inception,
                   "pytorch-fid Inception weights (pt_inception-2015-12-05-6726825d.pth) for FID/KID/C-FID/C-KID; "
                   "default $INSTAINPAINT_FID_INCEPTION");
-  cmd->add_option("--device", a->device, "Where rendering and the metric networks run")
-      ->check(CLI::IsMember({"auto", "cpu", "cuda"}))
-      ->capture_default_str();
   cmd->add_flag("--no-report", a->no_report, "Skip report.html and the contact sheets");
   add_runtime_options(cmd, a->runtime);
   cmd->footer(

@@ -15,6 +15,7 @@
 #include "io/ply.h"
 #include "model/checkpoint.h"
 #include "model/default_model.h"
+#include "model/device.h"
 #include "model/inference.h"
 #include "model/scene_input.h"
 
@@ -39,7 +40,7 @@ struct InferArgs {
 
 // Depth as a colour image (near = bright), normalised per view for viewing.
 Image depth_colormap(const torch::Tensor& depth) {
-  const torch::Tensor d = depth.to(torch::kFloat32).contiguous();
+  const torch::Tensor d = depth.to(torch::kCPU, torch::kFloat32).contiguous();
   const float lo = d.min().item<float>(), hi = d.max().item<float>();
   cv::Mat grey(static_cast<int>(d.size(0)), static_cast<int>(d.size(1)), CV_8UC1);
   const float* p = d.data_ptr<float>();
@@ -54,7 +55,8 @@ Image depth_colormap(const torch::Tensor& depth) {
 }
 
 void run(const InferArgs& a) {
-  const Precision precision = apply_runtime_options(a.runtime);
+  const Runtime runtime = apply_runtime_options(a.runtime);
+  const Precision precision = runtime.precision;
   Stopwatch total, watch;
   nlohmann::json timings;
 
@@ -70,20 +72,24 @@ void run(const InferArgs& a) {
   opts.preprocess.height = a.height;
   opts.keep_object = a.keep_object;
   if (a.keep_object && !a.reference.empty()) fail("--keep-object uses the reference's own photo: drop --reference");
-  const SceneInput si = prepare_scene_input(scene, opts);
+  SceneInput si = prepare_scene_input(scene, opts);
   timings["prepare_inputs_ms"] = watch.lap();
 
   const std::string model_name = a.checkpoint.empty() ? kDefaultModelName : a.checkpoint;
   spdlog::info("[3/4] loading model {}", model_name);
   const Checkpoint ck = checkpoint_or_default(a.checkpoint);
-  const Network net = network_from_checkpoint(ck, model_name);
+  Network net = network_from_checkpoint(ck, model_name);
   check_model_fits_input(ck.config, si.input, model_name);
+  net.to(runtime.device);
+  upload_network_inputs(si.input, runtime.device);
+  synchronize(runtime.device);
   timings["load_model_ms"] = watch.lap();
 
   const auto& shape = si.input.images.sizes();
-  spdlog::info("[4/4] running the {} model ({}) on {} x {} x {} ...", ck.config.preset,
-               precision_name(precision), shape[0], shape[2], shape[3]);
+  spdlog::info("[4/4] running the {} model ({}, {}) on {} x {} x {} ...", ck.config.preset,
+               precision_name(precision), runtime.device.str(), shape[0], shape[2], shape[3]);
   const GaussianMaps maps = run_network(net, si.input, precision);
+  synchronize(runtime.device);
   timings["network_ms"] = watch.lap();
 
   const fs::path out(a.out);
@@ -106,6 +112,7 @@ void run(const InferArgs& a) {
       {"working_size", {shape[3], shape[2]}},
       {"model", {{"checkpoint", model_name}, {"format", ck.format}, {"config", ck.config.to_json()}}},
       {"precision", precision_name(precision)},
+      {"device", runtime.device.str()},
       {"threads", torch::get_num_threads()},
       {"gaussians", cloud.size()},
       {"normalization", {{"mean", {si.normalization.mean.x(), si.normalization.mean.y(), si.normalization.mean.z()}},
@@ -115,8 +122,8 @@ void run(const InferArgs& a) {
   for (const auto& v : si.views) run["context"].push_back(v.name);
   write_file_atomic(out / "run.json", run.dump(2) + "\n");
 
-  fmt::print("{} Gaussians from {} views ({}), network {:.0f} ms, total {:.0f} ms\n", cloud.size(),
-             si.views.size(), precision_name(precision), timings["network_ms"].get<double>(), total.ms());
+  fmt::print("{} Gaussians from {} views ({}, {}), network {:.0f} ms, total {:.0f} ms\n", cloud.size(),
+             si.views.size(), precision_name(precision), runtime.device.str(), timings["network_ms"].get<double>(), total.ms());
   fmt::print("wrote {}, {}, depth/\n", (out / "gaussians.ply").string(), (out / "run.json").string());
 }
 

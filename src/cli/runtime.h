@@ -1,5 +1,5 @@
 #pragma once
-// Threads and numeric precision, shared by every command that runs the network.
+// Device, threads and numeric precision, shared by every command that runs the network.
 #include <CLI/CLI.hpp>
 
 #include "model/network.h"
@@ -7,12 +7,18 @@
 namespace ii::cli {
 
 struct RuntimeOptions {
+  std::string device = "auto";      // auto | cpu | cuda | cuda:N
   int threads = 0;                  // 0 = all cores
   std::string precision = "auto";   // auto | fp32 | bf16
 };
 
+struct Runtime {
+  torch::Device device = torch::kCPU;
+  Precision precision = Precision::Float32;
+};
+
 void add_runtime_options(CLI::App* cmd, RuntimeOptions& options);
-// Sets the thread count; returns the precision to use.
-Precision apply_runtime_options(const RuntimeOptions& options);
+// Resolves the device, sets the CPU thread count and picks the precision.
+Runtime apply_runtime_options(const RuntimeOptions& options);
 
 }  // namespace ii::cli

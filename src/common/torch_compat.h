@@ -9,6 +9,14 @@
 #define II_TORCH2 0
 #endif
 
+// A CUDA build of LibTorch (its generated ATen/cuda/CUDAConfig.h exists only there): CUDA
+// graphs, streams and the NCCL backend can be compiled.
+#if __has_include(<ATen/cuda/CUDAConfig.h>)
+#define II_HAS_CUDA_TORCH 1
+#else
+#define II_HAS_CUDA_TORCH 0
+#endif
+
 namespace ii::compat {
 
 // True when at::scaled_dot_product_attention (fused, memory-efficient kernels) exists.
@@ -28,7 +36,7 @@ inline torch::Tensor fused_sdpa(const torch::Tensor&, const torch::Tensor&, cons
 
 // ---- c10d process groups (data-parallel training) ---------------------------------------
 // Gloo (CPU) needs the gloo headers: Debian ships them in libgloo-dev, LibTorch 2.x zips
-// bundle them. NCCL needs a CUDA LibTorch, recognised by its generated ATen/cuda/CUDAConfig.h.
+// bundle them. NCCL needs a CUDA LibTorch (II_HAS_CUDA_TORCH).
 // Both headers are compiled only when their macro is defined, which LibTorch leaves to the
 // consumer: define it before including them (see train/distributed.cpp).
 #if __has_include(<torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>) && __has_include(<gloo/algorithm.h>)
@@ -36,7 +44,7 @@ inline torch::Tensor fused_sdpa(const torch::Tensor&, const torch::Tensor&, cons
 #else
 #define II_HAS_C10D_GLOO 0
 #endif
-#if __has_include(<torch/csrc/distributed/c10d/ProcessGroupNCCL.hpp>) && __has_include(<ATen/cuda/CUDAConfig.h>)
+#if __has_include(<torch/csrc/distributed/c10d/ProcessGroupNCCL.hpp>) && II_HAS_CUDA_TORCH
 #define II_HAS_C10D_NCCL 1
 #else
 #define II_HAS_C10D_NCCL 0

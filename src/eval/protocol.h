@@ -64,7 +64,7 @@ struct EvalOptions {
   // $INSTAINPAINT_FID_INCEPTION; still absent: the metric is unavailable).
   std::optional<std::filesystem::path> lpips_vgg, lpips_alex, lpips_heads_dir, inception;
 
-  std::string device = "auto";  // auto | cpu | cuda (rendering, LPIPS, Inception)
+  torch::Device device = torch::kCPU;  // network, rendering, metrics
   bool write_report = true;
 };
 
@@ -81,7 +81,9 @@ Image mean_fill(const Image& rgb, const Image& mask, int ring_width);
 // side. nullopt for an empty mask.
 std::optional<PixelBox> crop_around_mask(const Image& mask);
 
-// 8-bit quantisation as EvalOptions::quantize describes ("round", "truncate", "none").
+// 8-bit quantisation as EvalOptions::quantize describes ("round", "truncate", "none"), of
+// images in [0,1] on any device; rounding is half away from zero like the PNG writer's.
+torch::Tensor quantize_image(const torch::Tensor& images, const std::string& mode);
 Image quantize_image(const Image& image, const std::string& mode);
 
 }  // namespace ii

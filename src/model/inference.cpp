@@ -1,6 +1,7 @@
 #include "model/inference.h"
 
 #include "common/error.h"
+#include "model/device.h"
 
 namespace ii {
 
@@ -14,6 +15,11 @@ void check_model_fits_input(const ModelConfig& config, const ModelInput& input, 
          model_source, config.patch, W, H, config.patch);
 }
 
+void upload_network_inputs(ModelInput& input, const torch::Device& device) {
+  for (torch::Tensor* t : {&input.images, &input.plucker, &input.rays_o, &input.rays_d_un})
+    *t = to_device(*t, device);
+}
+
 GaussianMaps run_network(const Network& network, const ModelInput& input, Precision precision) {
   torch::InferenceMode guard;
   return network
@@ -25,7 +31,7 @@ GaussianMaps run_network(const Network& network, const ModelInput& input, Precis
 SplatCloud to_splat_cloud(const GaussianMaps& maps) {
   // (1, V, C, H, W) -> (V*H*W, C)
   auto flat = [](const torch::Tensor& t) {
-    return t[0].permute({0, 2, 3, 1}).reshape({-1, t.size(2)}).to(torch::kFloat32).contiguous();
+    return t[0].permute({0, 2, 3, 1}).reshape({-1, t.size(2)}).to(torch::kCPU, torch::kFloat32).contiguous();
   };
   auto to_vec = [](const torch::Tensor& t) {
     return std::vector<float>(t.data_ptr<float>(), t.data_ptr<float>() + t.numel());

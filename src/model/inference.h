@@ -8,6 +8,10 @@
 
 namespace ii {
 
+// Moves the tensors the network reads (images, Plücker rays, ray origins and directions) to
+// `device` through pinned memory, so that the network can run there.
+void upload_network_inputs(ModelInput& input, const torch::Device& device);
+
 // Runs the network on `input` (one scene, no batch dimension) without gradients.
 GaussianMaps run_network(const Network& network, const ModelInput& input, Precision precision);
 

@@ -159,7 +159,7 @@ torch::Tensor Network::fused_head_input_weight() const {
 }
 
 torch::Tensor Network::weight_for(const torch::Tensor& weight, Precision precision) const {
-  if (precision == Precision::Float32 || weight.requires_grad()) {
+  if (precision == Precision::Float32 || weight.requires_grad() || !execution_.cached_weights) {
     return precision == Precision::Float32 ? weight : weight.to(torch::kBFloat16);
   }
   // Inference: convert each weight to bf16 once and keep it.
@@ -267,23 +267,24 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   for (const Block& blk : blocks_) {
     if (recompute)
       x = RecomputedBlock::apply(x, blk.qkv, blk.proj, blk.fc1, blk.fc2, static_cast<int64_t>(config_.heads),
-                                 config_.ln_eps, naive_attention_, precision == Precision::BFloat16);
+                                 config_.ln_eps, execution_.naive_attention, precision == Precision::BFloat16);
     else
       x = transformer_block(x, weight_for(blk.qkv, precision), weight_for(blk.proj, precision),
                             weight_for(blk.fc1, precision), weight_for(blk.fc2, precision), config_.heads,
-                            config_.ln_eps, naive_attention_);
+                            config_.ln_eps, execution_.naive_attention);
   }
   out.transformer_tokens = x;
 
   const torch::Tensor normed = torch::layer_norm(x, {D}, {}, {}, config_.ln_eps);
   // The five heads read the same tokens: their first Linears run as one matrix product.
-  const torch::Tensor first = linear(normed, fused_head_input_weight(), precision);
+  const torch::Tensor first = execution_.fused_heads ? linear(normed, fused_head_input_weight(), precision)
+                                                     : torch::Tensor();
   std::vector<torch::Tensor> raw;
   int64_t offset = 0;
   for (int k = 0; k < GaussianHeads::count; ++k) {
     const auto& layers = heads_[k].layers;
     const int64_t width = layers.front().size(0);
-    torch::Tensor y = first.narrow(-1, offset, width);
+    torch::Tensor y = first.defined() ? first.narrow(-1, offset, width) : linear(normed, layers.front(), precision);
     offset += width;
     for (size_t l = 1; l < layers.size(); ++l) y = linear(torch::gelu(y), layers[l], precision);
     raw.push_back(unpatchify(y.to(torch::kFloat32), static_cast<int>(V), static_cast<int>(h), static_cast<int>(w), p,

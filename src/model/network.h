@@ -32,6 +32,14 @@ struct NetworkOutput {
 };
 
 enum class Precision { Float32, BFloat16 };
+
+// How forward() computes; every choice gives the same values up to rounding. The defaults are
+// the fast path; the others reproduce slower implementations for benchmarks.
+struct ExecutionOptions {
+  bool naive_attention = false;  // textbook attention with the full score matrix
+  bool fused_heads = true;       // the five heads' first Linears as one matrix product
+  bool cached_weights = true;    // bf16 weights converted once, not on every call as autocast does
+};
 const char* precision_name(Precision p);
 // bf16 when the CPU has native bf16 dot products (AVX512-BF16 or AMX), else float32.
 Precision default_cpu_precision();
@@ -67,8 +75,8 @@ class Network {
   // the backward pass (the official `use_checkpoint`). Same values and gradients.
   void set_activation_checkpointing(bool on) { checkpoint_blocks_ = on; }
   void set_requires_grad(bool requires_grad);
-  // Use the textbook attention with the full score matrix (benchmark baseline only).
-  void set_naive_attention(bool naive) { naive_attention_ = naive; }
+  void set_execution(const ExecutionOptions& options) { execution_ = options; }
+  const ExecutionOptions& execution() const { return execution_; }
 
  private:
   struct Block {
@@ -90,7 +98,7 @@ class Network {
   torch::Tensor proj_, proj_plucker_, cls_token_;
   std::vector<Block> blocks_;
   std::vector<Head> heads_;  // depth, rgb, opacity, scale, rotation
-  bool naive_attention_ = false;
+  ExecutionOptions execution_;
   bool checkpoint_blocks_ = false;
   mutable std::map<const void*, torch::Tensor> bf16_cache_;  // keyed by the fp32 storage
   mutable torch::Tensor fused_head_input_;                     // inference only; undefined = not built

@@ -11,6 +11,7 @@
 #include "common/files.h"
 #include "eval/lpips.h"
 #include "eval/protocol.h"
+#include "io/image.h"
 #include "model/default_model.h"
 #include "synthetic_scene.h"
 #include "test_support.h"
@@ -42,7 +43,7 @@ class Protocol : public ::testing::Test {
     o.scene_dir = scene_dir();
     o.out = test::temp_dir("eval-" + tag);
     o.height = test::kSceneHeight;
-    o.device = "cpu";
+    o.device = torch::kCPU;
     return o;
   }
 };
@@ -221,8 +222,15 @@ TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
   EXPECT_EQ(m["prediction"]["context"], json::array({"03", "02", "04", "05"}));
   EXPECT_EQ(m["prediction"]["reference"], "telea");
   EXPECT_EQ(m["prediction"]["gaussians"], 4 * test::kSceneWidth * test::kSceneHeight);
-  for (const char* k : {"load_model_ms", "prepare_inputs_ms", "network_ms", "predict_ms"})
-    EXPECT_TRUE(m["timings"][k].is_number()) << k;
+  const json& t = m["timings"];
+  for (const char* k : {"load_model_ms", "prepare_inputs_ms", "upload_inputs_ms", "network_ms", "decode_test_views_ms",
+                        "predict_ms", "image_metrics_ms", "compute_ms", "total_ms"})
+    EXPECT_TRUE(t[k].is_number()) << k;
+  // Computation = the work between the files: uploads, network, renders, metrics.
+  EXPECT_DOUBLE_EQ(t["compute_ms"].get<double>(),
+                   t["upload_inputs_ms"].get<double>() + t["network_ms"].get<double>() +
+                       t["predict_ms"].get<double>() + t["image_metrics_ms"].get<double>());
+  EXPECT_LT(t["compute_ms"].get<double>(), t["total_ms"].get<double>());
   for (const json& v : m["views"]) {
     EXPECT_TRUE(v["psnr"].is_number());
     EXPECT_TRUE(v["masked_ssim"].is_number());
@@ -242,6 +250,32 @@ TEST_F(Protocol, WithoutACheckpointTheDefaultModelRuns) {
   EXPECT_EQ(m["prediction"]["checkpoint"], kDefaultModelName);
   EXPECT_EQ(m["prediction"]["config"]["preset"], "mini");
   EXPECT_TRUE(std::isfinite(m["mean"]["masked_psnr"].get<double>()));
+}
+
+// The issue-9 agreement target on a GPU: the default model's bf16 fast path on the GPU (network,
+// CUDA rasterizer, metrics on the device) against the float32 CPU path: renders at least 40 dB
+// apart, the same metrics.
+TEST_F(Protocol, GpuEvaluationAgreesWithTheCpu) {
+  if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device (or LibTorch without CUDA)";
+  if (!has_default_model()) GTEST_SKIP() << "built without the default model";
+  EvalOptions cpu = options("cpu-f32");
+  cpu.context = {"03", "02", "04", "05"};
+  cpu.quantize = "none";
+  EvalOptions gpu = cpu;
+  gpu.out = test::temp_dir("eval-gpu-bf16");
+  gpu.device = torch::kCUDA;
+  gpu.precision = Precision::BFloat16;
+  const json a = run_evaluation(cpu), b = run_evaluation(gpu);
+  EXPECT_EQ(b["device"], "cuda:0");
+  ASSERT_EQ(a["views"].size(), b["views"].size());
+  for (size_t i = 0; i < a["views"].size(); ++i) {
+    const std::string file = a["views"][i]["files"]["render"];
+    const torch::Tensor x = image_to_tensor(read_image_rgb(cpu.out / file)),
+                        y = image_to_tensor(read_image_rgb(gpu.out / file));
+    EXPECT_GE(psnr(x, y)[0].item<double>(), 40.0) << file;
+    EXPECT_NEAR(a["views"][i]["psnr"].get<double>(), b["views"][i]["psnr"].get<double>(), 0.2) << file;
+    EXPECT_NEAR(a["views"][i]["masked_ssim"].get<double>(), b["views"][i]["masked_ssim"].get<double>(), 0.01) << file;
+  }
 }
 
 TEST_F(Protocol, BadRequestsNameTheProblem) {

@@ -1,0 +1,41 @@
+#include "model/device.h"
+
+#include "common/error.h"
+
+namespace ii {
+
+torch::Device resolve_device(const std::string& name) {
+  if (name == "cpu") return torch::kCPU;
+  const bool cuda = torch::cuda::is_available();
+  if (name == "auto") return cuda ? torch::Device(torch::kCUDA, 0) : torch::Device(torch::kCPU);
+  if (name.rfind("cuda", 0) != 0) fail("--device: unknown device '{}' (expected auto, cpu, cuda or cuda:N)", name);
+  if (!cuda)
+    fail("--device {}: no CUDA device is available to LibTorch (a CPU-only build, or no GPU/driver visible)", name);
+  int index = 0;
+  if (name != "cuda") {
+    const std::string digits = name.substr(name.find(':') + 1);
+    if (name[4] != ':' || digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos ||
+        digits.size() > 3)
+      fail("--device: unknown device '{}' (expected auto, cpu, cuda or cuda:N)", name);
+    index = std::stoi(digits);
+  }
+  const int64_t count = static_cast<int64_t>(torch::cuda::device_count());
+  if (index >= count) fail("--device {}: only {} CUDA device(s) visible", name, count);
+  return torch::Device(torch::kCUDA, static_cast<c10::DeviceIndex>(index));
+}
+
+Precision default_precision(const torch::Device& device) {
+  return device.is_cuda() ? Precision::BFloat16 : default_cpu_precision();
+}
+
+torch::Tensor to_device(const torch::Tensor& t, const torch::Device& device) {
+  if (t.device() == device) return t;
+  if (device.is_cuda() && t.is_cpu()) return t.contiguous().pin_memory().to(device, /*non_blocking=*/true);
+  return t.to(device);
+}
+
+void synchronize(const torch::Device& device) {
+  if (device.is_cuda()) torch::cuda::synchronize(device.index());
+}
+
+}  // namespace ii

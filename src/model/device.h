@@ -1,0 +1,26 @@
+#pragma once
+// Where the network and the renderer run, and moving data there. Everything here also works
+// in a CPU-only LibTorch: "auto" then means the CPU and "cuda" is refused with the reason.
+#include <string>
+
+#include <torch/torch.h>
+
+#include "model/network.h"
+
+namespace ii {
+
+// "auto" (CUDA when LibTorch sees a GPU, else the CPU), "cpu", "cuda" or "cuda:N".
+torch::Device resolve_device(const std::string& name);
+
+// bf16 on a GPU (tensor cores) and on CPUs with native bf16 dot products, else float32.
+Precision default_precision(const torch::Device& device);
+
+// Copies a CPU tensor to `device`. To a GPU it goes through page-locked (pinned) memory so
+// that the copy is one DMA transfer issued without waiting (the caller's next kernels on
+// the same stream are ordered after it). On the CPU the tensor is returned as is.
+torch::Tensor to_device(const torch::Tensor& t, const torch::Device& device);
+
+// Waits for the device's queued work (a no-op on the CPU): timings must end with it.
+void synchronize(const torch::Device& device);
+
+}  // namespace ii
