@@ -126,7 +126,8 @@ void run(const BenchArgs& a) {
     const int patch = ModelConfig::from_preset(preset).patch;
     for (const InputSize& size : sizes)
       if (size.width % patch || size.height % patch)
-        fail("--sizes: {}x{} is not a multiple of the {} model's patch size {}", size.width, size.height, preset, patch);
+        fail("--sizes: {}x{} is not a multiple of the {} model's patch size {}", size.width, size.height, preset,
+             patch);
   }
 
   fmt::print("network benchmark on {}: {} ({} views, best of {}{})\n",

@@ -123,7 +123,8 @@ void run(const InferArgs& a) {
   write_file_atomic(out / "run.json", run.dump(2) + "\n");
 
   fmt::print("{} Gaussians from {} views ({}, {}), network {:.0f} ms, total {:.0f} ms\n", cloud.size(),
-             si.views.size(), precision_name(precision), runtime.device.str(), timings["network_ms"].get<double>(), total.ms());
+             si.views.size(), precision_name(precision), runtime.device.str(), timings["network_ms"].get<double>(),
+             total.ms());
   fmt::print("wrote {}, {}, depth/\n", (out / "gaussians.ply").string(), (out / "run.json").string());
 }
 

@@ -191,8 +191,8 @@ Network load_eval_model(const EvalOptions& o, json& info) {
 }
 
 // The predicted Gaussians, float32 on `render_device`.
-GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const torch::Device& render_device, json& info,
-                              json& timings) {
+GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const torch::Device& render_device,
+                              json& info, json& timings) {
   Stopwatch watch;
   if (o.gaussians) {
     const SplatCloud cloud = read_splat_ply(*o.gaussians);

@@ -27,7 +27,8 @@ GraphedForward::GraphedForward(const Network& network, const torch::Tensor& imag
                                const torch::Tensor& rays_o, const torch::Tensor& rays_d_un, Precision precision)
     : captured_(std::make_unique<Captured>()) {
 #if II_HAS_CUDA_TORCH
-  if (!images.is_cuda()) fail("CUDA graph: the inputs are on {}, capture needs them on a CUDA device", images.device().str());
+  if (!images.is_cuda())
+    fail("CUDA graph: the inputs are on {}, capture needs them on a CUDA device", images.device().str());
   torch::InferenceMode inference;
   const c10::cuda::CUDAGuard device_guard(images.device());
   Captured& c = *captured_;

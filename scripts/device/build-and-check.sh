@@ -1,0 +1,89 @@
+#!/usr/bin/env bash
+# Run ON a lent GPU machine, in the repository root, with .device/ carried (made here by
+# scripts/device/prepare.sh). One command does the whole GPU check of issue 9, so that a
+# session spends its device time once:
+#   1. unpacks the carried Debian packages into a private prefix (nothing can be installed);
+#   2. builds against the LibTorch of the machine's PyTorch (CUDA) with the CUDA rasterizer;
+#   3. runs the whole test suite, the GPU tests included (agreement with the float32 CPU path);
+#   4. times the network: release model, 4 x 512² and 4 x 512 x 904, fast path, CUDA graph and
+#      the official code's way of computing in the same run;
+#   5. times `eval` end to end on a synthetic room with 40 test views at 904 x 512.
+# Everything it prints also goes to $OUT (the device tool brings that folder back).
+#   run(command="bash scripts/device/build-and-check.sh", carry=[".device"], timeout_s=600)
+# STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
+# machine stays warm).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+OUT=${OUT:-$PWD/device-out}
+STEPS=${STEPS:-"tests bench eval"}
+DEPS=/opt/instainpaint-deps
+BUILD=build-gpu
+mkdir -p "$OUT"
+exec > >(tee -a "$OUT/build-and-check.log") 2>&1
+step() { printf '\n== %s (%s)\n' "$*" "$(date +%T)"; }
+
+step "machine"
+nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader || true
+python3 -c 'import torch; print("torch", torch.__version__, "cuda", torch.version.cuda)'
+TORCH_PREFIX=$(python3 -c 'import torch; print(torch.utils.cmake_prefix_path)')
+nproc
+
+step "dependencies from .device/debs"
+[ -d .device/debs ] || { echo "no .device/debs: run scripts/device/prepare.sh here and carry .device"; exit 2; }
+mkdir -p "$DEPS"
+for f in .device/debs/*.deb; do dpkg-deb -x "$f" "$DEPS"; done
+LIBS="$DEPS/usr/lib/x86_64-linux-gnu"
+# Debian's OpenCV loads BLAS/LAPACK through alternatives that dpkg-deb -x does not set up.
+export LD_LIBRARY_PATH="$LIBS:$LIBS/openblas-pthread:$DEPS/lib/x86_64-linux-gnu${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+
+step "configure and build ($BUILD)"
+NVCC=$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)
+cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH="$TORCH_PREFIX;$DEPS/usr" \
+  -DCMAKE_CUDA_COMPILER="$NVCC" -DCMAKE_CUDA_ARCHITECTURES=90 | grep -Ev "^-- (Looking|Performing|Check)"
+if ! cmake --build "$BUILD" -j "$(nproc)" > "$OUT/build.log" 2>&1; then
+  tail -60 "$OUT/build.log"
+  echo "build failed (whole log: build.log)"
+  exit 1
+fi
+grep -E "warning:" "$OUT/build.log" | head -20 || true
+BIN=$BUILD/instainpaint
+
+if [[ " $STEPS " == *" tests "* ]]; then
+  step "tests (GPU tests included)"
+  export INSTAINPAINT_SHARED=$PWD/.device/shared
+  (cd "$BUILD" && ctest -j 8 --output-on-failure) | tail -40 || echo "some tests failed (above)"
+  (cd "$BUILD" && ctest -R "Cuda|Gpu|GraphedForward|Device" -V) |
+    grep -E "\[ +(OK|FAILED|SKIPPED) +\]|Expected|Which is|Value of" || true
+fi
+
+if [[ " $STEPS " == *" bench "* ]]; then
+  step "network: release model, fast path vs the official code's way of computing"
+  "$BIN" bench --device cuda --presets release --sizes 512,904x512 --repeat 20
+  step "network: the same in float32 (no tensor-core bf16) for reference"
+  "$BIN" bench --device cuda --presets release --sizes 512 --repeat 5 --precision fp32 --no-cuda-graph
+fi
+
+if [[ " $STEPS " == *" eval "* ]]; then
+  step "eval end to end: synthetic room, 40 test views at 904 x 512, release-size model (random weights)"
+  ROOM=/tmp/ii-room
+  rm -rf "$ROOM"
+  "$BIN" synth --out "$ROOM" --scenes 1 --seed 9000 --views 12 --test-views 40 --width 904 --height 512 \
+    --degrade none --threads "$(nproc)" > /tmp/ii-synth.log 2>&1 || { cat /tmp/ii-synth.log; exit 1; }
+  SCENE=$ROOM/scene_000
+  CONTEXT=$(sed -n '/"context"/,/]/p' "$SCENE/synth.json" | grep -o '"view_[0-9]*"' | tr -d '"' | paste -sd, -)
+  # A release-size checkpoint with random weights: one training step writes one.
+  "$BIN" train --scenes "$ROOM" --stage inpaint --preset release --width 64 --height 64 --inputs 4 --targets 2 \
+    --batch 1 --steps 1 --val-every 0 --perceptual none --device cuda --out /tmp/ii-release > /tmp/ii-train.log 2>&1 ||
+    { cat /tmp/ii-train.log; exit 1; }
+  for model in release default; do
+    args=(--checkpoint /tmp/ii-release/model.safetensors)
+    [ "$model" = default ] && args=()
+    echo "-- $model model"
+    "$BIN" eval --device cuda --scene "$SCENE" --reference "$SCENE/reference.png" --context "$CONTEXT" \
+      --height 512 --no-report "${args[@]}" --out "/tmp/ii-eval-$model" | grep -E "test views|on cuda"
+    python3 -c "import json, sys; t = json.load(open(sys.argv[1]))['timings']
+print(', '.join(f'{k} {v:.0f}' for k, v in t.items()))" "/tmp/ii-eval-$model/metrics.json"
+    cp "/tmp/ii-eval-$model/metrics.json" "$OUT/eval-$model.json"
+  done
+fi
+step "done"

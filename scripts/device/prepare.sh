@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Run HERE (Debian 12), before using a lent GPU machine: the GPU machine can reach no package
+# registry, so this gathers what its build needs into .device/ (git-ignored), which the
+# device tool carries along (`carry: [".device"]`):
+#   .device/debs/     the Debian packages of our build dependencies and the libraries they
+#                     load that a CUDA image usually lacks (OpenCV's X11/GL/BLAS, TBB, ...)
+#   .device/shared/   the ../shared fixtures the GPU tests read (only ../shared's checkout
+#                     travels otherwise, and ../shared does not)
+# Then, on the GPU machine: bash scripts/device/build-and-check.sh (see its header).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+SHARED=${SHARED:-../shared}
+DEST=.device
+
+PACKAGES=(
+  # headers and link-time libraries of the build
+  nlohmann-json3-dev libcli11-dev libeigen3-dev libstb-dev libstb0
+  libspdlog-dev libspdlog1.10 libfmt-dev libfmt9 libzip-dev libzip4
+  libopencv-core-dev libopencv-core406 libopencv-imgproc-dev libopencv-imgproc406
+  libopencv-calib3d-dev libopencv-calib3d406 libopencv-photo-dev libopencv-photo406
+  libopencv-features2d-dev libopencv-features2d406 libopencv-flann-dev libopencv-flann406
+  libgtest-dev libgmock-dev libbenchmark-dev libbenchmark1debian
+  # what Debian's OpenCV 4.6 loads
+  libtbb12 libopenblas0-pthread libgfortran5 libquadmath0 libglx0 libglvnd0
+  libx11-6 libxcb1 libxau6 libxdmcp6 libbsd0 libmd0
+)
+
+mkdir -p "$DEST/debs"
+rm -f "$DEST"/debs/*.deb
+(cd "$DEST/debs" && apt-get download -qq "${PACKAGES[@]}")
+
+mkdir -p "$DEST/shared/fixtures"
+rm -rf "$DEST/shared/fixtures/official-tiny"
+cp -r "$SHARED/fixtures/official-tiny" "$DEST/shared/fixtures/"
+
+echo "prepare: $(ls "$DEST"/debs/*.deb | wc -l) packages, $(du -sh "$DEST" | cut -f1) in $DEST"
+echo "carry it: run(command=\"bash scripts/device/build-and-check.sh\", carry=[\"$DEST\"])"
