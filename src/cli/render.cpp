@@ -17,6 +17,7 @@
 #include "common/stopwatch.h"
 #include "io/image.h"
 #include "io/ply.h"
+#include "model/device.h"
 #include "model/scene_input.h"
 #include "render/gaussians.h"
 #include "render/rasterizer.h"
@@ -49,6 +50,7 @@ struct RenderArgs {
   bool depth = false, alpha = false, no_video = false;
   int fps = 24;
   int threads = 0;
+  std::string device = "auto";
   std::string out = "render-out";
 };
 
@@ -168,7 +170,7 @@ std::vector<NamedCamera> turntable_cameras(const RenderArgs& a, const GaussianSe
 }
 
 Image to_image(const torch::Tensor& t) {  // (H, W, C) float
-  const torch::Tensor c = t.to(torch::kFloat32).contiguous();
+  const torch::Tensor c = t.to(torch::kCPU, torch::kFloat32).contiguous();
   Image img(static_cast<int>(c.size(1)), static_cast<int>(c.size(0)), static_cast<int>(c.size(2)));
   std::copy(c.data_ptr<float>(), c.data_ptr<float>() + c.numel(), img.pixels.begin());
   return img;
@@ -179,7 +181,8 @@ Image to_image(const torch::Tensor& t) {  // (H, W, C) float
 class DepthColors {
  public:
   Image operator()(const torch::Tensor& depth, const torch::Tensor& alpha) {
-    const torch::Tensor d = depth.reshape({-1}).to(torch::kFloat32), a = alpha.reshape({-1}).to(torch::kFloat32);
+    const torch::Tensor d = depth.reshape({-1}).to(torch::kCPU, torch::kFloat32);
+    const torch::Tensor a = alpha.reshape({-1}).to(torch::kCPU, torch::kFloat32);
     const torch::Tensor hit = a > 0.5;
     if (!have_range_ && hit.any().item<bool>()) {
       const torch::Tensor v = d.index({hit});
@@ -234,7 +237,17 @@ bool encode_video(const fs::path& frames_dir, const fs::path& video, int fps) {
   return std::system(cmd.c_str()) == 0;
 }
 
+// The CUDA rasterizer when asked for (or, with auto, when there is one), else the CPU.
+torch::Device render_device(const std::string& name) {
+  const torch::Device device = resolve_device(name);
+  if (!device.is_cuda() || render_has_cuda()) return device;
+  if (name != "auto")
+    fail("--device {}: this build has no CUDA rasterizer (no nvcc when it was configured)", name);
+  return torch::kCPU;
+}
+
 void run(const RenderArgs& a) {
+  const torch::Device device = render_device(a.device);
   const int threads = a.threads > 0 ? a.threads : static_cast<int>(std::thread::hardware_concurrency());
   torch::set_num_threads(std::max(1, threads));
   const int sources = !a.scene_dir.empty() + !a.cameras.empty();
@@ -247,8 +260,8 @@ void run(const RenderArgs& a) {
 
   Stopwatch total;
   const SplatCloud cloud = read_splat_ply(a.ply);
-  const GaussianSet g = gaussians_from_splats(cloud, a.sh_degree);
-  spdlog::info("{}: {} splats, SH degree {}", a.ply, g.size(), g.sh_degree);
+  const GaussianSet loaded = gaussians_from_splats(cloud, a.sh_degree);
+  spdlog::info("{}: {} splats, SH degree {}, rendering on {}", a.ply, loaded.size(), loaded.sh_degree, device.str());
 
   std::vector<NamedCamera> cams;
   if (!a.cameras.empty()) {
@@ -256,8 +269,9 @@ void run(const RenderArgs& a) {
   } else if (!a.scene_dir.empty()) {
     cams = scene_cameras(a);
   } else {
-    cams = turntable_cameras(a, g);
+    cams = turntable_cameras(a, loaded);
   }
+  const GaussianSet g = loaded.to(device);
 
   const fs::path out(a.out);
   fs::create_directories(out / "rgb");
@@ -275,6 +289,7 @@ void run(const RenderArgs& a) {
     rc.camera = cams[i].camera;
     Stopwatch frame;
     const RenderOutput r = render(g, rc, options);
+    synchronize(device);
     render_ms += frame.ms();
     const std::string file = fmt::format("{:04d}.png", i);
     write_png(out / "rgb" / file, to_image(r.rgb));
@@ -304,6 +319,7 @@ void run(const RenderArgs& a) {
                                   {"sh_degree", g.sh_degree},
                                   {"frames", n},
                                   {"threads", torch::get_num_threads()},
+                                  {"device", device.str()},
                                   {"render_ms_per_frame", n ? render_ms / n : 0.0},
                                   {"total_ms", total.ms()},
                                   {"outputs", {{"cameras", "cameras.json"}, {"videos", videos}}}};
@@ -363,6 +379,9 @@ void add_render_command(CLI::App& app) {
   cmd->add_flag("--no-video", a->no_video, "Write only PNG frames");
   cmd->add_option("--fps", a->fps, "Video frame rate")->capture_default_str()->check(CLI::Range(1, 240));
   cmd->add_option("--threads", a->threads, "CPU threads (0 = all cores)")->capture_default_str();
+  cmd->add_option("--device", a->device, "Where to render: auto (the CUDA rasterizer when there is a GPU), cpu, cuda, "
+                                         "cuda:N")
+      ->capture_default_str();
   cmd->add_option("--out", a->out, "Output folder")->capture_default_str();
   cmd->footer(
       "Writes OUT/rgb/NNNN.png (OUT/depth, OUT/alpha with --depth/--alpha), OUT/rgb.mp4 via ffmpeg,\n"

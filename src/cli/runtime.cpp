@@ -8,7 +8,7 @@ namespace ii::cli {
 
 void add_runtime_options(CLI::App* cmd, RuntimeOptions& options) {
   cmd->add_option("--device", options.device,
-                  "Where the network and the renderer run: auto (a GPU when LibTorch sees one), cpu, cuda, cuda:N")
+                  "Where the work runs: auto (a GPU when LibTorch sees one), cpu, cuda, cuda:N")
       ->capture_default_str();
   cmd->add_option("--threads", options.threads, "CPU threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--precision", options.precision,

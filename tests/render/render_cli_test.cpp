@@ -5,6 +5,8 @@
 #include <cstdlib>
 #include <fstream>
 
+#include <nlohmann/json.hpp>
+
 #include "common/files.h"
 #include "io/image.h"
 #include "io/ply.h"
@@ -49,7 +51,8 @@ TEST(RenderCli, CameraListWithDepthAndAlpha) {
 
   const fs::path out = dir / "out";
   ASSERT_EQ(test::run_command(
-                fmt::format("'{}' render --ply '{}' --cameras '{}' --out '{}' --depth --alpha --no-video --threads 1",
+                fmt::format("'{}' render --ply '{}' --cameras '{}' --out '{}' --depth --alpha --no-video --threads 1 "
+                            "--device cpu",
                             exe.string(), (dir / "cloud.ply").string(), (dir / "cams.json").string(), out.string()),
                 dir / "log.txt"),
             0)
@@ -65,7 +68,9 @@ TEST(RenderCli, CameraListWithDepthAndAlpha) {
   const auto cams = read_camera_json(out / "cameras.json");
   ASSERT_EQ(cams.size(), 2u);
   EXPECT_EQ(cams[1].name, "side");
-  EXPECT_TRUE(fs::exists(out / "render.json"));
+  const nlohmann::json summary = nlohmann::json::parse(read_file_text(out / "render.json"));
+  EXPECT_EQ(summary["device"], "cpu");
+  EXPECT_EQ(summary["frames"], 2);
   EXPECT_FALSE(fs::exists(out / "rgb.mp4"));
 }
 
