@@ -8,17 +8,13 @@ torch::Device resolve_device(const std::string& name) {
   if (name == "cpu") return torch::kCPU;
   const bool cuda = torch::cuda::is_available();
   if (name == "auto") return cuda ? torch::Device(torch::kCUDA, 0) : torch::Device(torch::kCPU);
-  if (name.rfind("cuda", 0) != 0) fail("--device: unknown device '{}' (expected auto, cpu, cuda or cuda:N)", name);
+  // "cuda" or "cuda:" and up to three digits.
+  const std::string digits = name.rfind("cuda:", 0) == 0 ? name.substr(5) : (name == "cuda" ? "0" : "");
+  if (digits.empty() || digits.size() > 3 || digits.find_first_not_of("0123456789") != std::string::npos)
+    fail("--device: unknown device '{}' (expected auto, cpu, cuda or cuda:N)", name);
   if (!cuda)
     fail("--device {}: no CUDA device is available to LibTorch (a CPU-only build, or no GPU/driver visible)", name);
-  int index = 0;
-  if (name != "cuda") {
-    const std::string digits = name.substr(name.find(':') + 1);
-    if (name[4] != ':' || digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos ||
-        digits.size() > 3)
-      fail("--device: unknown device '{}' (expected auto, cpu, cuda or cuda:N)", name);
-    index = std::stoi(digits);
-  }
+  const int index = std::stoi(digits);
   const int64_t count = static_cast<int64_t>(torch::cuda::device_count());
   if (index >= count) fail("--device {}: only {} CUDA device(s) visible", name, count);
   return torch::Device(torch::kCUDA, static_cast<c10::DeviceIndex>(index));

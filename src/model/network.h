@@ -32,6 +32,9 @@ struct NetworkOutput {
 };
 
 enum class Precision { Float32, BFloat16 };
+const char* precision_name(Precision p);
+// bf16 when the CPU has native bf16 dot products (AVX512-BF16 or AMX), else float32.
+Precision default_cpu_precision();
 
 // How forward() computes; every choice gives the same values up to rounding. The defaults are
 // the fast path; the others reproduce slower implementations for benchmarks.
@@ -40,9 +43,6 @@ struct ExecutionOptions {
   bool fused_heads = true;       // the five heads' first Linears as one matrix product
   bool cached_weights = true;    // bf16 weights converted once, not on every call as autocast does
 };
-const char* precision_name(Precision p);
-// bf16 when the CPU has native bf16 dot products (AVX512-BF16 or AMX), else float32.
-Precision default_cpu_precision();
 
 class Network {
  public:
@@ -76,7 +76,6 @@ class Network {
   void set_activation_checkpointing(bool on) { checkpoint_blocks_ = on; }
   void set_requires_grad(bool requires_grad);
   void set_execution(const ExecutionOptions& options) { execution_ = options; }
-  const ExecutionOptions& execution() const { return execution_; }
 
  private:
   struct Block {
