@@ -4,7 +4,6 @@
 // the CPU a straightforward float32 one (attention with the full score matrix).
 #include <fmt/core.h>
 
-#include <fstream>
 #include <optional>
 
 #include "cli/commands.h"
@@ -51,16 +50,6 @@ InputSize parse_size(const std::string& text) {
     fail("--sizes: {}x{} is outside 8..8192 pixels", s.width, s.height);
   return s;
 }
-
-// Peak resident memory since the last reset, in GiB (Linux VmHWM).
-double peak_rss_gb() {
-  std::ifstream in("/proc/self/status");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / (1024.0 * 1024.0);
-  return 0;
-}
-void reset_peak_rss() { std::ofstream("/proc/self/clear_refs") << "5"; }
 
 struct Inputs {
   torch::Tensor images, plucker, rays;
@@ -134,7 +123,7 @@ void run(const BenchArgs& a) {
              gpu ? rt.device.str() : fmt::format("cpu, {} threads", torch::get_num_threads()),
              precision_name(rt.precision), a.views, repeat, gpu || repeat > 1 ? " after a warm-up" : "");
   fmt::print("{:<8} {:>9} {:>7} {:>9} {:>9} {:>8} | {:>11} {:>8} {:>7}{}\n", "preset", "size", "tokens", "ms",
-             "GFLOP/s", gpu ? "" : "peak GB", "baseline ms", gpu ? "" : "peak GB", "ratio",
+             "GFLOP/s", "peak GB", "baseline ms", "peak GB", "ratio",
              graphs ? fmt::format(" | {:>9} {:>9} {:>7}", "graph ms", "GFLOP/s", "ratio") : "");
   for (const std::string& preset : a.presets) {
     const ModelConfig config = ModelConfig::from_preset(preset);
@@ -145,12 +134,10 @@ void run(const BenchArgs& a) {
       const double flops = config.forward_flops(a.views, size.height, size.width);
       const int64_t tokens =
           static_cast<int64_t>(a.views) * (size.width / config.patch) * (size.height / config.patch);
-      auto gb = [&](double v) { return gpu ? std::string() : fmt::format("{:.2f}", v); };
-
-      reset_peak_rss();
+      reset_peak_memory(rt.device);
       net.set_execution(ExecutionOptions());
       const double ms = time_forward(net, in, rt.precision, rt.device, repeat);
-      const double peak = peak_rss_gb();
+      const double peak = peak_memory_gb(rt.device);
 
       std::string base = fmt::format("{:>11} {:>8} {:>7}", "-", "", "-");
       std::optional<double> base_ms;
@@ -159,12 +146,12 @@ void run(const BenchArgs& a) {
       if (baseline == "textbook" && naive_gb > a.baseline_max_gb) {
         base = fmt::format("{:>11} {:>8} {:>7}", "skipped", fmt::format("{:.0f}", naive_gb), "-");
       } else if (baseline != "none") {
-        reset_peak_rss();
+        reset_peak_memory(rt.device);
         net.set_execution(baseline == "official" ? official_equivalent() : textbook());
         const Precision p = baseline == "official" ? rt.precision : Precision::Float32;
         base_ms = time_forward(net, in, p, rt.device, repeat);
         net.set_execution(ExecutionOptions());
-        base = fmt::format("{:>11.1f} {:>8} {:>6.2f}x", *base_ms, gb(peak_rss_gb()), *base_ms / ms);
+        base = fmt::format("{:>11.1f} {:>8.2f} {:>6.2f}x", *base_ms, peak_memory_gb(rt.device), *base_ms / ms);
       }
 
       std::string graph;
@@ -175,8 +162,8 @@ void run(const BenchArgs& a) {
         graph = fmt::format(" | {:>9.1f} {:>9.1f} {:>7}", graph_ms, flops / graph_ms / 1e6,
                             base_ms ? fmt::format("{:.2f}x", *base_ms / graph_ms) : "-");
       }
-      fmt::print("{:<8} {:>9} {:>7} {:>9.1f} {:>9.1f} {:>8} | {}{}\n", preset,
-                 fmt::format("{}x{}", size.width, size.height), tokens, ms, flops / ms / 1e6, gb(peak), base, graph);
+      fmt::print("{:<8} {:>9} {:>7} {:>9.1f} {:>9.1f} {:>8.2f} | {}{}\n", preset,
+                 fmt::format("{}x{}", size.width, size.height), tokens, ms, flops / ms / 1e6, peak, base, graph);
       std::fflush(stdout);
     }
   }
@@ -188,6 +175,8 @@ void run(const BenchArgs& a) {
                "(skipped when that matrix needs more than {:.0f} GB; its size is shown)\n",
                a.baseline_max_gb);
   if (graphs) fmt::print("graph: the fast path captured once as a CUDA graph and replayed (inputs copied in)\n");
+  fmt::print("peak GB: {}\n", gpu ? "the most GPU memory LibTorch's allocator handed out during the runs"
+                                  : "the process's peak resident memory during the runs");
 }
 
 }  // namespace

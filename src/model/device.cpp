@@ -1,6 +1,13 @@
 #include "model/device.h"
 
+#include <fstream>
+
 #include "common/error.h"
+#include "common/torch_compat.h"
+
+#if II_HAS_CUDA_TORCH
+#include <c10/cuda/CUDACachingAllocator.h>
+#endif
 
 namespace ii {
 
@@ -32,6 +39,35 @@ torch::Tensor to_device(const torch::Tensor& t, const torch::Device& device) {
 
 void synchronize(const torch::Device& device) {
   if (device.is_cuda()) torch::cuda::synchronize(device.index());
+}
+
+void reset_peak_memory(const torch::Device& device) {
+  if (device.is_cpu()) {
+    std::ofstream("/proc/self/clear_refs") << "5";
+    return;
+  }
+#if II_HAS_CUDA_TORCH
+  c10::cuda::CUDACachingAllocator::resetPeakStats(device.index());
+#endif
+}
+
+double peak_memory_gb(const torch::Device& device) {
+  constexpr double kGiB = 1024.0 * 1024.0 * 1024.0;
+  if (device.is_cpu()) {
+    std::ifstream in("/proc/self/status");
+    std::string line;
+    while (std::getline(in, line))
+      if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) * 1024.0 / kGiB;  // kB
+    return 0;
+  }
+#if II_HAS_CUDA_TORCH
+  const auto stats = c10::cuda::CUDACachingAllocator::getDeviceStats(device.index());
+  return static_cast<double>(
+             stats.allocated_bytes[static_cast<size_t>(c10::CachingAllocator::StatType::AGGREGATE)].peak) /
+         kGiB;
+#else
+  return 0;
+#endif
 }
 
 }  // namespace ii

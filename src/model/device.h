@@ -23,4 +23,9 @@ torch::Tensor to_device(const torch::Tensor& t, const torch::Device& device);
 // Waits for the device's queued work (a no-op on the CPU): timings must end with it.
 void synchronize(const torch::Device& device);
 
+// Peak memory since the last reset, in GiB: on a GPU what LibTorch's allocator handed out,
+// on the CPU the process's peak resident memory (Linux VmHWM).
+void reset_peak_memory(const torch::Device& device);
+double peak_memory_gb(const torch::Device& device);
+
 }  // namespace ii

@@ -64,6 +64,23 @@ TEST(Device, PrecisionAndTransfersFollowTheDevice) {
   synchronize(torch::kCPU);  // a no-op that must not throw on the CPU
 }
 
+TEST(Device, PeakMemorySeesAnAllocation) {
+  reset_peak_memory(torch::kCPU);
+  const double before = peak_memory_gb(torch::kCPU);
+  EXPECT_GT(before, 0.0);
+  {
+    const torch::Tensor big = torch::ones({64 * 1024 * 1024});  // 256 MiB, touched
+    EXPECT_EQ(big.sum().item<float>(), 64.f * 1024 * 1024);
+  }
+  EXPECT_GT(peak_memory_gb(torch::kCPU) - before, 0.2);
+  if (torch::cuda::is_available()) {
+    const torch::Device gpu(torch::kCUDA, 0);
+    reset_peak_memory(gpu);
+    const torch::Tensor big = torch::ones({64 * 1024 * 1024}, torch::TensorOptions().device(gpu));
+    EXPECT_GE(peak_memory_gb(gpu), 0.25);
+  }
+}
+
 // Every way of computing gives the fast path's values: fused heads and cached bf16 weights
 // are exact rearrangements, the textbook attention differs by rounding.
 TEST(Network, ExecutionOptionsKeepTheValues) {
