@@ -252,7 +252,7 @@ FeatureMatrix to_matrix(const std::vector<std::vector<float>>& rows) {
 }
 
 std::vector<float> row_of(const torch::Tensor& features, int64_t i) {
-  const torch::Tensor r = features[i].to(torch::kFloat32).contiguous();
+  const torch::Tensor r = features[i].to(torch::kCPU, torch::kFloat32).contiguous();
   return std::vector<float>(r.data_ptr<float>(), r.data_ptr<float>() + r.numel());
 }
 
