@@ -31,7 +31,13 @@ nproc
 step "dependencies from .device/debs"
 [ -d .device/debs ] || { echo "no .device/debs: run scripts/device/prepare.sh here and carry .device"; exit 2; }
 mkdir -p "$DEPS"
-for f in .device/debs/*.deb; do dpkg-deb -x "$f" "$DEPS"; done
+for f in .device/debs/*.deb; do
+  if command -v dpkg-deb > /dev/null; then
+    dpkg-deb -x "$f" "$DEPS"
+  else  # a .deb is an ar archive holding data.tar.xz (Debian 12)
+    ar p "$f" data.tar.xz | tar -xJ -C "$DEPS"
+  fi
+done
 LIBS="$DEPS/usr/lib/x86_64-linux-gnu"
 # Debian's OpenCV loads BLAS/LAPACK through alternatives that dpkg-deb -x does not set up.
 export LD_LIBRARY_PATH="$LIBS:$LIBS/openblas-pthread:$DEPS/lib/x86_64-linux-gnu${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
