@@ -10,6 +10,7 @@
 #include "cli/commands.h"
 #include "common/error.h"
 #include "model/config.h"
+#include "model/device.h"
 #include "train/launcher.h"
 #include "train/run.h"
 
@@ -134,7 +135,8 @@ void run(const TrainArgs& a) {
   if (dist.rank != 0) spdlog::set_level(spdlog::level::warn);
   TrainRunOptions o = run_options(a);
   if (a.device == "cuda") {
-    if (!torch::cuda::is_available()) fail("--device cuda: no CUDA device is available to this LibTorch");
+    resolve_device(a.device);  // refuses, with the reason, when LibTorch sees no GPU
+    // One GPU per local rank.
     o.trainer.device = torch::Device(torch::kCUDA, dist.local_rank % std::max<int64_t>(1, torch::cuda::device_count()));
   }
   int threads = a.threads;

@@ -463,10 +463,11 @@ json run_evaluation(const EvalOptions& o) {
     const Image truth = o.quantize == "none" ? pv.rgb : quantize_image(pv.rgb, "round");
     working_width = truth.width;
     working_height = truth.height;
+    decode_ms += step.lap();
+    // The upload of the test view counts as prediction work, not as decoding.
     const torch::Tensor b = to_device(image_to_tensor(truth), device);
     torch::Tensor m;
     if (pv.mask) m = to_device(image_to_tensor(*pv.mask), device);
-    decode_ms += step.lap();
 
     torch::Tensor a;
     if (o.method == EvalMethod::model) {
