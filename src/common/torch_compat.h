@@ -50,6 +50,14 @@ inline torch::Tensor fused_sdpa(const torch::Tensor&, const torch::Tensor&, cons
 #define II_HAS_C10D_NCCL 0
 #endif
 
+// TCPStoreOptions::useLibUV exists from LibTorch 2.1 and is on by default from 2.4; a build
+// without libuv (Debian's 2.x) refuses it at construction (train/distributed.cpp falls back).
+#if defined(TORCH_VERSION_MAJOR) && (TORCH_VERSION_MAJOR > 2 || (TORCH_VERSION_MAJOR == 2 && TORCH_VERSION_MINOR >= 1))
+#define II_TCPSTORE_HAS_LIBUV_OPTION 1
+#else
+#define II_TCPSTORE_HAS_LIBUV_OPTION 0
+#endif
+
 namespace c10d {
 class ProcessGroup;
 class Backend;

@@ -27,6 +27,22 @@ namespace ii {
 
 namespace {
 
+// The rendezvous store: libuv's server where LibTorch asks for it (2.4+ by default), the
+// classic one where this LibTorch was built without libuv and refuses the request.
+c10::intrusive_ptr<c10d::TCPStore> make_store(const std::string& host, c10d::TCPStoreOptions options) {
+#if II_TCPSTORE_HAS_LIBUV_OPTION
+  if (options.useLibUV) {
+    try {
+      return c10::make_intrusive<c10d::TCPStore>(host, options);
+    } catch (const std::exception& e) {
+      if (std::string(e.what()).find("without libuv") == std::string::npos) throw;
+      options.useLibUV = false;
+    }
+  }
+#endif
+  return c10::make_intrusive<c10d::TCPStore>(host, options);
+}
+
 // An integer environment variable in [lo, hi]; `fallback` when unset or empty.
 int env_int(const char* name, int fallback, int lo, int hi) {
   const char* value = std::getenv(name);
@@ -88,7 +104,7 @@ ProcessGroup::ProcessGroup(const DistributedConfig& config, const torch::Device&
     options.numWorkers = static_cast<size_t>(config.world_size);
     options.waitWorkers = true;
     options.timeout = timeout;
-    impl_->store = c10::make_intrusive<c10d::TCPStore>(config.master_addr, options);
+    impl_->store = make_store(config.master_addr, options);
   } catch (const std::exception& e) {
     fail("distributed training: rank {} of {} could not meet the others at {}:{} within {} s: {}", config.rank,
          config.world_size, config.master_addr, config.master_port, config.timeout.count(), e.what());

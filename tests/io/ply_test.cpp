@@ -3,6 +3,7 @@
 // guitar/biker captures), and every kind of bad input with its exact message.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>

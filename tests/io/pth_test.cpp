@@ -1,6 +1,7 @@
 // The .pth reader: the official fixture loads bit-identically to its safetensors twin, and
 // hostile or broken checkpoints are refused with a clear message, never executed.
 #include <gtest/gtest.h>
+#include <gmock/gmock.h>
 #include <zip.h>
 
 #include <cstring>
@@ -335,7 +336,9 @@ TEST(Pth, NotACheckpoint) {
   EXPECT_EQ(err(empty), empty.string() +
                             ": not a PyTorch checkpoint: neither a zip archive (torch.save since 1.6) nor a legacy torch.save stream");
   const auto bad_zip = write_file("badzip.pth", "PK\x03\x04 but not really a zip");
-  EXPECT_EQ(err(bad_zip), bad_zip.string() + ": not a readable zip archive (libzip: Not a zip archive)");
+  // libzip's own reason varies with its version (1.9: "Not a zip archive", 1.11: "Possibly
+  // truncated or corrupted zip archive"); the part that is ours is exact.
+  EXPECT_THAT(err(bad_zip), ::testing::StartsWith(bad_zip.string() + ": not a readable zip archive (libzip: "));
   EXPECT_EQ(err("/nonexistent/x.pth"), "/nonexistent/x.pth: file not found");
 
   static const fs::path dir = test::temp_dir("pth-nopkl");
