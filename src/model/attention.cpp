@@ -36,7 +36,7 @@ torch::Tensor naive_attention(const torch::Tensor& q, const torch::Tensor& k, co
 }
 
 torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
-  if constexpr (compat::has_fused_sdpa) return compat::fused_sdpa(q, k, v);
+  if (compat::has_fused_sdpa && q.is_cuda()) return compat::fused_sdpa(q, k, v);
   return chunked_attention(q, k, v);
 }
 

@@ -7,8 +7,9 @@
 namespace ii {
 
 // q, k, v: (B, heads, N, head_dim). Softmax scale 1/sqrt(head_dim). Returns (B, heads, N,
-// head_dim) in the dtype of q. Uses LibTorch's fused kernel where available, otherwise the
-// chunked form below.
+// head_dim) in the dtype of q. On a GPU with LibTorch 2.x: LibTorch's fused kernels (cuDNN,
+// Flash). Elsewhere the chunked form below: on a CPU it beat LibTorch 2.6's fused kernel on
+// the network's strided q/k/v (release model, 4 x 256², 2 AVX2 cores: docs/benchmarks.md).
 torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v);
 
 // The chunked form itself (exposed for tests and benchmarks). `max_chunk_bytes` bounds the
