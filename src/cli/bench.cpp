@@ -88,8 +88,8 @@ double time_forward(const Network& net, const Inputs& in, Precision precision, c
 }
 
 // The official implementation's way of computing, in this code: eager, bf16 weights cast on
-// every call (autocast), the five heads one by one; attention as in the fast path (the
-// official code also calls the fused kernels).
+// every call (autocast), the five heads one by one; attention as in the fast path (on a GPU
+// the official code also calls LibTorch's fused kernels).
 ExecutionOptions official_equivalent() {
   ExecutionOptions o;
   o.fused_heads = false;
