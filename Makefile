@@ -6,7 +6,9 @@ BUILD ?= build
 SAN_BUILD ?= build-asan
 SHARED ?= ../shared
 
-.PHONY: all deps build demo test test-main test-asan bench clean
+FUZZ_SECONDS ?= 60
+
+.PHONY: all deps build demo test test-main san-build test-asan fuzz bench clean
 
 all: build
 
@@ -25,14 +27,22 @@ test: test-main test-asan
 test-main: build
 	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 
-# Parsers, cameras and scene readers under AddressSanitizer + UndefinedBehaviorSanitizer.
-test-asan: deps
-	@cmake -S . -B $(SAN_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DINSTAINPAINT_SANITIZE=ON > /dev/null
+# Parsers, cameras and scene readers under AddressSanitizer + UndefinedBehaviorSanitizer,
+# built with clang so that the same build holds the libFuzzer targets (each runs briefly).
+san-build: deps
+	@cmake -S . -B $(SAN_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
+	  -DINSTAINPAINT_SANITIZE=ON > /dev/null
 	@cmake --build $(SAN_BUILD) -j $(JOBS)
+
+test-asan: san-build
 	@cd $(SAN_BUILD) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 ctest --output-on-failure -j $(JOBS)
+
+# Every parser's fuzz target for FUZZ_SECONDS each (scripts/fuzz.sh --help).
+fuzz: san-build
+	@bash scripts/fuzz.sh --build $(SAN_BUILD) --seconds $(FUZZ_SECONDS)
 
 bench: build
 	@$(BUILD)/instainpaint bench
 
 clean:
-	rm -rf $(BUILD) $(SAN_BUILD) demo-out
+	rm -rf $(BUILD) $(SAN_BUILD) demo-out fuzz-findings

@@ -5,6 +5,7 @@ set -euo pipefail
 
 PACKAGES=(
   build-essential cmake ninja-build ccache
+  clang                         # the sanitizer build and its libFuzzer targets
   libtorch-dev
   libopenblas0-pthread          # without it LibTorch falls back to reference BLAS (~60x slower)
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev

@@ -21,7 +21,7 @@
 #include "model/scene_input.h"
 #include "render/gaussians.h"
 #include "render/rasterizer.h"
-#include "render/trajectory.h"
+#include "camera/trajectory.h"
 
 namespace ii::cli {
 

@@ -69,6 +69,7 @@ void add_scene_info_command(CLI::App& app) {
       if (scene.near) j["near"] = *scene.near;
       if (scene.far) j["far"] = *scene.far;
       j["warnings"] = scene.warnings;
+      j["notes"] = scene.notes;
       std::cout << j.dump(2) << "\n";
       return;
     }

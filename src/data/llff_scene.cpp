@@ -62,17 +62,35 @@ Scene load_llff_scene(const fs::path& dir, const SceneOptions& options) {
     fail_file(image_dir, "holds {} images but {} has {} poses", images.size(),
               poses_file.filename().string(), n);
 
+  Scene scene;
   // SPIn-NeRF: the first T sorted images are object-free test views, T = #test masks.
   const auto test_masks = masks_by_stem(image_dir / "test_label");
   const auto train_masks = masks_by_stem(image_dir / "label");
   const size_t test_count = test_masks.size();
   if (test_count >= n)
     fail_file(image_dir / "test_label", "has {} masks but the scene has only {} images", test_count, n);
+  // Public copies of the benchmark name test masks by number (out_00001.png ...): when no
+  // test-mask stem is an image stem, the k-th mask in name order belongs to the k-th image.
+  const bool test_masks_by_order =
+      test_count > 0 && std::none_of(test_masks.begin(), test_masks.end(), [&](const auto& kv) {
+        return std::any_of(images.begin(), images.end(), [&](const fs::path& p) { return p.stem() == kv.first; });
+      });
+  if (test_masks_by_order && !train_masks.empty() && train_masks.size() != n - test_count &&
+      train_masks.size() != n)
+    fail_file(image_dir / "test_label",
+              "{} masks are named after no image and cannot be paired with images by order: label/ has {} masks, "
+              "and {} + {} is not the scene's {} images",
+              test_count, train_masks.size(), test_count, train_masks.size(), n);
+  if (test_masks_by_order)
+    scene.notes.push_back(fmt::format("{}: {} masks are named after no image; paired with the first {} images in "
+                                      "name order ({} -> {}, ...)",
+                                      (image_dir / "test_label").string(), test_count, test_count,
+                                      test_masks.begin()->second.filename().string(),
+                                      images.front().filename().string()));
   if (!train_masks.empty() && train_masks.size() != n - test_count && train_masks.size() != n)
     fail_file(image_dir / "label", "has {} masks for {} training views", train_masks.size(),
               n - test_count);
 
-  Scene scene;
   scene.root = dir;
   scene.format = "llff";
   double near = INFINITY, far = 0;
@@ -107,7 +125,8 @@ Scene load_llff_scene(const fs::path& dir, const SceneOptions& options) {
 
     const bool is_test = k < test_count;
     const auto& masks = is_test ? test_masks : train_masks;
-    if (auto it = masks.find(view.name); it != masks.end()) view.mask_path = it->second;
+    if (is_test && test_masks_by_order) view.mask_path = std::next(test_masks.begin(), k)->second;
+    else if (auto it = masks.find(view.name); it != masks.end()) view.mask_path = it->second;
     else if (!masks.empty() && (is_test || train_masks.size() == n - test_count))
       fail_file(is_test ? image_dir / "test_label" : image_dir / "label", "no mask for image {}",
                 images[k].filename().string());

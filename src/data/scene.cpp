@@ -88,6 +88,7 @@ Scene load_scene(const fs::path& dir, const SceneOptions& options) {
       v.mask_from_alpha = true;  // asked for explicitly: wins over mask files
       v.mask_path.reset();
     }
+  for (const std::string& note : scene.notes) spdlog::info("{}", note);
   for (const std::string& w : scene.warnings) spdlog::warn("{}", w);
   return scene;
 }

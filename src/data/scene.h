@@ -28,6 +28,7 @@ struct Scene {
   std::vector<View> test_views;   // object-free ground-truth views (SPIn-NeRF), may be empty
   std::optional<double> near, far;  // depth bounds when the format stores them
   std::vector<std::string> warnings;  // non-fatal oddities found while reading
+  std::vector<std::string> notes;     // how the reader interpreted an ambiguous layout
 
   bool has_masks() const;
   const View* find(const std::string& name) const;  // in views, then test_views

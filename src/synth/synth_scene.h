@@ -18,7 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "render/rasterizer.h"
-#include "render/trajectory.h"
+#include "camera/trajectory.h"
 
 namespace ii::synth {
 

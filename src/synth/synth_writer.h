@@ -14,7 +14,7 @@
 //                            data/masks.h load_view_depth() reads)
 //   depth_clean/<name>.npy   the same for clean/<name>.png (depth supervision in training)
 //   reference.png            object-free image of the reference view, degraded if asked
-//   cameras.json             every camera (render/trajectory.h camera-list format)
+//   cameras.json             every camera (camera/trajectory.h camera-list format)
 //   synth.json               seed, options, names, reference, context views, mask rule, ...
 //   background.ply, object.ply  the Gaussians (only with save_gaussians)
 //

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/LU>
@@ -94,6 +95,51 @@ TEST(LlffScene, SpinNerfLayoutSplitsTestViews) {
   EXPECT_DOUBLE_EQ(s.views[0].camera.c2w(1, 0), 1.0);
   EXPECT_DOUBLE_EQ(s.views[0].camera.c2w(0, 1), -1.0);
   EXPECT_DOUBLE_EQ(s.views[2].camera.center().x(), 4.0);
+}
+
+// SPIn-NeRF as distributed: test masks named out_00001.png ... instead of after their
+// images. Built from the statue scene: its first 4 views become test views.
+TEST(LlffScene, NumberedTestMasksPairWithTestViewsByOrder) {
+  II_REQUIRE_SHARED(statue, "data/statue");
+  const fs::path dir = test::temp_dir("spinnerf");
+  fs::create_symlink(statue / "poses_bounds.npy", dir / "poses_bounds.npy");
+  const fs::path images = dir / "images_2";
+  fs::create_directories(images / "label");
+  fs::create_directories(images / "test_label");
+  std::vector<fs::path> sources;
+  for (const auto& e : fs::directory_iterator(statue / "images_2"))
+    if (e.path().extension() == ".png") sources.push_back(e.path());
+  std::sort(sources.begin(), sources.end());
+  ASSERT_EQ(sources.size(), 29u);
+  const int tests = 4;
+  for (int k = 0; k < 29; ++k) {
+    const fs::path& image = sources[k];
+    fs::create_symlink(image, images / image.filename());
+    const fs::path mask = statue / "images_2" / "label" / image.filename();
+    fs::create_symlink(mask, k < tests ? images / "test_label" / fmt::format("out_{:05d}.png", k + 1)
+                                       : images / "label" / image.filename());
+  }
+  const Scene s = load_scene(dir);
+  ASSERT_EQ(s.test_views.size(), 4u);
+  ASSERT_EQ(s.views.size(), 25u);
+  for (int k = 0; k < tests; ++k) {
+    EXPECT_EQ(s.test_views[k].name, sources[k].stem().string());
+    EXPECT_EQ(s.test_views[k].mask_path->filename(), fmt::format("out_{:05d}.png", k + 1));
+  }
+  EXPECT_EQ(s.views[0].mask_path->filename(), "IMG_2711.png");
+  EXPECT_EQ(s.notes, std::vector<std::string>{(images / "test_label").string() +
+                                              ": 4 masks are named after no image; paired with the first 4 images "
+                                              "in name order (out_00001.png -> IMG_2707.png, ...)"});
+  // The mask really is the view's: same pixels as the statue's own mask of that image.
+  EXPECT_EQ(load_view_mask(s.test_views[2])->pixels,
+            read_mask(statue / "images_2" / "label" / sources[2].filename()).pixels);
+
+  // Counts that disagree: 4 numbered test masks, 24 training masks, 29 images.
+  fs::remove(images / "label" / "IMG_2736.png");
+  EXPECT_EQ(test::error_message([&] { load_scene(dir); }),
+            (images / "test_label").string() +
+                ": 4 masks are named after no image and cannot be paired with images by order: label/ has 24 "
+                "masks, and 4 + 24 is not the scene's 29 images");
 }
 
 TEST(LlffScene, SlightlyOffSizeMaskIsResized) {

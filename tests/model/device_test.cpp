@@ -85,6 +85,7 @@ TEST(Device, PeakMemorySeesAnAllocation) {
 // are exact rearrangements, the textbook attention differs by rounding.
 TEST(Network, ExecutionOptionsKeepTheValues) {
   const ModelConfig config = ModelConfig::from_preset("tiny");
+  torch::manual_seed(4);  // the weights: unseeded, every run drew others and bf16 passed by chance
   const Network fast(config);
   const RandomInput in = random_input(config, 2, 16, 24);
   torch::NoGradGuard no_grad;

@@ -10,7 +10,7 @@
 #include "common/files.h"
 #include "io/image.h"
 #include "io/ply.h"
-#include "render/trajectory.h"
+#include "camera/trajectory.h"
 #include "test_support.h"
 
 namespace ii {

@@ -6,7 +6,7 @@
 
 #include "common/files.h"
 #include "render/gaussians.h"
-#include "render/trajectory.h"
+#include "camera/trajectory.h"
 #include "test_support.h"
 
 namespace ii {

@@ -17,7 +17,7 @@
 #include "model/config.h"
 #include "model/model_input.h"
 #include "model/network.h"
-#include "render/trajectory.h"
+#include "camera/trajectory.h"
 #include "train/sample.h"
 
 namespace ii::test {

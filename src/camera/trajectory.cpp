@@ -1,4 +1,4 @@
-#include "render/trajectory.h"
+#include "camera/trajectory.h"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
