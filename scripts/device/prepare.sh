@@ -14,7 +14,7 @@ DEST=.device
 
 PACKAGES=(
   # headers and link-time libraries of the build
-  nlohmann-json3-dev libcli11-dev libeigen3-dev libstb-dev libstb0
+  nlohmann-json3-dev libcli11-dev libeigen3-dev libstb-dev
   libspdlog-dev libspdlog1.10 libfmt-dev libfmt9 libzip-dev libzip4
   libopencv-core-dev libopencv-core406 libopencv-imgproc-dev libopencv-imgproc406
   libopencv-calib3d-dev libopencv-calib3d406 libopencv-photo-dev libopencv-photo406

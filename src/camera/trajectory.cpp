@@ -144,6 +144,14 @@ double number(const nlohmann::json& cam, const char* key, const std::filesystem:
   return v;
 }
 
+// An image side in pixels: a whole number, at most 2^20 (pixel counts stay far from overflow).
+int image_side(const nlohmann::json& cam, const char* key, const std::filesystem::path& path, const std::string& what) {
+  const double v = number(cam, key, path, what);
+  if (!(v >= 1 && v <= (1 << 20) && v == std::floor(v)))
+    fail_file(path, "{}: '{}' must be a whole number of pixels from 1 to {}, not {}", what, key, 1 << 20, v);
+  return static_cast<int>(v);
+}
+
 }  // namespace
 
 namespace {
@@ -173,9 +181,8 @@ std::vector<NamedCamera> parse_camera_json(const std::filesystem::path& path) {
     if (!j.is_object()) fail_file(path, "{}: must be an object", what);
     Intrinsics& K = nc.camera.K;
     if (!j.contains("width") || !j.contains("height")) fail_file(path, "{}: needs \"width\" and \"height\"", what);
-    K.width = static_cast<int>(number(j, "width", path, what));
-    K.height = static_cast<int>(number(j, "height", path, what));
-    if (K.width < 1 || K.height < 1) fail_file(path, "{}: image size {}x{} is not positive", what, K.width, K.height);
+    K.width = image_side(j, "width", path, what);
+    K.height = image_side(j, "height", path, what);
     auto focal_from_fov = [&](const char* key, int size) {
       const double deg = number(j, key, path, what);
       if (!(deg > 0 && deg < 180)) fail_file(path, "{}: '{}' must be in (0, 180) degrees", what, key);
