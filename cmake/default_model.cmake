@@ -14,7 +14,7 @@ if(EXISTS ${DEFAULT_MODEL_FILE})
     "ii_default_model_end:\n"
     "  .section .note.GNU-stack,\"\",@progbits\n")
   set_source_files_properties(${DEFAULT_MODEL_ASM} PROPERTIES OBJECT_DEPENDS ${DEFAULT_MODEL_FILE})
-  target_sources(instainpaint PRIVATE ${DEFAULT_MODEL_ASM})
+  target_sources(ii_model PRIVATE ${DEFAULT_MODEL_ASM})
   # Only the one source that references the symbols knows: the model appearing or going away
   # recompiles that file, not the library (and keeps the shared precompiled header valid).
   set_source_files_properties(${PROJECT_SOURCE_DIR}/src/model/default_model.cpp PROPERTIES

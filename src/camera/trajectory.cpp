@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 
 #include "common/error.h"
@@ -118,6 +119,43 @@ std::vector<Camera> turntable_path(const Eigen::Vector3d& target, double distanc
     out.push_back(c);
   }
   return out;
+}
+
+std::vector<Camera> turntable_around_sphere(const Eigen::Vector3d& centre, double radius, double fov_y,
+                                            double elevation_deg, const Eigen::Vector3d& up, int frames, int width,
+                                            int height) {
+  const double distance = std::max(radius, 1e-6) / std::sin(fov_y / 2.0);
+  return turntable_path(centre, distance, elevation_deg, up, frames, intrinsics_fov_y(width, height, fov_y));
+}
+
+Eigen::Vector3d central_camera_position(const std::vector<Camera>& cameras) {
+  if (cameras.empty()) fail("central_camera_position: no cameras");
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Camera& c : cameras) mean += c.center();
+  mean /= double(cameras.size());
+  Eigen::Vector3d centre = cameras[0].center();
+  for (const Camera& c : cameras)
+    if ((c.center() - mean).norm() < (centre - mean).norm()) centre = c.center();
+  return centre;
+}
+
+Intrinsics intrinsics_fov_y(int width, int height, double fov_y) {
+  Intrinsics K;
+  K.width = width;
+  K.height = height;
+  K.fy = height / (2.0 * std::tan(fov_y / 2.0));
+  K.fx = K.fy;
+  K.cx = width / 2.0;
+  K.cy = height / 2.0;
+  return K;
+}
+
+Camera resized_to(const Camera& c, int width, int height) {
+  if (width <= 0 && height <= 0) return c;
+  int w = width, h = height;
+  if (w <= 0) w = std::max(1, static_cast<int>(std::lround(double(c.K.width) * h / c.K.height)));
+  if (h <= 0) h = std::max(1, static_cast<int>(std::lround(double(c.K.height) * w / c.K.width)));
+  return c.resized(w, h);
 }
 
 namespace {

@@ -35,6 +35,24 @@ std::vector<Camera> smooth_path(const std::vector<Camera>& keys, int frames, con
 std::vector<Camera> turntable_path(const Eigen::Vector3d& target, double distance, double elevation_deg,
                                    const Eigen::Vector3d& up, int frames, const Intrinsics& K);
 
+// A turntable that keeps the sphere (centre, radius) in view: the distance at which the sphere
+// fills the vertical field of view `fov_y` (radians); square pixels, `width` x `height`.
+std::vector<Camera> turntable_around_sphere(const Eigen::Vector3d& centre, double radius, double fov_y,
+                                            double elevation_deg, const Eigen::Vector3d& up, int frames, int width,
+                                            int height);
+
+// The official orbit's default centre (its `vis_centroid` camera, when no file names one): the
+// position of the camera nearest to the mean camera position.
+Eigen::Vector3d central_camera_position(const std::vector<Camera>& cameras);
+// The official orbit radius: 4 scene units (4 / cam_loc_scale in normalised units).
+constexpr double kOfficialOrbitRadius = 4.0;
+
+// Square-pixel intrinsics with the vertical field of view `fov_y` (radians), centred.
+Intrinsics intrinsics_fov_y(int width, int height, double fov_y);
+// `camera` at another image size: unchanged when both are 0 or less; one of them given keeps
+// the aspect ratio.
+Camera resized_to(const Camera& camera, int width, int height);
+
 // An OpenGL camera-to-world (x right, y up, looking along -z) at `eye` looking at `target`.
 Eigen::Matrix4d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, const Eigen::Vector3d& up);
 

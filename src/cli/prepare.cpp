@@ -10,6 +10,7 @@
 #include "common/stopwatch.h"
 #include "io/image.h"
 #include "model/scene_input.h"
+#include "tensor/image_tensor.h"
 
 namespace ii::cli {
 
@@ -29,18 +30,10 @@ struct PrepareArgs {
 
 // The image channels exactly as the network sees them, mapped back to [0,1] for viewing.
 Image encoder_view_image(const torch::Tensor& images, int v) {
-  const torch::Tensor rgb = ((images[v].narrow(0, 0, 3) + 1.0) * 0.5).permute({1, 2, 0}).contiguous();
-  Image out(static_cast<int>(rgb.size(1)), static_cast<int>(rgb.size(0)), 3);
-  std::copy_n(rgb.data_ptr<float>(), out.pixels.size(), out.pixels.begin());
-  return out;
+  return tensor_to_image((images[v].narrow(0, 0, 3) + 1.0) * 0.5);
 }
 
-Image mask_image(const torch::Tensor& images, int v) {
-  const torch::Tensor m = images[v][3].contiguous();
-  Image out(static_cast<int>(m.size(1)), static_cast<int>(m.size(0)), 1);
-  std::copy_n(m.data_ptr<float>(), out.pixels.size(), out.pixels.begin());
-  return out;
-}
+Image mask_image(const torch::Tensor& images, int v) { return tensor_to_image(images[v].narrow(0, 3, 1)); }
 
 void run(const PrepareArgs& a) {
   Stopwatch total;

@@ -2,26 +2,26 @@
 // list, or a camera path.
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
-#include <thread>
 
+#include "camera/trajectory.h"
 #include "cli/commands.h"
 #include "common/error.h"
 #include "common/files.h"
 #include "common/stopwatch.h"
+#include "data/scene_cameras.h"
+#include "gaussians/gaussians.h"
 #include "io/image.h"
 #include "io/ply.h"
+#include "io/video.h"
 #include "model/device.h"
-#include "model/scene_input.h"
-#include "render/gaussians.h"
 #include "render/rasterizer.h"
-#include "camera/trajectory.h"
+#include "render/visualize.h"
+#include "tensor/image_tensor.h"
 
 namespace ii::cli {
 
@@ -54,106 +54,12 @@ struct RenderArgs {
   std::string out = "render-out";
 };
 
-// The size to render a camera at: its own, or --width/--height (one of them keeps the
-// aspect ratio).
-Camera sized(const Camera& c, int width, int height) {
-  if (width <= 0 && height <= 0) return c;
-  int w = width, h = height;
-  if (w <= 0) w = std::max(1, static_cast<int>(std::lround(double(c.K.width) * h / c.K.height)));
-  if (h <= 0) h = std::max(1, static_cast<int>(std::lround(double(c.K.height) * w / c.K.width)));
-  return c.resized(w, h);
-}
-
-// Square-pixel intrinsics with the given vertical field of view (radians).
-Intrinsics intrinsics_fov_y(int width, int height, double fov_y) {
-  Intrinsics K;
-  K.width = width;
-  K.height = height;
-  K.fy = height / (2.0 * std::tan(fov_y / 2.0));
-  K.fx = K.fy;
-  K.cx = width / 2.0;
-  K.cy = height / 2.0;
-  return K;
-}
-
-const View* pick_view(const Scene& scene, const std::string& name) {
-  const View* v = scene.find(name);
-  if (!v) fail("--orbit-center: no view named '{}' in {}", name, scene.root.string());
-  return v;
-}
-
-std::vector<NamedCamera> scene_cameras(const RenderArgs& a) {
-  const Scene scene = load_scene(a.scene_dir, a.scene);
-  for (const auto& w : scene.warnings) spdlog::warn("{}", w);
-  const PoseNormalization norm = scene_normalization(scene);
-  auto frame = [&](const Camera& c) { return a.normalize ? norm.apply(c) : c; };
-
-  std::vector<const View*> selected;
-  if (!a.views.empty()) {
-    for (const std::string& name : a.views) {
-      const View* v = scene.find(name);
-      if (!v) fail("--views: no view named '{}' in {}", name, scene.root.string());
-      selected.push_back(v);
-    }
-  } else {
-    const auto& list = a.test_views ? scene.test_views : scene.views;
-    if (list.empty()) fail("{} has no {}", scene.root.string(), a.test_views ? "test views" : "views");
-    for (const View& v : list) selected.push_back(&v);
-  }
-
-  std::vector<NamedCamera> out;
-  if (a.trajectory.empty()) {
-    for (const View* v : selected) out.push_back({v->name, sized(frame(v->camera), a.width, a.height)});
-    return out;
-  }
-  if (a.trajectory == "path") {
-    std::vector<Camera> keys;
-    for (const View* v : selected) keys.push_back(frame(v->camera));
-    const Intrinsics K = sized(keys.front(), a.width, a.height).K;
-    for (const Camera& c : smooth_path(keys, a.frames, K)) out.push_back({fmt::format("{:04d}", out.size()), c});
-    return out;
-  }
-  // orbit (spec §5.6): the training cameras define the plane; fov_x = fov_y of the first
-  // target camera; 512 x 512 unless given.
-  std::vector<Camera> train;
-  for (const View& v : scene.views) train.push_back(frame(v.camera));
-  Eigen::Vector3d centre;
-  if (!a.orbit_center.empty()) {
-    centre = frame(pick_view(scene, a.orbit_center)->camera).center();
-  } else {
-    // No vis_centroid file: the view nearest to the mean camera centre.
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (const Camera& c : train) mean += c.center();
-    mean /= double(train.size());
-    centre = train[0].center();
-    for (const Camera& c : train)
-      if ((c.center() - mean).norm() < (centre - mean).norm()) centre = c.center();
-  }
-  // Official radius: 4 / cam_loc_scale in normalised units, i.e. 4 scene units.
-  const double radius = a.radius > 0 ? a.radius : (a.normalize ? 4.0 / norm.scale : 4.0);
-  const Camera& first = selected.front()->camera;
-  const int w = a.width > 0 ? a.width : 512, h = a.height > 0 ? a.height : 512;
-  const Intrinsics K = intrinsics_fov_y(w, h, first.K.fov_y());
-  spdlog::info("orbit: radius {:.3g} around ({:.3g}, {:.3g}, {:.3g})", radius, centre.x(), centre.y(), centre.z());
-  for (const Camera& c : orbit_path(train, centre, radius, a.frames, K))
-    out.push_back({fmt::format("{:04d}", out.size()), c});
-  return out;
-}
-
 // Around the splat cloud itself (no scene needed): looks at the centre of the box that
 // holds 96% of the (not too transparent) splats along each axis, from far enough that the
 // box's bounding sphere fits the field of view.
 std::vector<NamedCamera> turntable_cameras(const RenderArgs& a, const GaussianSet& g) {
   if (g.size() == 0) fail("{}: no splats to frame", a.ply);
-  const torch::Tensor keep = g.opacities > 0.1;
-  const torch::Tensor means = (keep.any().item<bool>() ? g.means.index({keep}) : g.means).to(torch::kFloat64);
-  const torch::Tensor q = torch::tensor({0.02, 0.98}, torch::kFloat64);
-  const torch::Tensor box = means.quantile(q, 0);  // (2, 3)
-  const torch::Tensor mid = box.mean(0);
-  const Eigen::Vector3d target(mid[0].item<double>(), mid[1].item<double>(), mid[2].item<double>());
-  const double radius = 0.5 * (box[1] - box[0]).norm().item<double>();
-  const double fov = a.fov * M_PI / 180.0;
-  const double distance = std::max(radius, 1e-6) / std::sin(fov / 2.0);
+  const BoundingSphere bounds = visible_bounds(g);
   Eigen::Vector3d up;
   const std::string u = a.up;
   if (u == "y") up = Eigen::Vector3d::UnitY();
@@ -164,53 +70,11 @@ std::vector<NamedCamera> turntable_cameras(const RenderArgs& a, const GaussianSe
   else up = -Eigen::Vector3d::UnitX();
   const int w = a.width > 0 ? a.width : 512, h = a.height > 0 ? a.height : 512;
   std::vector<NamedCamera> out;
-  for (const Camera& c : turntable_path(target, distance, a.elevation, up, a.frames, intrinsics_fov_y(w, h, fov)))
+  for (const Camera& c : turntable_around_sphere(bounds.centre, bounds.radius, a.fov * M_PI / 180.0, a.elevation, up,
+                                                a.frames, w, h))
     out.push_back({fmt::format("{:04d}", out.size()), c});
   return out;
 }
-
-Image to_image(const torch::Tensor& t) {  // (H, W, C) float
-  const torch::Tensor c = t.to(torch::kCPU, torch::kFloat32).contiguous();
-  Image img(static_cast<int>(c.size(1)), static_cast<int>(c.size(0)), static_cast<int>(c.size(2)));
-  std::copy(c.data_ptr<float>(), c.data_ptr<float>() + c.numel(), img.pixels.begin());
-  return img;
-}
-
-// Depth as colour (near = bright, INFERNO) over a range fixed from the first frame that
-// shows something, so that a video does not flicker; background (alpha < 0.5) black.
-class DepthColors {
- public:
-  Image operator()(const torch::Tensor& depth, const torch::Tensor& alpha) {
-    const torch::Tensor d = depth.reshape({-1}).to(torch::kCPU, torch::kFloat32);
-    const torch::Tensor a = alpha.reshape({-1}).to(torch::kCPU, torch::kFloat32);
-    const torch::Tensor hit = a > 0.5;
-    if (!have_range_ && hit.any().item<bool>()) {
-      const torch::Tensor v = d.index({hit});
-      lo_ = v.quantile(0.02).item<float>();
-      hi_ = v.quantile(0.98).item<float>();
-      if (!(hi_ > lo_)) hi_ = lo_ + 1e-3f;
-      have_range_ = true;
-    }
-    const int h = static_cast<int>(depth.size(0)), w = static_cast<int>(depth.size(1));
-    cv::Mat grey(h, w, CV_8UC1);
-    const float* dp = d.contiguous().data_ptr<float>();
-    for (int i = 0; i < h * w; ++i) {
-      const float t = have_range_ ? std::clamp((dp[i] - lo_) / (hi_ - lo_), 0.f, 1.f) : 1.f;
-      grey.data[i] = static_cast<uint8_t>(255.f * (1.f - t));
-    }
-    cv::Mat colour;
-    cv::applyColorMap(grey, colour, cv::COLORMAP_INFERNO);
-    const float* ap = a.contiguous().data_ptr<float>();
-    Image out(w, h, 3);
-    for (int i = 0; i < h * w; ++i)
-      for (int c = 0; c < 3; ++c) out.pixels[i * 3 + c] = ap[i] < 0.5f ? 0.f : colour.data[i * 3 + (2 - c)] / 255.f;
-    return out;
-  }
-
- private:
-  bool have_range_ = false;
-  float lo_ = 0, hi_ = 1;
-};
 
 void progress(int done, int total, double seconds) {
   const int width = 30, filled = total > 0 ? done * width / total : width;
@@ -218,23 +82,6 @@ void progress(int done, int total, double seconds) {
                std::string(width - filled, ' ').c_str(), done, total, seconds > 0 ? done / seconds : 0.0);
   if (done == total) std::fprintf(stderr, "\n");
   std::fflush(stderr);
-}
-
-std::string shell_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-bool have_ffmpeg() { return std::system("command -v ffmpeg > /dev/null 2>&1") == 0; }
-
-// H.264 MP4 from DIR/%04d.png (odd sizes padded to even, as yuv420p needs).
-bool encode_video(const fs::path& frames_dir, const fs::path& video, int fps) {
-  const std::string cmd = fmt::format(
-      "ffmpeg -y -loglevel error -framerate {} -i {} -c:v libx264 -pix_fmt yuv420p "
-      "-vf 'pad=ceil(iw/2)*2:ceil(ih/2)*2' {}",
-      fps, shell_quote((frames_dir / "%04d.png").string()), shell_quote(video.string()));
-  return std::system(cmd.c_str()) == 0;
 }
 
 // The CUDA rasterizer when asked for (or, with auto, when there is one), else the CPU.
@@ -248,8 +95,7 @@ torch::Device render_device(const std::string& name) {
 
 void run(const RenderArgs& a) {
   const torch::Device device = render_device(a.device);
-  const int threads = a.threads > 0 ? a.threads : static_cast<int>(std::thread::hardware_concurrency());
-  torch::set_num_threads(std::max(1, threads));
+  set_cpu_threads(a.threads);
   const int sources = !a.scene_dir.empty() + !a.cameras.empty();
   if (sources > 1) fail("give cameras either with --scene or with --cameras, not both");
   if (a.trajectory == "turntable" && sources > 0) fail("--trajectory turntable frames the PLY itself: drop --scene/--cameras");
@@ -265,9 +111,19 @@ void run(const RenderArgs& a) {
 
   std::vector<NamedCamera> cams;
   if (!a.cameras.empty()) {
-    for (NamedCamera& nc : read_camera_json(a.cameras)) cams.push_back({nc.name, sized(nc.camera, a.width, a.height)});
+    for (NamedCamera& nc : read_camera_json(a.cameras)) cams.push_back({nc.name, resized_to(nc.camera, a.width, a.height)});
   } else if (!a.scene_dir.empty()) {
-    cams = scene_cameras(a);
+    SceneCameraOptions o;
+    o.views = a.views;
+    o.test_views = a.test_views;
+    o.normalize = a.normalize;
+    o.trajectory = a.trajectory;
+    o.orbit_center = a.orbit_center;
+    o.radius = a.radius;
+    o.frames = a.frames;
+    o.width = a.width;
+    o.height = a.height;
+    cams = scene_cameras(load_scene(a.scene_dir, a.scene), o);
   } else {
     cams = turntable_cameras(a, loaded);
   }
@@ -279,7 +135,7 @@ void run(const RenderArgs& a) {
   if (a.alpha) fs::create_directories(out / "alpha");
   RenderOptions options;
   options.background = {a.background[0], a.background[1], a.background[2]};
-  DepthColors depth_colors;
+  VideoDepthColours depth_colors;
   Stopwatch watch;
   double render_ms = 0;
   const int n = static_cast<int>(cams.size());
@@ -292,16 +148,16 @@ void run(const RenderArgs& a) {
     synchronize(device);
     render_ms += frame.ms();
     const std::string file = fmt::format("{:04d}.png", i);
-    write_png(out / "rgb" / file, to_image(r.rgb));
+    write_png(out / "rgb" / file, image_from_hwc(r.rgb));
     if (a.depth) write_png(out / "depth" / file, depth_colors(r.depth, r.alpha));
-    if (a.alpha) write_png(out / "alpha" / file, to_image(r.alpha));
+    if (a.alpha) write_png(out / "alpha" / file, image_from_hwc(r.alpha));
     progress(i + 1, n, watch.ms() / 1000.0);
   }
   write_camera_json(out / "cameras.json", cams);
 
   nlohmann::json videos = nlohmann::json::array();
   if (n > 1 && !a.no_video) {
-    if (!have_ffmpeg()) {
+    if (!ffmpeg_available()) {
       spdlog::warn("ffmpeg not found (scripts/install-deps.sh installs it): frames written, no video");
     } else {
       for (const char* kind : {"rgb", "depth", "alpha"}) {

@@ -1,7 +1,5 @@
 #include "cli/runtime.h"
 
-#include <thread>
-
 #include "model/device.h"
 
 namespace ii::cli {
@@ -19,17 +17,7 @@ void add_runtime_options(CLI::App* cmd, RuntimeOptions& options) {
 }
 
 Runtime apply_runtime_options(const RuntimeOptions& options) {
-  const int threads = options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
-  torch::set_num_threads(std::max(1, threads));
-  Runtime r;
-  r.device = resolve_device(options.device);
-  if (options.precision == "fp32")
-    r.precision = Precision::Float32;
-  else if (options.precision == "bf16")
-    r.precision = Precision::BFloat16;
-  else
-    r.precision = default_precision(r.device);
-  return r;
+  return set_up_runtime(options.device, options.threads, options.precision);
 }
 
 }  // namespace ii::cli

@@ -2,7 +2,7 @@
 // Device, threads and numeric precision, shared by every command that runs the network.
 #include <CLI/CLI.hpp>
 
-#include "model/network.h"
+#include "model/device.h"
 
 namespace ii::cli {
 
@@ -12,13 +12,8 @@ struct RuntimeOptions {
   std::string precision = "auto";   // auto | fp32 | bf16
 };
 
-struct Runtime {
-  torch::Device device = torch::kCPU;
-  Precision precision = Precision::Float32;
-};
-
 void add_runtime_options(CLI::App* cmd, RuntimeOptions& options);
-// Resolves the device, sets the CPU thread count and picks the precision.
+// set_up_runtime with the options' values.
 Runtime apply_runtime_options(const RuntimeOptions& options);
 
 }  // namespace ii::cli

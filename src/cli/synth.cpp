@@ -7,11 +7,11 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
-#include <thread>
 
 #include "cli/commands.h"
 #include "common/error.h"
 #include "common/stopwatch.h"
+#include "model/device.h"
 #include "synth/synth_scene.h"
 #include "synth/synth_writer.h"
 
@@ -48,8 +48,7 @@ void run(const SynthArgs& a) {
   if (a.out.empty()) fail("--out is required");
   if (a.scenes < 1) fail("--scenes must be at least 1 (got {})", a.scenes);
   if (a.first < 0) fail("--first must be >= 0 (got {})", a.first);
-  const int threads = a.threads > 0 ? a.threads : static_cast<int>(std::thread::hardware_concurrency());
-  torch::set_num_threads(std::max(1, threads));
+  set_cpu_threads(a.threads);
 
   synth::SynthOptions options;
   options.views = a.views;

@@ -5,7 +5,6 @@
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
-#include <thread>
 
 #include "cli/commands.h"
 #include "common/error.h"
@@ -134,16 +133,8 @@ void run(const TrainArgs& a) {
   // One voice: the other ranks report only warnings and errors.
   if (dist.rank != 0) spdlog::set_level(spdlog::level::warn);
   TrainRunOptions o = run_options(a);
-  if (a.device == "cuda") {
-    resolve_device(a.device);  // refuses, with the reason, when LibTorch sees no GPU
-    // One GPU per local rank.
-    o.trainer.device = torch::Device(torch::kCUDA, dist.local_rank % std::max<int64_t>(1, torch::cuda::device_count()));
-  }
-  int threads = a.threads;
-  if (threads <= 0)
-    if (const char* omp = std::getenv("OMP_NUM_THREADS")) threads = std::atoi(omp);
-  if (threads <= 0) threads = static_cast<int>(std::thread::hardware_concurrency());
-  torch::set_num_threads(std::max(1, threads));
+  o.trainer.device = rank_device(a.device, dist);
+  set_cpu_threads(a.threads);
   run_training(o, dist);
 }
 

@@ -43,4 +43,16 @@ Image crop(const Image& image, int x0, int y0, int width, int height) {
   return out;
 }
 
+Image inferno_colours(const std::vector<uint8_t>& levels, int width, int height) {
+  if (levels.size() != static_cast<size_t>(width) * height)
+    fail("inferno_colours: {} levels for a {}x{} image", levels.size(), width, height);
+  const cv::Mat grey(height, width, CV_8UC1, const_cast<uint8_t*>(levels.data()));
+  cv::Mat bgr;
+  cv::applyColorMap(grey, bgr, cv::COLORMAP_INFERNO);
+  Image out(width, height, 3);
+  for (size_t i = 0; i < levels.size(); ++i)
+    for (int c = 0; c < 3; ++c) out.pixels[i * 3 + c] = bgr.data[i * 3 + (2 - c)] / 255.f;
+  return out;
+}
+
 }  // namespace ii

@@ -1,5 +1,7 @@
 #include "data/preprocess.h"
 
+#include <algorithm>
+
 #include "common/error.h"
 #include "data/image_ops.h"
 
@@ -22,6 +24,26 @@ WorkingSize working_size(int source_width, int source_height, const PreprocessOp
   return s;
 }
 
+Camera WorkingSize::working_camera(const Camera& source) const {
+  return source.resized(resized_width, resized_height).cropped(crop_x, crop_y, width, height);
+}
+
+WorkingSize covering_size(int source_width, int source_height, int width, int height, double crop_fx, double crop_fy) {
+  const int64_t W = source_width, H = source_height;
+  if (W <= 0 || H <= 0) fail("cannot crop {}x{} from an empty image", width, height);
+  int64_t h = std::max<int64_t>(height, (static_cast<int64_t>(width) * H + W - 1) / W);
+  while (W * h / H < width) ++h;
+  WorkingSize s;
+  s.resized_height = static_cast<int>(h);
+  s.resized_width = static_cast<int>(W * h / H);
+  s.width = width;
+  s.height = height;
+  const int free_x = s.resized_width - width, free_y = s.resized_height - height;
+  s.crop_x = std::min(free_x, static_cast<int>(crop_fx * (free_x + 1)));
+  s.crop_y = std::min(free_y, static_cast<int>(crop_fy * (free_y + 1)));
+  return s;
+}
+
 Image to_working_size(const Image& image, const WorkingSize& size, bool is_mask) {
   const Image resized = is_mask ? resize_nearest(image, size.resized_width, size.resized_height)
                                 : resize_area(image, size.resized_width, size.resized_height);
@@ -35,8 +57,7 @@ PreparedView prepare_view(const View& view, const PreprocessOptions& options) {
   const WorkingSize size = working_size(image.width, image.height, options);
   out.rgb = to_working_size(image, size);
   if (auto mask = load_view_mask(view)) out.mask = to_working_size(*mask, size, /*is_mask=*/true);
-  out.camera = view.camera.resized(size.resized_width, size.resized_height)
-                   .cropped(size.crop_x, size.crop_y, size.width, size.height);
+  out.camera = size.working_camera(view.camera);
   return out;
 }
 

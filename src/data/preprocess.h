@@ -25,14 +25,22 @@ struct PreparedView {
   Camera camera;              // exact for the working image
 };
 
-// Working size for a source image: width int(W * height / H) (truncation, as the official
-// code), then both cropped down to multiples of the patch.
+// How a source image becomes a working image, in inference and in training alike: resized to
+// resized_width x resized_height, then the width x height window at (crop_x, crop_y) kept.
 struct WorkingSize {
   int resized_width = 0, resized_height = 0;  // after resize
-  int width = 0, height = 0;                  // after the centre crop
+  int width = 0, height = 0;                  // after the crop
   int crop_x = 0, crop_y = 0;
+
+  // The camera of the working image, exact: `source` (of the source image) resized and cropped.
+  Camera working_camera(const Camera& source) const;
 };
+// Inference (the official evaluation): width int(W * height / H) (truncation, as the official
+// code), then both centre-cropped down to multiples of the patch.
 WorkingSize working_size(int source_width, int source_height, const PreprocessOptions& options);
+// Training: the smallest resize (aspect kept) that covers width x height, and the window at
+// fractions (crop_fx, crop_fy) in [0, 1) of the room left on each axis.
+WorkingSize covering_size(int source_width, int source_height, int width, int height, double crop_fx, double crop_fy);
 
 // Applies resize + crop to an image (area filter) or a mask (nearest).
 Image to_working_size(const Image& image, const WorkingSize& size, bool is_mask = false);

@@ -93,6 +93,13 @@ Scene load_scene(const fs::path& dir, const SceneOptions& options) {
   return scene;
 }
 
+PoseNormalization scene_normalization(const Scene& scene) {
+  std::vector<Camera> cameras;
+  for (const auto* list : {&scene.views, &scene.test_views})
+    for (const View& v : *list) cameras.push_back(v.camera);
+  return fit_pose_normalization(cameras);
+}
+
 Image load_view_image(const View& view) {
   Image image = read_image_rgb(view.image_path);
   if (image.width != view.camera.K.width || image.height != view.camera.K.height)

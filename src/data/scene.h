@@ -45,6 +45,10 @@ struct SceneOptions {
 // options.format is "auto").
 Scene load_scene(const std::filesystem::path& dir, const SceneOptions& options = {});
 
+// The normalisation the official evaluation uses: over all cameras of the scene, input and
+// test views alike (spec §5.1, normalize_mode "all").
+PoseNormalization scene_normalization(const Scene& scene);
+
 // Decodes a view's image as RGB in [0,1] (alpha composited on white), undistorted when the
 // view has distortion.
 Image load_view_image(const View& view);

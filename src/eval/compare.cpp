@@ -6,6 +6,7 @@
 #include "eval/lpips.h"
 #include "eval/metrics.h"
 #include "io/image.h"
+#include "tensor/image_tensor.h"
 
 namespace ii {
 

@@ -64,9 +64,4 @@ torch::Tensor crop_to_box(const torch::Tensor& t, const PixelBox& box);
 double box_psnr(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& mask);
 double box_ssim(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& mask);
 
-// Conversions between Image (HWC, [0,1]) and tensors: (1, C, H, W) float32 on the CPU, and
-// back from (C, H, W) or (1, C, H, W) (any device/dtype).
-torch::Tensor image_to_tensor(const Image& image);
-Image tensor_to_image(const torch::Tensor& t);
-
 }  // namespace ii

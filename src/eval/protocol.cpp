@@ -18,15 +18,14 @@
 #include "eval/fid.h"
 #include "eval/inception.h"
 #include "eval/lpips.h"
+#include "gaussians/gaussians.h"
 #include "io/image.h"
 #include "io/ply.h"
-#include "model/checkpoint.h"
 #include "model/default_model.h"
 #include "model/device.h"
-#include "model/inference.h"
-#include "model/scene_input.h"
-#include "render/gaussians.h"
+#include "model/predictor.h"
 #include "render/rasterizer.h"
+#include "tensor/image_tensor.h"
 
 namespace ii {
 
@@ -95,16 +94,15 @@ cv::Mat mask_to_u8(const Image& mask) {
 
 // Mean absolute error over the channels, INFERNO colours (black = 0, yellow >= full scale).
 Image error_map(const Image& a, const Image& b) {
-  cv::Mat grey(a.height, a.width, CV_8UC1);
+  std::vector<uint8_t> levels(static_cast<size_t>(a.width) * a.height);
   for (int y = 0; y < a.height; ++y)
     for (int x = 0; x < a.width; ++x) {
       float e = 0;
       for (int c = 0; c < 3; ++c) e += std::abs(a.at(y, x, c) - b.at(y, x, c));
-      grey.at<uint8_t>(y, x) = static_cast<uint8_t>(std::lround(std::min(e / 3.f / kErrorMapFullScale, 1.f) * 255.f));
+      levels[static_cast<size_t>(y) * a.width + x] =
+          static_cast<uint8_t>(std::lround(std::min(e / 3.f / kErrorMapFullScale, 1.f) * 255.f));
     }
-  cv::Mat colour;
-  cv::applyColorMap(grey, colour, cv::COLORMAP_INFERNO);
-  return from_bgr8(colour);
+  return inferno_colours(levels, a.width, a.height);
 }
 
 Image with_mask_outline(const Image& image, const std::optional<Image>& mask) {
@@ -178,18 +176,6 @@ MetricNetworks load_metric_networks(const EvalOptions& o, const torch::Device& d
   return m;
 }
 
-std::string eval_model_name(const EvalOptions& o) { return o.checkpoint ? o.checkpoint->string() : kDefaultModelName; }
-
-// The one place where evaluation gets its model: --checkpoint, else the default model built
-// into the library.
-Network load_eval_model(const EvalOptions& o, json& info) {
-  const Checkpoint ck = checkpoint_or_default(o.checkpoint ? o.checkpoint->string() : "");
-  info["checkpoint"] = eval_model_name(o);
-  info["checkpoint_format"] = ck.format;
-  info["config"] = ck.config.to_json();
-  return network_from_checkpoint(ck, eval_model_name(o));
-}
-
 // The predicted Gaussians, float32 on `render_device`.
 GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const torch::Device& render_device,
                               json& info, json& timings) {
@@ -202,9 +188,13 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
     return gaussians_from_splats(cloud, o.sh_degree).to(render_device);
   }
   info["source"] = "network";
-  spdlog::info("loading the model {}", eval_model_name(o));
-  Network net = load_eval_model(o, info);
-  net.to(o.device);
+  const std::string checkpoint = o.checkpoint ? o.checkpoint->string() : "";
+  spdlog::info("loading the model {}", checkpoint.empty() ? kDefaultModelName : checkpoint);
+  const Predictor predictor(checkpoint, o.device, o.precision);
+  const json model = predictor.describe();
+  info["checkpoint"] = model["checkpoint"];
+  info["checkpoint_format"] = model["format"];
+  info["config"] = model["config"];
   timings["load_model_ms"] = watch.lap();
 
   SceneInputOptions opts;
@@ -212,21 +202,15 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   opts.num_views = o.num_views;
   opts.reference = o.reference;
   opts.preprocess.height = o.height;
-  SceneInput si = prepare_scene_input(scene, opts);
-  check_model_fits_input(net.config(), si.input, eval_model_name(o));
+  spdlog::info("running the network ({})", precision_name(o.precision));
+  const Prediction p = predictor.predict(scene, opts);
   info["context"] = json::array();
-  for (const PreparedView& v : si.views) info["context"].push_back(v.name);
-  info["reference"] = si.reference_source;
-  timings["prepare_inputs_ms"] = watch.lap();
-  upload_network_inputs(si.input, o.device);
-  synchronize(o.device);
-  timings["upload_inputs_ms"] = watch.lap();
-
-  spdlog::info("running the network on {} context views ({})", si.views.size(), precision_name(o.precision));
-  const GaussianMaps maps = run_network(net, si.input, o.precision);
-  synchronize(o.device);
-  timings["network_ms"] = watch.lap();
-  GaussianSet g = gaussians_from_maps(maps);
+  for (const PreparedView& v : p.input.views) info["context"].push_back(v.name);
+  info["reference"] = p.input.reference_source;
+  timings["prepare_inputs_ms"] = p.prepare_ms;
+  timings["upload_inputs_ms"] = p.upload_ms;
+  timings["network_ms"] = p.network_ms;
+  GaussianSet g = p.gaussians();
   for (torch::Tensor* t : {&g.means, &g.quats, &g.scales, &g.opacities, &g.colors})
     *t = t->to(render_device, torch::kFloat32);
   return g;
@@ -416,7 +400,6 @@ json run_evaluation(const EvalOptions& o) {
 
   spdlog::info("reading scene {}", o.scene_dir.string());
   const Scene scene = load_scene(o.scene_dir, o.scene);
-  for (const std::string& w : scene.warnings) spdlog::warn("{}", w);
   if (scene.test_views.empty())
     fail("{}: no object-free test views (SPIn-NeRF scenes list them by their masks in images_K/test_label/)",
          o.scene_dir.string());

@@ -348,7 +348,6 @@ double unorm(uint32_t v, int bits) {
 
 double lerp(float a, float b, double t) { return static_cast<double>(a) * (1.0 - t) + static_cast<double>(b) * t; }
 
-constexpr double kSh0 = 0.28209479177387814;
 
 SplatCloud read_compressed(const Header& h, const Element& vertex, const std::vector<uint8_t>& bytes,
                            const fs::path& path) {

@@ -7,11 +7,14 @@
 
 namespace ii {
 
+// The degree-0 spherical harmonic Y_0^0: a splat's colour from its DC term is 0.5 + kSh0 * dc.
+constexpr double kSh0 = 0.28209479177387814;
+
 // Pre-activation values, as the reference 3DGS code stores them.
 struct SplatCloud {
   std::vector<float> means;          // N*3
   std::vector<float> normals;        // N*3 (usually zero; kept for round trips; may be empty on write)
-  std::vector<float> sh_dc;          // N*3, f_dc_0..2; colour = 0.5 + 0.28209479 * dc
+  std::vector<float> sh_dc;          // N*3, f_dc_0..2; colour = 0.5 + kSh0 * dc
   std::vector<float> sh_rest;        // N*3*K as in the file: per splat, all R coefficients, then G, then B
   int sh_rest_per_channel = 0;       // K = 0, 3, 8 or 15
   std::vector<float> opacity_logit;  // N

@@ -2,12 +2,11 @@
 
 #include <spdlog/spdlog.h>
 
-#include <fstream>
 #include <regex>
 
 #include "common/error.h"
 #include "io/pth.h"
-#include "io/safetensors.h"
+#include "tensor/tensor_file.h"
 
 namespace ii {
 
@@ -17,32 +16,7 @@ namespace {
 
 const char* kModules[] = {"mvencoder", "gaudecoder", "gauupsampler"};
 
-torch::ScalarType scalar_type(const std::string& dtype, const fs::path& file) {
-  static const std::map<std::string, torch::ScalarType> types = {
-      {"F32", torch::kFloat32}, {"F16", torch::kFloat16}, {"BF16", torch::kBFloat16},
-      {"F64", torch::kFloat64}, {"I64", torch::kInt64},   {"I32", torch::kInt32},
-      {"I16", torch::kInt16},   {"I8", torch::kInt8},     {"U8", torch::kUInt8},
-      {"BOOL", torch::kBool}};
-  auto it = types.find(dtype);
-  if (it == types.end()) fail_file(file, "unsupported tensor dtype {}", dtype);
-  return it->second;
-}
-
-torch::Tensor to_torch(const std::string& dtype, const std::vector<int64_t>& shape,
-                       const std::vector<uint8_t>& bytes, const fs::path& file) {
-  const auto type = scalar_type(dtype, file);
-  return torch::from_blob(const_cast<uint8_t*>(bytes.data()), shape, torch::TensorOptions().dtype(type)).clone();
-}
-
 bool starts_with(const std::string& s, const std::string& prefix) { return s.rfind(prefix, 0) == 0; }
-
-bool is_safetensors(const fs::path& path) {
-  // A safetensors file starts with an 8-byte header length followed by '{'.
-  std::ifstream in(path, std::ios::binary);
-  char head[9] = {};
-  in.read(head, 9);
-  return in.gcount() == 9 && head[8] == '{';
-}
 
 }  // namespace
 
@@ -135,7 +109,7 @@ ModelConfig infer_config(const StateDict& state, const nlohmann::json& hints, co
 
 StateDict read_safetensors_tensors(const fs::path& path) {
   StateDict out;
-  for (const auto& [name, t] : read_safetensors(path).tensors) out[name] = to_torch(t.dtype, t.shape, t.bytes, path);
+  for (const auto& [name, t] : read_safetensors(path).tensors) out[name] = tensor_from_data(t, path);
   return out;
 }
 
@@ -155,7 +129,7 @@ Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const fs::pa
   Checkpoint ck;
   ck.format = "safetensors";
   StateDict raw;
-  for (const auto& [name, t] : file.tensors) raw[name] = to_torch(t.dtype, t.shape, t.bytes, path);
+  for (const auto& [name, t] : file.tensors) raw[name] = tensor_from_data(t, path);
   ck.extra = nlohmann::json(file.metadata);
   nlohmann::json hints = nlohmann::json::object();
   if (auto it = file.metadata.find("config"); it != file.metadata.end()) {
@@ -170,7 +144,7 @@ Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const fs::pa
 }
 
 Checkpoint read_checkpoint(const fs::path& path, bool keep_weight_norm) {
-  if (is_safetensors(path)) return checkpoint_from_safetensors(read_safetensors(path), path, keep_weight_norm);
+  if (is_safetensors_file(path)) return checkpoint_from_safetensors(read_safetensors(path), path, keep_weight_norm);
   Checkpoint ck;
   StateDict raw;
   nlohmann::json hints = nlohmann::json::object();
@@ -179,7 +153,7 @@ Checkpoint read_checkpoint(const fs::path& path, bool keep_weight_norm) {
     const PickleValue tree = read_pth(path);
     std::map<std::string, PthTensor> tensors;
     collect_tensors(tree, "", tensors, path);
-    for (const auto& [name, t] : tensors) raw[name] = to_torch(t.dtype, t.shape, t.contiguous_bytes(), path);
+    for (const auto& [name, t] : tensors) raw[name] = tensor_from_pth(t, path);
     ck.extra = nlohmann::json::parse(extras_to_json(tree));
     // The official training arguments name the heads as `num_heads` when present.
     if (ck.extra.contains("args") && ck.extra["args"].is_object() && ck.extra["args"].contains("num_heads"))
@@ -204,16 +178,8 @@ Network load_network(const fs::path& path) {
 }
 
 void save_safetensors_checkpoint(const fs::path& path, const Network& network, const nlohmann::json& extra_metadata) {
-  std::vector<std::pair<std::string, TensorData>> tensors;
-  auto add = [&](const std::string& name, const torch::Tensor& t) {
-    const torch::Tensor c = t.detach().to(torch::kCPU, torch::kFloat32).contiguous();
-    TensorData d;
-    d.dtype = "F32";
-    d.shape.assign(c.sizes().begin(), c.sizes().end());
-    d.bytes.resize(c.numel() * sizeof(float));
-    std::memcpy(d.bytes.data(), c.data_ptr<float>(), d.bytes.size());
-    tensors.emplace_back(name, std::move(d));
-  };
+  std::vector<std::pair<std::string, torch::Tensor>> tensors;
+  auto add = [&](const std::string& name, const torch::Tensor& t) { tensors.emplace_back(name, t.to(torch::kFloat32)); };
   for (const auto& [name, w] : network.named_parameters()) {
     // Every Linear of the decoder and upsampler is weight-normed in the official layout.
     const bool weight_normed = starts_with(name, "gaudecoder.") || starts_with(name, "gauupsampler.");
@@ -229,7 +195,7 @@ void save_safetensors_checkpoint(const fs::path& path, const Network& network, c
   metadata["config"] = network.config().to_json().dump();
   metadata["format"] = "instainpaint";
   for (const auto& [k, v] : extra_metadata.items()) metadata[k] = v.is_string() ? v.get<std::string>() : v.dump();
-  write_safetensors(path, tensors, metadata);
+  write_tensor_file(path, tensors, metadata);
 }
 
 }  // namespace ii

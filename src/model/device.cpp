@@ -1,6 +1,8 @@
 #include "model/device.h"
 
+#include <cstdlib>
 #include <fstream>
+#include <thread>
 
 #include "common/error.h"
 #include "common/torch_compat.h"
@@ -10,6 +12,28 @@
 #endif
 
 namespace ii {
+
+void set_cpu_threads(int threads) {
+  if (threads <= 0)
+    if (const char* omp = std::getenv("OMP_NUM_THREADS")) threads = std::atoi(omp);
+  if (threads <= 0) threads = static_cast<int>(std::thread::hardware_concurrency());
+  torch::set_num_threads(std::max(1, threads));
+}
+
+Runtime set_up_runtime(const std::string& device, int threads, const std::string& precision) {
+  set_cpu_threads(threads);
+  Runtime r;
+  r.device = resolve_device(device);
+  if (precision == "fp32")
+    r.precision = Precision::Float32;
+  else if (precision == "bf16")
+    r.precision = Precision::BFloat16;
+  else if (precision == "auto")
+    r.precision = default_precision(r.device);
+  else
+    fail("--precision: unknown precision '{}' (expected auto, fp32 or bf16)", precision);
+  return r;
+}
 
 torch::Device resolve_device(const std::string& name) {
   if (name == "cpu") return torch::kCPU;

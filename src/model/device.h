@@ -15,6 +15,19 @@ torch::Device resolve_device(const std::string& name);
 // bf16 on a GPU (tensor cores) and on CPUs with native bf16 dot products, else float32.
 Precision default_precision(const torch::Device& device);
 
+// LibTorch's CPU thread count: `threads`, or when it is 0 or less, $OMP_NUM_THREADS when set
+// (a launcher's share of the machine), else every core.
+void set_cpu_threads(int threads);
+
+// Where and how the network runs, set up once by every command that runs it: the device by
+// name (resolve_device), the CPU threads (set_cpu_threads) and the precision by name ("fp32",
+// "bf16", or "auto" = default_precision of the device).
+struct Runtime {
+  torch::Device device = torch::kCPU;
+  Precision precision = Precision::Float32;
+};
+Runtime set_up_runtime(const std::string& device, int threads, const std::string& precision);
+
 // Copies a CPU tensor to `device`. To a GPU it goes through page-locked (pinned) memory so
 // that the copy is one DMA transfer issued without waiting (the caller's next kernels on
 // the same stream are ordered after it). On the CPU the tensor is returned as is.

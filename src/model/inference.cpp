@@ -28,24 +28,4 @@ GaussianMaps run_network(const Network& network, const ModelInput& input, Precis
       .gaussians;
 }
 
-SplatCloud to_splat_cloud(const GaussianMaps& maps) {
-  // (1, V, C, H, W) -> (V*H*W, C)
-  auto flat = [](const torch::Tensor& t) {
-    return t[0].permute({0, 2, 3, 1}).reshape({-1, t.size(2)}).to(torch::kCPU, torch::kFloat32).contiguous();
-  };
-  auto to_vec = [](const torch::Tensor& t) {
-    return std::vector<float>(t.data_ptr<float>(), t.data_ptr<float>() + t.numel());
-  };
-  constexpr double kSh0 = 0.28209479177387814;  // Y_0^0: colour = 0.5 + kSh0 * dc
-  const torch::Tensor opacity = flat(maps.opacity).clamp(1e-6, 1.0 - 1e-6);
-  SplatCloud c;
-  c.means = to_vec(flat(maps.xyz));
-  c.normals.assign(c.means.size(), 0.f);
-  c.sh_dc = to_vec(((flat(maps.rgb) - 0.5) / kSh0).contiguous());
-  c.opacity_logit = to_vec(torch::log(opacity / (1.0 - opacity)).reshape({-1}).contiguous());
-  c.log_scales = to_vec(torch::log(flat(maps.scale)).contiguous());
-  c.rotations = to_vec(flat(maps.rotation));
-  return c;
-}
-
 }  // namespace ii

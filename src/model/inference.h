@@ -2,7 +2,6 @@
 // One inference run: network on a prepared scene input, Gaussians out.
 #include <string>
 
-#include "io/ply.h"
 #include "model/network.h"
 #include "model/scene_input.h"
 
@@ -14,10 +13,6 @@ void upload_network_inputs(ModelInput& input, const torch::Device& device);
 
 // Runs the network on `input` (one scene, no batch dimension) without gradients.
 GaussianMaps run_network(const Network& network, const ModelInput& input, Precision precision);
-
-// Flattens per-pixel maps of batch item 0 into a splat cloud in the standard 3DGS
-// parameterisation (spec §3.4 order: view, row, column). Colour becomes SH DC.
-SplatCloud to_splat_cloud(const GaussianMaps& maps);
 
 // Checks that a model can take this input (channels, patch multiple) with a clear message.
 void check_model_fits_input(const ModelConfig& config, const ModelInput& input, const std::string& model_source);

@@ -11,19 +11,10 @@
 
 #include <torch/torch.h>
 
+#include "gaussians/gaussians.h"
 #include "model/config.h"
 
 namespace ii {
-
-// Per-pixel Gaussian attributes, activated, each (B, V, C, H, W) float32.
-struct GaussianMaps {
-  torch::Tensor depth;     // C=1, z-depth
-  torch::Tensor rgb;       // C=3, colour in [0,1] convention (no activation)
-  torch::Tensor opacity;   // C=1, in (0,1)
-  torch::Tensor scale;     // C=3, world units
-  torch::Tensor rotation;  // C=4, unit quaternion (w, x, y, z)
-  torch::Tensor xyz;       // C=3, world position
-};
 
 struct NetworkOutput {
   torch::Tensor encoder_tokens;      // (B*V, h*w, D) after the encoder norm (cls dropped)

@@ -9,28 +9,30 @@
 
 namespace ii {
 
-PoseNormalization scene_normalization(const Scene& scene) {
-  std::vector<Camera> cameras;
-  for (const auto* list : {&scene.views, &scene.test_views})
-    for (const View& v : *list) cameras.push_back(v.camera);
-  return fit_pose_normalization(cameras);
-}
-
 namespace {
 
 // The reference image may come at the source image's size (preprocessed like the view) or
 // already at the working size.
-Image reference_at_working_size(const std::filesystem::path& file, const View& view,
+Image reference_at_working_size(const Image& image, const std::string& source, const View& view,
                                 const PreparedView& prepared, const PreprocessOptions& options) {
-  const Image image = read_image_rgb(file);
   const int sw = view.camera.K.width, sh = view.camera.K.height;
   if (image.width == sw && image.height == sh)
     return to_working_size(image, working_size(sw, sh, options));
   if (image.width == prepared.rgb.width && image.height == prepared.rgb.height) return image;
-  fail_file(file,
-            "reference image is {}x{}, but view {} is {}x{} (working size {}x{}): give the "
-            "inpainted image at either size",
-            image.width, image.height, view.name, sw, sh, prepared.rgb.width, prepared.rgb.height);
+  fail("{}: reference image is {}x{}, but view {} is {}x{} (working size {}x{}): give the "
+       "inpainted image at either size",
+       source, image.width, image.height, view.name, sw, sh, prepared.rgb.width, prepared.rgb.height);
+}
+
+// A caller's mask for a view, checked against the view's image and brought to the working size.
+Image mask_at_working_size(const Image& mask, const View& view, const PreprocessOptions& options) {
+  const int w = view.camera.K.width, h = view.camera.K.height;
+  if (mask.width != w || mask.height != h || mask.channels != 1)
+    fail("mask for view {}: {}x{} with {} channels, the view's image is {}x{} (one channel expected)", view.name,
+         mask.width, mask.height, mask.channels, w, h);
+  Image binary = mask;
+  for (float& v : binary.pixels) v = v > 0.5f ? 1.f : 0.f;
+  return to_working_size(binary, working_size(w, h, options), /*is_mask=*/true);
 }
 
 }  // namespace
@@ -41,10 +43,19 @@ SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& opti
                                         : context_views_by_name(scene, options.context);
   for (int index : out.context) {
     const View& view = scene.views[index];
-    if (!options.keep_object && &view != &scene.views[out.context[0]] && !view.mask_path && !view.mask_from_alpha)
+    const auto given_mask = options.masks.find(view.name);
+    const bool has_mask = view.mask_path || view.mask_from_alpha || given_mask != options.masks.end();
+    if (!options.keep_object && &view != &scene.views[out.context[0]] && !has_mask)
       fail("view {} has no object mask: give masks for every context view (--masks DIR or "
            "--alpha-masks)", view.name);
-    out.views.push_back(prepare_view(view, options.preprocess));
+    View source = view;
+    if (given_mask != options.masks.end()) {  // the caller's mask: the scene's file is not read
+      source.mask_path.reset();
+      source.mask_from_alpha = false;
+    }
+    out.views.push_back(prepare_view(source, options.preprocess));
+    if (given_mask != options.masks.end())
+      out.views.back().mask = mask_at_working_size(given_mask->second, view, options.preprocess);
   }
 
   PreparedView& ref = out.views[0];
@@ -53,8 +64,13 @@ SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& opti
     // Plain reconstruction: photos as they are, empty masks (the stage-1 input).
     for (PreparedView& v : out.views) v.mask = Image(v.rgb.width, v.rgb.height, 1);
     out.reference_source = "photo (object kept)";
+  } else if (options.reference_image) {
+    ref.rgb = reference_at_working_size(*options.reference_image, "reference image in memory", ref_view, ref,
+                                        options.preprocess);
+    out.reference_source = "image in memory";
   } else if (options.reference) {
-    ref.rgb = reference_at_working_size(*options.reference, ref_view, ref, options.preprocess);
+    ref.rgb = reference_at_working_size(read_image_rgb(*options.reference), options.reference->string(), ref_view,
+                                        ref, options.preprocess);
     out.reference_source = options.reference->string();
   } else {
     if (!ref.mask)

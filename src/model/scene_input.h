@@ -3,6 +3,7 @@
 // 2D-inpainted reference in place, normalise poses over the scene's cameras, build tensors.
 // Shared by the prepare, infer and eval commands.
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -16,8 +17,13 @@ namespace ii {
 struct SceneInputOptions {
   std::vector<std::string> context;  // view names, reference first; empty = automatic
   int num_views = 4;                 // when choosing automatically
-  // The 2D-inpainted reference image; absent = OpenCV Telea inpainting of the reference.
+  // The 2D-inpainted reference image, at the reference photo's size or the working size:
+  // in memory (wins) or a file; neither = OpenCV Telea inpainting of the reference.
+  std::optional<Image> reference_image;
   std::optional<std::filesystem::path> reference;
+  // Object masks by view name, at the view's image size (> 0.5 = object): they replace the
+  // scene's own masks of those views, so a caller needs no mask files.
+  std::map<std::string, Image> masks;
   PreprocessOptions preprocess;
   // Reconstruct the scene as captured: photos unmasked, mask channels zero, the reference's
   // own photo (no masks needed; `reference` is ignored).
@@ -29,13 +35,9 @@ struct SceneInput {
   std::vector<PreparedView> views;       // working-size views; views[0].rgb = inpainted
   PoseNormalization normalization;       // fitted over all cameras of the scene
   ModelInput input;
-  std::string reference_source;          // file name, or "telea" when made here
+  std::string reference_source;          // file name, "image in memory", or "telea" when made here
 };
 
 SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options);
-
-// The normalisation the official evaluation uses: over all cameras of the scene, input and
-// test views alike (spec §5.1, normalize_mode "all").
-PoseNormalization scene_normalization(const Scene& scene);
 
 }  // namespace ii

@@ -37,22 +37,9 @@
 #include <torch/torch.h>
 
 #include "camera/camera.h"
+#include "gaussians/gaussians.h"
 
 namespace ii {
-
-// Activated Gaussian parameters, one row per Gaussian, all float32 or float64 on one device
-// (mixed float dtypes are converted to that of `means`).
-struct GaussianSet {
-  torch::Tensor means;      // (N, 3) world positions
-  torch::Tensor quats;      // (N, 4) rotation (w, x, y, z), need not be normalised
-  torch::Tensor scales;     // (N, 3) standard deviations (linear, not log)
-  torch::Tensor opacities;  // (N) or (N, 1), in (0, 1)
-  torch::Tensor colors;     // (N, 3) RGB when sh_degree < 0, else (N, K, 3) SH, K >= (d+1)²
-  int sh_degree = -1;       // -1: colors are RGB; 0..3: SH degree used
-
-  int64_t size() const { return means.defined() ? means.size(0) : 0; }
-  GaussianSet to(const torch::Device& device) const;
-};
 
 struct RenderCamera {
   Camera camera;  // intrinsics (width, height, fx, fy, cx, cy) + OpenGL camera-to-world

@@ -16,13 +16,6 @@ using render_detail::RasterInputs;
 using render_detail::RasterOutputs;
 using render_detail::RasterState;
 
-GaussianSet GaussianSet::to(const torch::Device& device) const {
-  GaussianSet g = *this;
-  for (torch::Tensor* t : {&g.means, &g.quats, &g.scales, &g.opacities, &g.colors})
-    if (t->defined()) *t = t->to(device);
-  return g;
-}
-
 namespace render_detail {
 
 splat::CameraParams camera_params(const RenderCamera& rc, const RenderOptions& options) {

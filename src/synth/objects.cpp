@@ -7,7 +7,7 @@
 
 #include "common/error.h"
 #include "io/ply.h"
-#include "render/gaussians.h"
+#include "gaussians/gaussians.h"
 #include "synth/scene_parts.h"
 
 namespace ii::synth {
@@ -238,8 +238,7 @@ float quantile(std::vector<float> v, double q) {
 
 GaussianSet normalize_splat(const std::filesystem::path& path) {
   const GaussianSet raw = gaussians_from_splats(read_splat_ply(path), 0);
-  constexpr double kShC0 = 0.28209479177387814;
-  torch::Tensor rgb = (0.5 + kShC0 * raw.colors.select(1, 0)).clamp(0.0, 1.0);
+  torch::Tensor rgb = rgb_from_sh_dc(raw.colors.select(1, 0)).clamp(0.0, 1.0);
   // Transparent splats add nothing but cost: drop them.
   torch::Tensor keep = raw.opacities > 0.1f;
   torch::Tensor means = raw.means.index({keep});

@@ -9,16 +9,9 @@
 #include "common/error.h"
 #include "data/inpaint2d.h"
 #include "synth/random.h"
+#include "tensor/image_tensor.h"
 
 namespace ii::synth {
-
-Image image_from_tensor(const torch::Tensor& hwc) {
-  const torch::Tensor t = hwc.to(torch::kFloat32).contiguous().cpu();
-  if (t.dim() != 3) fail("image_from_tensor: expected an H x W x C tensor");
-  Image image(static_cast<int>(t.size(1)), static_cast<int>(t.size(0)), static_cast<int>(t.size(2)));
-  std::copy(t.data_ptr<float>(), t.data_ptr<float>() + t.numel(), image.pixels.begin());
-  return image;
-}
 
 namespace {
 
@@ -117,8 +110,8 @@ SynthViewImages SynthRenderer::render(const Camera& camera, bool with_object) co
   background_rows.erase(std::lower_bound(background_rows.begin(), background_rows.end(), background_count_),
                         background_rows.end());
   const RenderOutput clean = ii::render(rows(background_rows), rc, options);
-  out.clean = image_from_tensor(clean.rgb);
-  out.clean_depth = image_from_tensor(clean.depth);
+  out.clean = image_from_hwc(clean.rgb);
+  out.clean_depth = image_from_hwc(clean.depth);
   if (with_object) {
     out.with_object = out.clean;
     out.depth = out.clean_depth;
@@ -152,7 +145,7 @@ SynthViewImages SynthRenderer::render(const Camera& camera, bool with_object) co
   const std::vector<int64_t> near_rows = visible_rows(camera, points, window.x0, window.y0, window.x1, window.y1);
   GaussianSet near_object = rows(near_rows);
   auto paste = [&](const torch::Tensor& hwc, Image& target) {
-    const Image full = image_from_tensor(hwc);
+    const Image full = image_from_hwc(hwc);
     for (int y = window.y0; y < window.y1; ++y)
       for (int x = window.x0; x < window.x1; ++x)
         for (int c = 0; c < target.channels; ++c) target.at(y, x, c) = full.at(y, x, c);

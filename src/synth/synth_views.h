@@ -68,7 +68,7 @@ class SynthRenderer {
 };
 
 // RGB HxWx3 or HxWx1 tensor to an Image (float32, CPU).
-Image image_from_tensor(const torch::Tensor& hwc);
+
 
 enum class Degradation { none, blur, color, noise, telea, mixed };
 // "none" | "blur" | "color" | "noise" | "telea" | "mixed"; throws Error naming `what`.

@@ -76,22 +76,6 @@ std::pair<double, double> depth_bounds(const Image& depth) {
 }
 
 // Pre-activation splat values (3DGS PLY) of RGB Gaussians.
-SplatCloud to_splat_cloud(const GaussianSet& g) {
-  constexpr double kShC0 = 0.28209479177387814;
-  auto values = [](const torch::Tensor& t) {
-    const torch::Tensor c = t.to(torch::kFloat32).contiguous();
-    return std::vector<float>(c.data_ptr<float>(), c.data_ptr<float>() + c.numel());
-  };
-  SplatCloud cloud;
-  cloud.means = values(g.means);
-  cloud.normals.assign(cloud.means.size(), 0.f);
-  cloud.sh_dc = values((g.colors - 0.5) / kShC0);
-  cloud.opacity_logit = values(torch::logit(g.opacities.reshape({-1}).clamp(1e-6, 1 - 1e-6)));
-  cloud.log_scales = values(g.scales.clamp_min(1e-12).log());
-  cloud.rotations = values(g.quats);
-  return cloud;
-}
-
 // An existing target may be replaced only if it is an earlier synthetic scene or empty.
 void check_replaceable(const fs::path& dir) {
   if (!fs::exists(dir)) return;
@@ -211,8 +195,8 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
   write_camera_json(partial / "cameras.json", cameras);
 
   if (options.save_gaussians) {
-    write_splat_ply(partial / "background.ply", to_splat_cloud(scene.background));
-    write_splat_ply(partial / "object.ply", to_splat_cloud(scene.object));
+    write_splat_ply(partial / "background.ply", splats_from_gaussians(scene.background));
+    write_splat_ply(partial / "object.ply", splats_from_gaussians(scene.object));
   }
 
   summary.views = static_cast<int>(scene.views.size());

@@ -7,6 +7,7 @@
 
 #include "common/error.h"
 #include "common/torch_compat.h"
+#include "model/device.h"
 
 // LibTorch compiles these headers only when the consumer defines the backend macros.
 #if II_HAS_C10D_GLOO
@@ -67,6 +68,12 @@ DistributedConfig DistributedConfig::from_environment() {
   if (c.world_size > 1 && !std::getenv("MASTER_ADDR"))
     spdlog::warn("WORLD_SIZE={} without MASTER_ADDR: using {}", c.world_size, c.master_addr);
   return c;
+}
+
+torch::Device rank_device(const std::string& device, const DistributedConfig& config) {
+  if (device != "cuda") return torch::kCPU;
+  resolve_device(device);  // refuses, with the reason, when LibTorch sees no GPU
+  return torch::Device(torch::kCUDA, config.local_rank % std::max<int64_t>(1, torch::cuda::device_count()));
 }
 
 std::vector<std::string> available_distributed_backends() {

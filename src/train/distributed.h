@@ -28,6 +28,11 @@ struct DistributedConfig {
   static DistributedConfig from_environment();
 };
 
+// The device a rank trains on: "cuda" gives each process of a machine its own GPU (local rank
+// modulo the GPUs there) and is refused, with the reason, where LibTorch sees none; anything
+// else is the CPU.
+torch::Device rank_device(const std::string& device, const DistributedConfig& config);
+
 // Which collective backends this build has ("gloo", "nccl"), for messages.
 std::vector<std::string> available_distributed_backends();
 

@@ -14,6 +14,7 @@
 #include "common/stopwatch.h"
 #include "io/image.h"
 #include "model/checkpoint.h"
+#include "tensor/image_tensor.h"
 #include "train/parameters.h"
 
 namespace ii {
@@ -61,10 +62,7 @@ Image comparison_image(const torch::Tensor& targets, const torch::Tensor& render
   const int64_t n = std::min<int64_t>(4, targets.size(0));
   const torch::Tensor top = torch::cat(targets.narrow(0, 0, n).unbind(0), 2);   // (3, H, n W)
   const torch::Tensor bottom = torch::cat(renders.narrow(0, 0, n).unbind(0), 2);
-  const torch::Tensor grid = ((torch::cat({top, bottom}, 1) + 1) * 0.5).clamp(0, 1).permute({1, 2, 0}).contiguous();
-  Image image(static_cast<int>(grid.size(1)), static_cast<int>(grid.size(0)), 3);
-  std::memcpy(image.pixels.data(), grid.data_ptr<float>(), image.pixels.size() * sizeof(float));
-  return image;
+  return tensor_to_image(((torch::cat({top, bottom}, 1) + 1) * 0.5).clamp(0, 1));
 }
 
 nlohmann::json options_json(const TrainRunOptions& o, const DistributedConfig& d, const std::string& perceptual) {
@@ -124,8 +122,6 @@ std::vector<Scene> load_training_scenes(const std::vector<fs::path>& dirs, const
       if (found == 0) fail("--scenes: {} is neither a scene nor a folder of scenes ({})", dir.string(), as_scene.what());
     }
   }
-  for (const Scene& s : scenes)
-    for (const std::string& w : s.warnings) spdlog::warn("{}: {}", s.root.string(), w);
   return scenes;
 }
 

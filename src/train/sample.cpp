@@ -10,7 +10,7 @@
 #include "common/error.h"
 #include "data/image_ops.h"
 #include "data/preprocess.h"
-#include "eval/metrics.h"
+#include "tensor/image_tensor.h"
 
 namespace ii {
 
@@ -142,24 +142,17 @@ std::string scene_name(const Scene& scene) {
 
 // Resize that covers the working size (height first, as the official code), then a crop at
 // the same relative position in every view of the sample.
-struct ViewGeometry {
-  int resized_width = 0, resized_height = 0, crop_x = 0, crop_y = 0;
-  Camera camera;  // scene units, exact for the working image
+// A training view's working size (data/preprocess.h) and its exact camera (scene units).
+struct ViewGeometry : WorkingSize {
+  Camera camera;
 };
 
 ViewGeometry view_geometry(const View& view, const SamplerOptions& o, double crop_fx, double crop_fy) {
-  const int64_t W = view.camera.K.width, H = view.camera.K.height;
+  const int W = view.camera.K.width, H = view.camera.K.height;
   if (W <= 0 || H <= 0) fail("view {}: camera has no image size", view.name);
-  int64_t h = std::max<int64_t>(o.height, (static_cast<int64_t>(o.width) * H + W - 1) / W);
-  while (W * h / H < o.width) ++h;
   ViewGeometry g;
-  g.resized_height = static_cast<int>(h);
-  g.resized_width = static_cast<int>(W * h / H);
-  const int free_x = g.resized_width - o.width, free_y = g.resized_height - o.height;
-  g.crop_x = std::min(free_x, static_cast<int>(crop_fx * (free_x + 1)));
-  g.crop_y = std::min(free_y, static_cast<int>(crop_fy * (free_y + 1)));
-  g.camera = view.camera.resized(g.resized_width, g.resized_height)
-                 .cropped(g.crop_x, g.crop_y, o.width, o.height);
+  static_cast<WorkingSize&>(g) = covering_size(W, H, o.width, o.height, crop_fx, crop_fy);
+  g.camera = g.working_camera(view.camera);
   return g;
 }
 
@@ -252,11 +245,8 @@ std::vector<int> input_positions(int length, int count) {
   return out;
 }
 
-torch::Tensor rgb_tensor(const Image& image) {
-  return torch::from_blob(const_cast<float*>(image.pixels.data()), {image.height, image.width, 3}, torch::kFloat32)
-             .permute({2, 0, 1})
-             .clone() * 2.0 - 1.0;
-}
+// A photo in the network's range [-1, 1], (3, H, W).
+torch::Tensor rgb_tensor(const Image& image) { return image_to_tensor(image)[0] * 2.0 - 1.0; }
 
 }  // namespace
 

@@ -10,7 +10,8 @@
 #include "common/stopwatch.h"
 #include "eval/metrics.h"
 #include "io/safetensors.h"
-#include "render/gaussians.h"
+#include "tensor/tensor_file.h"
+#include "gaussians/gaussians.h"
 #include "render/rasterizer.h"
 #include "train/distributed.h"
 
@@ -23,30 +24,6 @@ namespace {
 // Checkpoint names of the non-model tensors (model keys keep their official names).
 constexpr std::string_view kExpAvg = "optimizer.exp_avg.", kExpAvgSq = "optimizer.exp_avg_sq.",
                            kRng = "rng.cpu_generator";
-
-TensorData tensor_data(const torch::Tensor& t) {
-  const torch::Tensor c = t.detach().to(torch::kCPU).contiguous();
-  TensorData d;
-  switch (c.scalar_type()) {
-    case torch::kFloat32: d.dtype = "F32"; break;
-    case torch::kUInt8: d.dtype = "U8"; break;
-    case torch::kInt64: d.dtype = "I64"; break;
-    default: fail("checkpoint: unsupported tensor type {}", c10::toString(c.scalar_type()));
-  }
-  d.shape.assign(c.sizes().begin(), c.sizes().end());
-  d.bytes.resize(c.numel() * c.element_size());
-  if (!d.bytes.empty()) std::memcpy(d.bytes.data(), c.data_ptr(), d.bytes.size());
-  return d;
-}
-
-torch::Tensor from_data(const TensorData& d, const fs::path& file) {
-  torch::ScalarType type;
-  if (d.dtype == "F32") type = torch::kFloat32;
-  else if (d.dtype == "U8") type = torch::kUInt8;
-  else if (d.dtype == "I64") type = torch::kInt64;
-  else fail_file(file, "unexpected tensor dtype {} in a training checkpoint", d.dtype);
-  return torch::from_blob(const_cast<uint8_t*>(d.bytes.data()), d.shape, torch::TensorOptions().dtype(type)).clone();
-}
 
 // Per-sample slice b of the per-pixel maps, (1, V, C, H, W).
 GaussianMaps slice(const GaussianMaps& m, int64_t b) {
@@ -275,21 +252,20 @@ int Trainer::load_weight_norm(const StateDict& pairs, const std::string& source)
 }
 
 void Trainer::save(const fs::path& path, const nlohmann::json& state) const {
-  std::vector<std::pair<std::string, TensorData>> tensors;
+  std::vector<std::pair<std::string, torch::Tensor>> tensors;
   const auto& names = params_.names();
-  for (size_t i = 0; i < names.size(); ++i) tensors.emplace_back(names[i], tensor_data(params_.tensors()[i]));
-  for (size_t i = 0; i < names.size(); ++i) tensors.emplace_back(std::string(kExpAvg) + names[i], tensor_data(optimizer_->exp_avg()[i]));
-  for (size_t i = 0; i < names.size(); ++i)
-    tensors.emplace_back(std::string(kExpAvgSq) + names[i], tensor_data(optimizer_->exp_avg_sq()[i]));
+  for (size_t i = 0; i < names.size(); ++i) tensors.emplace_back(names[i], params_.tensors()[i]);
+  for (size_t i = 0; i < names.size(); ++i) tensors.emplace_back(std::string(kExpAvg) + names[i], optimizer_->exp_avg()[i]);
+  for (size_t i = 0; i < names.size(); ++i) tensors.emplace_back(std::string(kExpAvgSq) + names[i], optimizer_->exp_avg_sq()[i]);
   {
     at::Generator generator = at::detail::getDefaultCPUGenerator();
     std::lock_guard<std::mutex> lock(generator.mutex());
-    tensors.emplace_back(std::string(kRng), tensor_data(generator.get_state()));
+    tensors.emplace_back(std::string(kRng), generator.get_state());
   }
   const nlohmann::json training = {{"step", optimizer_->steps()},
                                    {"perceptual", loss_.perceptual_name()},
                                    {"state", state}};
-  write_safetensors(path, tensors,
+  write_tensor_file(path, tensors,
                     {{"format", kTrainingStateFormat},
                      {"config", network_.config().to_json().dump()},
                      {"training", training.dump()}});
@@ -336,10 +312,10 @@ nlohmann::json Trainer::load(const SafetensorsFile& file, const fs::path& path) 
   StateDict model, avg, avg_sq;
   torch::Tensor rng;
   for (const auto& [name, data] : file.tensors) {
-    if (name.rfind(kExpAvgSq, 0) == 0) avg_sq[name.substr(kExpAvgSq.size())] = from_data(data, path);
-    else if (name.rfind(kExpAvg, 0) == 0) avg[name.substr(kExpAvg.size())] = from_data(data, path);
-    else if (name == kRng) rng = from_data(data, path);
-    else model[name] = from_data(data, path);
+    if (name.rfind(kExpAvgSq, 0) == 0) avg_sq[name.substr(kExpAvgSq.size())] = tensor_from_data(data, path);
+    else if (name.rfind(kExpAvg, 0) == 0) avg[name.substr(kExpAvg.size())] = tensor_from_data(data, path);
+    else if (name == kRng) rng = tensor_from_data(data, path);
+    else model[name] = tensor_from_data(data, path);
   }
   params_.load(model, path.string());
   std::vector<torch::Tensor> m, v;
@@ -365,12 +341,11 @@ nlohmann::json Trainer::load(const SafetensorsFile& file, const fs::path& path) 
 }
 
 void Trainer::export_model(const fs::path& path, const nlohmann::json& metadata) const {
-  std::vector<std::pair<std::string, TensorData>> tensors;
-  for (size_t i = 0; i < params_.names().size(); ++i)
-    tensors.emplace_back(params_.names()[i], tensor_data(params_.tensors()[i]));
+  std::vector<std::pair<std::string, torch::Tensor>> tensors;
+  for (size_t i = 0; i < params_.names().size(); ++i) tensors.emplace_back(params_.names()[i], params_.tensors()[i]);
   std::map<std::string, std::string> meta{{"format", "instainpaint"}, {"config", network_.config().to_json().dump()}};
   for (const auto& [k, v] : metadata.items()) meta[k] = v.is_string() ? v.get<std::string>() : v.dump();
-  write_safetensors(path, tensors, meta);
+  write_tensor_file(path, tensors, meta);
 }
 
 }  // namespace ii

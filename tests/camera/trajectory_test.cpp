@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <cmath>
 #include <fstream>
 
 #include "camera/trajectory.h"
@@ -123,6 +124,28 @@ TEST(CameraJson, ErrorsNameTheProblem) {
   EXPECT_NE(msg(R"([{"width": 10, "height": 10, "fx": 5, "convention": "dx", "c2w": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]}])")
                 .find("convention"),
             std::string::npos);
+}
+
+TEST(Trajectory, CameraSizesAndOrbitCentre) {
+  const Intrinsics K = intrinsics_fov_y(64, 32, M_PI / 2);
+  EXPECT_DOUBLE_EQ(K.fy, 16.0);  // 32 / (2 tan 45 deg)
+  EXPECT_DOUBLE_EQ(K.fx, 16.0);
+  EXPECT_DOUBLE_EQ(K.cx, 32.0);
+  Camera c;
+  c.K = {40, 20, 30, 30, 20, 10};
+  EXPECT_EQ(resized_to(c, 0, 0).K.width, 40);
+  EXPECT_EQ(resized_to(c, 0, 10).K.width, 20);  // the aspect ratio kept
+  EXPECT_EQ(resized_to(c, 80, 0).K.height, 40);
+  EXPECT_DOUBLE_EQ(resized_to(c, 80, 0).K.fx, 60.0);
+  std::vector<Camera> cams(3, c);
+  cams[0].c2w(0, 3) = -3;
+  cams[1].c2w(0, 3) = 0.5;  // nearest to the mean x = 0
+  cams[2].c2w(0, 3) = 2.5;
+  EXPECT_EQ(central_camera_position(cams).x(), 0.5);
+  // A turntable around a sphere keeps it in view: every camera at the same distance.
+  const Eigen::Vector3d centre(1, 2, 3);
+  for (const Camera& t : turntable_around_sphere(centre, 1.0, M_PI / 3, 20, Eigen::Vector3d::UnitY(), 4, 32, 32))
+    EXPECT_NEAR((t.center() - centre).norm(), 2.0, 1e-9);  // 1 / sin(30 deg)
 }
 
 }  // namespace

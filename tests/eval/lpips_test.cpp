@@ -10,6 +10,7 @@
 #include "io/image.h"
 #include "io/safetensors.h"
 #include "eval/metrics.h"
+#include "tensor/image_tensor.h"
 #include "test_support.h"
 
 namespace ii {

@@ -203,14 +203,5 @@ TEST(Metrics, BadInputsNameTheProblem) {
             "crop: box [2, 6) x [2, 3) is empty or outside the 4x4 image");
 }
 
-TEST(Metrics, ImageTensorRoundTrip) {
-  Image image(5, 3, 3);
-  for (size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] = float(i) / image.pixels.size();
-  const torch::Tensor t = image_to_tensor(image);
-  ASSERT_EQ(t.sizes(), (c10::IntArrayRef{1, 3, 3, 5}));
-  EXPECT_FLOAT_EQ(t[0][2][1][4].item<float>(), image.at(1, 4, 2));
-  EXPECT_EQ(tensor_to_image(t).pixels, image.pixels);
-}
-
 }  // namespace
 }  // namespace ii

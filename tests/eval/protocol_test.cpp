@@ -14,6 +14,7 @@
 #include "io/image.h"
 #include "model/default_model.h"
 #include "synthetic_scene.h"
+#include "tensor/image_tensor.h"
 #include "test_support.h"
 
 namespace ii {

@@ -14,7 +14,7 @@
 #include "io/npy.h"
 #include "io/ply.h"
 #include "model/scene_input.h"
-#include "render/gaussians.h"
+#include "gaussians/gaussians.h"
 #include "render/rasterizer.h"
 
 namespace ii::test {

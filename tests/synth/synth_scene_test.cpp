@@ -9,6 +9,7 @@
 #include "synth/random.h"
 #include "synth/synth_scene.h"
 #include "synth/synth_views.h"
+#include "tensor/image_tensor.h"
 #include "test_support.h"
 
 namespace ii::synth {
@@ -109,18 +110,18 @@ TEST_P(SynthViews, CleanIsTheBackgroundAndTheMaskIsWhereTheObjectChangesTheImage
     rc.camera = cam;
     RenderOptions options;
     options.background = s.render_background;
-    const Image background = image_from_tensor(render(s.background, rc, options).rgb);
+    const Image background = image_from_hwc(render(s.background, rc, options).rgb);
     EXPECT_EQ(background.pixels, r.clean.pixels);
     // The renderer culls and renders the object's neighbourhood only: still exactly the full
     // renders of the scene with the object and of the object-weight pass.
     GaussianSet all = combined_gaussians(s);
     const RenderOutput captured = render(all, rc, options);
-    EXPECT_EQ(image_from_tensor(captured.rgb).pixels, r.with_object.pixels);
-    EXPECT_EQ(image_from_tensor(captured.depth).pixels, r.depth.pixels);
+    EXPECT_EQ(image_from_hwc(captured.rgb).pixels, r.with_object.pixels);
+    EXPECT_EQ(image_from_hwc(captured.depth).pixels, r.depth.pixels);
     all.colors = torch::cat({torch::zeros({s.background.size(), 3}), torch::ones({s.object.size(), 3})});
     RenderOptions black = options;
     black.background = {0.f, 0.f, 0.f};
-    EXPECT_EQ(image_from_tensor(render(all, rc, black).rgb.narrow(2, 0, 1)).pixels, r.object_weight.pixels);
+    EXPECT_EQ(image_from_hwc(render(all, rc, black).rgb.narrow(2, 0, 1)).pixels, r.object_weight.pixels);
 
     // |with - clean| <= W + slack per pixel and channel (synth_views.h); outside the mask
     // that is below threshold + slack.

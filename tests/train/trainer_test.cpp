@@ -3,7 +3,7 @@
 // that overfits one sample.
 #include <gtest/gtest.h>
 
-#include "render/gaussians.h"
+#include "gaussians/gaussians.h"
 #include "render/rasterizer.h"
 #include "test_support.h"
 #include "train/trainer.h"

@@ -1,0 +1,56 @@
+#pragma once
+// The library's one path from a scene to Gaussians: load a model once, predict many times
+// (the shape of llama.cpp's load-once, call-many API). `infer` and `eval` call it; anything
+// that edits, refines or serves scenes does too.
+//
+//   const Predictor predictor("release.pth", device, precision);   // reads and uploads the weights
+//   SceneInputOptions input;                                       // context views, reference, masks
+//   input.reference_image = inpainted;                            // in memory, or a file
+//   const Prediction p = predictor.predict(scene, input);
+//   render(p.gaussians(), camera);                                 // in the pose-normalised frame
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "gaussians/gaussians.h"
+#include "model/config.h"
+#include "model/network.h"
+#include "model/scene_input.h"
+
+namespace ii {
+
+struct Prediction {
+  SceneInput input;   // what the network saw: context views (reference first), normalisation
+  GaussianMaps maps;  // (1, V, C, H, W) on the predictor's device, in the pose-normalised frame
+  double prepare_ms = 0, upload_ms = 0, network_ms = 0;  // preprocessing, upload, network
+
+  // One Gaussian per input pixel, rows in the official order (views of `maps`).
+  GaussianSet gaussians() const { return gaussians_from_maps(maps); }
+};
+
+class Predictor {
+ public:
+  // Reads `checkpoint` (an official .pth or safetensors; empty = the default model built into
+  // the library) and moves it to `device`. Errors name the file and what does not fit.
+  Predictor(const std::string& checkpoint, const torch::Device& device, Precision precision);
+
+  // Prepares the scene's input as `options` say (context views, reference, masks), checks
+  // that the model can take it, uploads it and runs the network without gradients.
+  Prediction predict(const Scene& scene, const SceneInputOptions& options) const;
+
+  const std::string& model_name() const { return model_name_; }  // the file, or the default model's name
+  const std::string& format() const { return format_; }          // "pth", "safetensors", ...
+  const ModelConfig& config() const { return network_.config(); }
+  const torch::Device& device() const { return device_; }
+  Precision precision() const { return precision_; }
+  // {"checkpoint", "format", "config"}: what run.json and metrics.json record of the model.
+  nlohmann::json describe() const;
+
+ private:
+  std::string model_name_, format_;
+  torch::Device device_;
+  Precision precision_;
+  Network network_;
+};
+
+}  // namespace ii

@@ -1,0 +1,17 @@
+#pragma once
+// Images (io/image.h: HWC floats in [0,1]) as LibTorch tensors and back: the one conversion
+// every torch concern uses.
+#include <torch/torch.h>
+
+#include "io/image.h"
+
+namespace ii {
+
+// (1, C, H, W) float32 on the CPU.
+torch::Tensor image_to_tensor(const Image& image);
+// From (C, H, W) or (1, C, H, W), any device and dtype.
+Image tensor_to_image(const torch::Tensor& t);
+// From (H, W, C), any device and dtype: what the renderer returns.
+Image image_from_hwc(const torch::Tensor& hwc);
+
+}  // namespace ii

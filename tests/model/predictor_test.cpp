@@ -1,0 +1,93 @@
+// The library's predict path: a model loaded once, predictions from files or from images and
+// masks in memory.
+#include <gtest/gtest.h>
+
+#include "data/scene.h"
+#include "model/default_model.h"
+#include "model/inference.h"
+#include "model/predictor.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+namespace fs = std::filesystem;
+
+#define II_REQUIRE_DEFAULT_MODEL() \
+  if (!has_default_model()) GTEST_SKIP() << "this build has no default model"
+
+SceneInputOptions two_views() {
+  SceneInputOptions opts;
+  opts.context = {"IMG_2720", "IMG_2707"};
+  opts.preprocess.height = 64;
+  return opts;
+}
+
+void expect_same_maps(const GaussianMaps& a, const GaussianMaps& b) {
+  EXPECT_TRUE(torch::equal(a.xyz, b.xyz));
+  EXPECT_TRUE(torch::equal(a.rgb, b.rgb));
+  EXPECT_TRUE(torch::equal(a.opacity, b.opacity));
+  EXPECT_TRUE(torch::equal(a.scale, b.scale));
+  EXPECT_TRUE(torch::equal(a.rotation, b.rotation));
+}
+
+TEST(Predictor, GivesWhatTheStepsItReplacesGive) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  II_REQUIRE_DEFAULT_MODEL();
+  const Scene scene = load_scene(dir);
+  const Predictor predictor("", torch::kCPU, Precision::Float32);
+  EXPECT_EQ(predictor.model_name(), kDefaultModelName);
+  EXPECT_EQ(predictor.describe()["format"], "safetensors");
+  EXPECT_EQ(predictor.describe()["config"], predictor.config().to_json());
+  const Prediction p = predictor.predict(scene, two_views());
+  ASSERT_EQ(p.maps.xyz.sizes(), (std::vector<int64_t>{1, 2, 3, 64, 80}));
+  EXPECT_EQ(p.input.reference_source, "telea");
+
+  const SceneInput si = prepare_scene_input(scene, two_views());
+  const Network net = network_from_checkpoint(default_checkpoint(), "default");
+  expect_same_maps(p.maps, run_network(net, si.input, Precision::Float32));
+  EXPECT_EQ(p.gaussians().size(), 2 * 64 * 80);
+  // Loaded once, called again: the same answer.
+  expect_same_maps(predictor.predict(scene, two_views()).maps, p.maps);
+}
+
+TEST(Predictor, ImagesAndMasksInMemoryEqualTheirFiles) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  II_REQUIRE_DEFAULT_MODEL();
+  const Scene scene = load_scene(dir);
+  const Predictor predictor("", torch::kCPU, Precision::Float32);
+  SceneInputOptions from_files = two_views();
+  from_files.reference = scene.find("IMG_2708")->image_path;  // any photo of the right size
+  const Prediction files = predictor.predict(scene, from_files);
+
+  // The same images, given in memory; the scene's own masks are not looked at.
+  Scene bare = scene;
+  for (View& v : bare.views) v.mask_path.reset();
+  SceneInputOptions in_memory = two_views();
+  in_memory.reference_image = read_image_rgb(*from_files.reference);
+  for (const char* name : {"IMG_2720", "IMG_2707"}) in_memory.masks[name] = read_mask(*scene.find(name)->mask_path);
+  const Prediction memory = predictor.predict(bare, in_memory);
+  EXPECT_EQ(memory.input.reference_source, "image in memory");
+  expect_same_maps(memory.maps, files.maps);
+
+  in_memory.masks["IMG_2707"] = Image(10, 10, 1);
+  EXPECT_EQ(test::error_message([&] { predictor.predict(bare, in_memory); }),
+            "mask for view IMG_2707: 10x10 with 1 channels, the view's image is 504x378 (one channel expected)");
+  in_memory.masks.erase("IMG_2707");
+  EXPECT_EQ(test::error_message([&] { predictor.predict(bare, in_memory); }),
+            "view IMG_2707 has no object mask: give masks for every context view (--masks DIR or --alpha-masks)");
+  in_memory.reference_image = Image(7, 5, 3);
+  EXPECT_EQ(test::error_message([&] { predictor.predict(scene, in_memory); }),
+            "reference image in memory: reference image is 7x5, but view IMG_2720 is 504x378 (working size 80x64): "
+            "give the inpainted image at either size");
+}
+
+TEST(Predictor, BadCheckpointIsAClearError) {
+  const fs::path bad = test::temp_dir("predictor") / "model.safetensors";
+  test::write_bytes(bad, "not a model");
+  EXPECT_NE(test::error_message([&] { Predictor(bad.string(), torch::kCPU, Precision::Float32); }).find(bad.string()),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace ii
