@@ -62,7 +62,7 @@ void run(const InferArgs& a) {
   timings["prepare_inputs_ms"] = p.prepare_ms;
   timings["upload_inputs_ms"] = p.upload_ms;
   timings["network_ms"] = p.network_ms;
-  watch.lap();
+  watch.lap();  // the prediction's parts are timed above
 
   spdlog::info("[4/4] writing {}", a.out);
   const fs::path out(a.out);
