@@ -85,16 +85,15 @@ void progress(int done, int total, double seconds) {
 }
 
 // The CUDA rasterizer when asked for (or, with auto, when there is one), else the CPU.
-torch::Device render_device(const std::string& name) {
+torch::Device chosen_render_device(const std::string& name) {
   const torch::Device device = resolve_device(name);
-  if (!device.is_cuda() || render_has_cuda()) return device;
-  if (name != "auto")
+  if (device.is_cuda() && !render_has_cuda() && name != "auto")
     fail("--device {}: this build has no CUDA rasterizer (no nvcc when it was configured)", name);
-  return torch::kCPU;
+  return render_device(device);
 }
 
 void run(const RenderArgs& a) {
-  const torch::Device device = render_device(a.device);
+  const torch::Device device = chosen_render_device(a.device);
   set_cpu_threads(a.threads);
   const int sources = !a.scene_dir.empty() + !a.cameras.empty();
   if (sources > 1) fail("give cameras either with --scene or with --cameras, not both");

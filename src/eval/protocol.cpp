@@ -176,8 +176,8 @@ MetricNetworks load_metric_networks(const EvalOptions& o, const torch::Device& d
   return m;
 }
 
-// The predicted Gaussians, float32 on `render_device`.
-GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const torch::Device& render_device,
+// The predicted Gaussians, float32 on `render_on` (where the rasterizer runs).
+GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const torch::Device& render_on,
                               json& info, json& timings) {
   Stopwatch watch;
   if (o.gaussians) {
@@ -185,7 +185,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
     info["source"] = "gaussians";
     info["ply"] = o.gaussians->string();
     timings["read_gaussians_ms"] = watch.lap();
-    return gaussians_from_splats(cloud, o.sh_degree).to(render_device);
+    return gaussians_from_splats(cloud, o.sh_degree).to(render_on);
   }
   info["source"] = "network";
   const std::string checkpoint = o.checkpoint ? o.checkpoint->string() : "";
@@ -212,7 +212,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   timings["network_ms"] = p.network_ms;
   GaussianSet g = p.gaussians();
   for (torch::Tensor* t : {&g.means, &g.quats, &g.scales, &g.opacities, &g.colors})
-    *t = t->to(render_device, torch::kFloat32);
+    *t = t->to(render_on, torch::kFloat32);
   return g;
 }
 
@@ -391,7 +391,7 @@ json run_evaluation(const EvalOptions& o) {
   quantize_image(Image(1, 1, 1), o.quantize);  // validates the mode before any work
   const torch::Device device = o.device;
   // Without the CUDA rasterizer kernels a GPU run renders on the CPU.
-  const torch::Device render_device = device.is_cuda() && render_has_cuda() ? device : torch::Device(torch::kCPU);
+  const torch::Device render_on = render_device(device);
   if (o.method == EvalMethod::model && o.checkpoint && o.gaussians)
     fail("eval: give either --checkpoint or --gaussians, not both");
   if (o.method != EvalMethod::model && (o.checkpoint || o.gaussians))
@@ -409,7 +409,7 @@ json run_evaluation(const EvalOptions& o) {
   std::optional<GaussianSet> gaussians;
   if (o.method == EvalMethod::model) {
     json stage_timings = json::object();
-    gaussians = predict_gaussians(scene, o, render_device, prediction, stage_timings);
+    gaussians = predict_gaussians(scene, o, render_on, prediction, stage_timings);
     for (const auto& [k, v] : stage_timings.items()) timings[k] = v;
     prediction["gaussians"] = gaussians->size();
     watch.lap();

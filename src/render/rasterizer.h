@@ -69,5 +69,8 @@ RenderOutput render_reference(const GaussianSet& gaussians, const RenderCamera& 
 
 // Whether render() can run on CUDA tensors in this build.
 bool render_has_cuda();
+// Where render() runs for work meant for `device`: there when it is the CPU or when this build
+// renders on CUDA, else the CPU.
+torch::Device render_device(const torch::Device& device);
 
 }  // namespace ii

@@ -223,6 +223,10 @@ bool render_has_cuda() {
 #endif
 }
 
+torch::Device render_device(const torch::Device& device) {
+  return !device.is_cuda() || render_has_cuda() ? device : torch::Device(torch::kCPU);
+}
+
 RenderOutput render(const GaussianSet& gaussians, const RenderCamera& camera, const RenderOptions& options) {
   const splat::CameraParams cam = render_detail::camera_params(camera, options);
   RasterInputs in = render_detail::prepare_inputs(gaussians);

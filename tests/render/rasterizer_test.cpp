@@ -163,6 +163,12 @@ TEST(Rasterizer, OpacityShapesAndMixedDtypes) {
   EXPECT_EQ(b.rgb.scalar_type(), torch::kFloat32);
 }
 
+TEST(Rasterizer, RendersWhereItCan) {
+  EXPECT_EQ(render_device(torch::kCPU), torch::Device(torch::kCPU));
+  const torch::Device gpu(torch::kCUDA, 0);
+  EXPECT_EQ(render_device(gpu), render_has_cuda() ? gpu : torch::Device(torch::kCPU));
+}
+
 TEST(Rasterizer, BadInputIsAnError) {
   const GaussianSet good = test::random_scene(5, -1, torch::kFloat32, 9);
   GaussianSet g = good;
