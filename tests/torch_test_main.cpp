@@ -3,7 +3,7 @@
 // saw different numbers in every run (and passed or failed by chance). Every test now starts
 // from the same seed, whatever it forgets and whichever tests ran before it in the process.
 #include <gtest/gtest.h>
-#include <torch/torch.h>
+#include "common/torch.h"
 
 namespace {
 class SeedEveryTest : public ::testing::EmptyTestEventListener {

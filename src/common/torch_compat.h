@@ -1,7 +1,7 @@
 #pragma once
 // Every difference between the LibTorch versions we build against lives here: Debian's
 // 1.13 (CPU, the CI target) and the 2.x that ships with current PyTorch (GPU machines).
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #if defined(TORCH_VERSION_MAJOR) && TORCH_VERSION_MAJOR >= 2
 #define II_TORCH2 1

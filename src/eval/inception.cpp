@@ -1,5 +1,6 @@
 #include "eval/inception.h"
 
+#include <torch/nn/functional.h>
 #include <cstdlib>
 
 #include <fmt/ranges.h>

@@ -1,5 +1,6 @@
 #include "eval/lpips.h"
 
+#include <torch/nn/functional.h>
 #include <algorithm>
 #include <cstdlib>
 #include <limits>

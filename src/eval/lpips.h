@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "eval/weights.h"
 

@@ -1,5 +1,6 @@
 #include "eval/metrics.h"
 
+#include <torch/nn/functional.h>
 #include <algorithm>
 #include <cmath>
 #include <limits>

@@ -18,7 +18,7 @@
 //    mask_bounding_box); for SSIM the box is grown to at least 11×11 inside the image.
 #include <optional>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "io/image.h"
 

@@ -12,7 +12,7 @@
 // The activations (sigmoid opacity, exponential scale, SH DC colour) and their inverses are
 // written here and nowhere else.
 #include <Eigen/Core>
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "io/ply.h"
 

@@ -2,7 +2,7 @@
 // Global multi-head attention whose memory grows linearly with the token count: queries are
 // processed in chunks, so the N x N score matrix never exists at once (4 views of 512 x 904
 // are 28,928 tokens; the full matrix would need 53 GB in float32 for 16 heads).
-#include <torch/torch.h>
+#include "common/torch.h"
 
 namespace ii {
 

@@ -8,7 +8,7 @@
 #include <string>
 
 #include <nlohmann/json.hpp>
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "io/safetensors.h"
 #include "model/config.h"

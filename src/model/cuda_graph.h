@@ -5,7 +5,7 @@
 // available() is false and constructing one says why.
 #include <memory>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "model/network.h"
 

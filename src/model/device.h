@@ -3,7 +3,7 @@
 // in a CPU-only LibTorch: "auto" then means the CPU and "cuda" is refused with the reason.
 #include <string>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "model/network.h"
 

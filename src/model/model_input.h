@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "camera/camera.h"
 #include "data/preprocess.h"

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "gaussians/gaussians.h"
 #include "model/config.h"

@@ -34,7 +34,7 @@
 #include <optional>
 #include <string>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "camera/camera.h"
 #include "gaussians/gaussians.h"

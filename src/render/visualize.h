@@ -1,7 +1,7 @@
 #pragma once
 // Pictures of what the renderer and the network produce, for people to look at: depth maps
 // in INFERNO colours (near = bright).
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "io/image.h"
 

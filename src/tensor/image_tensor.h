@@ -1,7 +1,7 @@
 #pragma once
 // Images (io/image.h: HWC floats in [0,1]) as LibTorch tensors and back: the one conversion
 // every torch concern uses.
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "io/image.h"
 

@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "io/pickle.h"
 #include "io/safetensors.h"

@@ -11,7 +11,7 @@
 #include <optional>
 #include <string>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 namespace ii {
 

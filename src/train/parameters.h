@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "model/checkpoint.h"
 #include "model/network.h"

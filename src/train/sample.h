@@ -32,7 +32,7 @@
 #include <thread>
 #include <vector>
 
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "camera/camera.h"
 #include "data/masks.h"

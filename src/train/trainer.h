@@ -16,7 +16,7 @@
 #include <vector>
 
 #include <nlohmann/json.hpp>
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "io/safetensors.h"
 #include "model/network.h"

@@ -1,6 +1,7 @@
 // LPIPS: heads from shared/data/lpips, the backbone layer layout against an independent
 // torchvision-style module stack, identity/symmetry, gradients, masked and spatial variants,
 // clear errors; the published reference value when a VGG16 backbone file is supplied.
+#include <torch/nn.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -1,4 +1,5 @@
 // The Gaussian forms and their conversions: splat clouds, network maps, renderable sets.
+#include <torch/nn/functional.h>
 #include <gtest/gtest.h>
 
 #include <cmath>

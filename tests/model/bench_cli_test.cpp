@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fmt/core.h>
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "common/files.h"
 #include "test_support.h"

@@ -1,6 +1,6 @@
 #pragma once
 // Scenes and cameras shared by the renderer tests.
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include <cmath>
 #include <filesystem>

@@ -1,6 +1,7 @@
 // Data-parallel training over Gloo with real processes on loopback: two processes with one
 // sample each end with the weights of one process with both samples, and a process that
 // dies makes the other fail with a clear error instead of waiting.
+#include <torch/serialize.h>
 #include <gtest/gtest.h>
 
 #include <fstream>

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include "model/config.h"
 #include "model/model_input.h"

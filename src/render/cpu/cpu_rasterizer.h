@@ -1,7 +1,7 @@
 #pragma once
 // CPU back end of render(): projection, depth sort, tile binning, per-tile compositing and
 // its analytic backward, for float or double tensors. Internal to src/render.
-#include <torch/torch.h>
+#include "common/torch.h"
 
 #include <functional>
 
