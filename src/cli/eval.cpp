@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "cli/commands.h"
+#include "cli/edit_options.h"
 #include "cli/runtime.h"
 #include "eval/protocol.h"
 
@@ -26,6 +27,7 @@ struct EvalArgs {
   int ring_width = 8;
   std::string lpips_vgg, lpips_alex, lpips_heads, inception;
   bool no_report = false;
+  EditArgs edit;
   RuntimeOptions runtime;
 };
 
@@ -53,6 +55,9 @@ void run(const EvalArgs& a) {
   o.gaussians = optional_path(a.gaussians);
   o.reference = optional_path(a.reference);
   o.context = a.context;
+  o.reference_view = a.edit.reference_view;
+  o.inpainter = parse_inpainter(a.edit.inpainter);
+  if (!a.edit.view.empty()) o.edit = one_mask_request(a.edit, load_scene(a.scene_dir, a.scene));
   o.num_views = a.views;
   o.height = a.height;
   o.sh_degree = a.sh_degree;
@@ -66,8 +71,8 @@ void run(const EvalArgs& a) {
   const nlohmann::json m = run_evaluation(o);
 
   const nlohmann::json& mean = m["mean"];
-  fmt::print("{} ({}): {} test views\n", m["scene"].get<std::string>(), m["method"].get<std::string>(),
-             m["views"].size());
+  fmt::print("{} ({}, task {}): {} test views\n", m["scene"].get<std::string>(), m["method"].get<std::string>(),
+             m["task"].get<std::string>(), m["views"].size());
   fmt::print("  PSNR {}  SSIM {}  masked PSNR {}  masked SSIM {}\n", shown(mean.value("psnr", nlohmann::json()), 2),
              shown(mean.value("ssim", nlohmann::json()), 4), shown(mean.value("masked_psnr", nlohmann::json()), 2),
              shown(mean.value("masked_ssim", nlohmann::json()), 4));
@@ -98,8 +103,10 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--method", a->method,
                   "model: the Gaussians of --checkpoint or --gaussians; telea: each test view's mask filled by "
                   "OpenCV Telea from its own ground truth; mean-fill: filled with the mean colour of a ring around "
-                  "the mask")
-      ->check(CLI::IsMember({"model", "telea", "mean-fill"}))
+                  "the mask. Insertion scenes (synth --task insert): floor: the view with nothing inserted "
+                  "(original/); sticker: that view with the --reference's edit region pasted flat at the background "
+                  "depth")
+      ->check(CLI::IsMember({"model", "telea", "mean-fill", "floor", "sticker"}))
       ->capture_default_str();
   cmd->add_option("--checkpoint", a->checkpoint,
                   "Model weights: official .pth or safetensors (default: the embedded default model)")
@@ -113,6 +120,8 @@ void add_eval_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--context", a->context, "Context views by name, reference first (default: automatic)")
       ->delimiter(',');
+  add_reference_options(cmd, a->edit);
+  add_edit_options(cmd, a->edit);
   cmd->add_option("--views", a->views, "Number of context views when chosen automatically")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));

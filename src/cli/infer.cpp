@@ -4,8 +4,10 @@
 #include <spdlog/spdlog.h>
 
 #include <filesystem>
+#include <optional>
 
 #include "cli/commands.h"
+#include "cli/edit_options.h"
 #include "cli/runtime.h"
 #include "common/error.h"
 #include "common/files.h"
@@ -32,17 +34,22 @@ struct InferArgs {
   int views = 4;
   int height = 512;
   bool keep_object = false;
+  EditArgs edit;
   RuntimeOptions runtime;
 };
 
 void run(const InferArgs& a) {
   if (a.keep_object && !a.reference.empty()) fail("--keep-object uses the reference's own photo: drop --reference");
+  if (a.keep_object && !a.edit.view.empty()) fail("--keep-object masks nothing: drop --view and --mask");
+  if (a.edit.mode == "insert" && a.reference.empty())
+    fail("--mode insert needs --reference: the reference view's photo with the new object painted in");
   const Runtime runtime = apply_runtime_options(a.runtime);
   Stopwatch total, watch;
   nlohmann::json timings;
 
   spdlog::info("[1/4] reading scene {}", a.scene_dir);
   const Scene scene = load_scene(a.scene_dir, a.scene);
+  const std::optional<OneMask> edit = one_mask_request(a.edit, scene);
   timings["read_scene_ms"] = watch.lap();
 
   spdlog::info("[2/4] loading model {}", a.checkpoint.empty() ? kDefaultModelName : a.checkpoint);
@@ -55,6 +62,17 @@ void run(const InferArgs& a) {
   if (!a.reference.empty()) opts.reference = fs::path(a.reference);
   opts.preprocess.height = a.height;
   opts.keep_object = a.keep_object;
+  apply_reference_options(a.edit, opts);
+  nlohmann::json edit_report;
+  if (edit) {
+    spdlog::info("[2/4] masks for every view from the region on {}", edit->view);
+    const SceneMasks masks = masks_from_one(scene, *edit, [&]() -> const Predictor& { return predictor; }, opts);
+    masks.apply_to(opts, *edit);
+    edit_report = masks.describe(*edit);
+    spdlog::info("depth from {}; {} region{}", masks.depth_source, masks.regions.size(),
+                 masks.regions.size() == 1 ? "" : "s");
+    timings["masks_ms"] = watch.lap();
+  }
   spdlog::info("[3/4] running the {} model ({}, {}) on {} views at height {} ...", predictor.config().preset,
                precision_name(predictor.precision()), runtime.device.str(),
                a.context.empty() ? a.views : static_cast<int>(a.context.size()), a.height);
@@ -84,6 +102,7 @@ void run(const InferArgs& a) {
       {"format", scene.format},
       {"context", nlohmann::json::array()},
       {"reference", p.input.reference_source},
+      {"edit", edit_report},
       {"working_size", {shape[3], shape[2]}},
       {"model", predictor.describe()},
       {"precision", precision_name(predictor.precision())},
@@ -124,6 +143,8 @@ void add_infer_command(CLI::App& app) {
   cmd->add_option("--height", args->height, "Working height in pixels (width follows the aspect ratio)")
       ->capture_default_str()
       ->check(CLI::Range(8, 4096));
+  add_reference_options(cmd, args->edit);
+  add_edit_options(cmd, args->edit);
   cmd->add_flag("--keep-object", args->keep_object,
                 "Reconstruct the scene as captured, object included (no masks, no reference): a comparison "
                 "for the inpainted result");
@@ -131,8 +152,13 @@ void add_infer_command(CLI::App& app) {
   add_runtime_options(cmd, args->runtime);
   cmd->footer(
       "Writes OUT/gaussians.ply (standard 3DGS PLY), OUT/depth/*.png and OUT/run.json.\n"
-      "Example: instainpaint infer --scene ../shared/data/statue --checkpoint release.pth "
-      "--reference inpainted.png --out out/statue");
+      "Examples:\n"
+      "  remove (a mask in every view):  instainpaint infer --scene ../shared/data/statue --checkpoint release.pth "
+      "--reference inpainted.png --out out/statue\n"
+      "  remove (one mask):  instainpaint infer --scene SCENE --view IMG_2707 --mask region.png "
+      "--reference inpainted.png\n"
+      "  insert:  instainpaint infer --scene SCENE --mode insert --view IMG_2707 --mask region.png "
+      "--reference with_new_object.png");
   cmd->callback([args] { run(*args); });
 }
 

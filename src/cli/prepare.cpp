@@ -4,8 +4,10 @@
 #include <fmt/core.h>
 
 #include <filesystem>
+#include <optional>
 
 #include "cli/commands.h"
+#include "cli/edit_options.h"
 #include "common/files.h"
 #include "common/stopwatch.h"
 #include "io/image.h"
@@ -26,6 +28,9 @@ struct PrepareArgs {
   int views = 4;
   int height = 512;
   std::string out = "prepare-out";
+  EditArgs edit;
+  std::string checkpoint;
+  RuntimeOptions runtime;
 };
 
 // The image channels exactly as the network sees them, mapped back to [0,1] for viewing.
@@ -45,6 +50,15 @@ void run(const PrepareArgs& a) {
   opts.num_views = a.views;
   if (!a.reference.empty()) opts.reference = fs::path(a.reference);
   opts.preprocess.height = a.height;
+  apply_reference_options(a.edit, opts);
+  const std::optional<OneMask> edit = one_mask_request(a.edit, scene);
+  LazyPredictor predictor(a.checkpoint, a.runtime);
+  nlohmann::json edit_report;
+  if (edit) {
+    const SceneMasks masks = masks_from_one(scene, *edit, predictor.source(), opts);
+    masks.apply_to(opts, *edit);
+    edit_report = masks.describe(*edit);
+  }
   const SceneInput si = prepare_scene_input(scene, opts);
   const double build_ms = watch.lap();
 
@@ -58,6 +72,7 @@ void run(const PrepareArgs& a) {
   report["normalization"] = {{"mean", {si.normalization.mean.x(), si.normalization.mean.y(), si.normalization.mean.z()}},
                              {"scale", si.normalization.scale}};
   report["reference_source"] = si.reference_source;
+  report["edit"] = edit_report;
   const auto& shape = si.input.images.sizes();
   report["input"] = {{"views", shape[0]}, {"height", shape[2]}, {"width", shape[3]},
                      {"tokens", shape[0] * (shape[2] / 8) * (shape[3] / 8)}};
@@ -102,6 +117,13 @@ void add_prepare_command(CLI::App& app) {
                   "2D-inpainted image of the reference view (default: OpenCV Telea inpainting)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--height", args->height, "Working height in pixels")->capture_default_str()->check(CLI::Range(8, 4096));
+  add_reference_options(cmd, args->edit);
+  add_edit_options(cmd, args->edit);
+  cmd->add_option("--checkpoint", args->checkpoint,
+                  "With --view/--mask and no other depth: the model that reconstructs the marked view's depth "
+                  "(default: the built-in model)")
+      ->check(CLI::ExistingFile);
+  add_runtime_options(cmd, args->runtime);
   cmd->add_option("--out", args->out, "Output folder")->capture_default_str();
   cmd->footer("Example: instainpaint prepare --scene ../shared/data/statue --out prepare-out");
   cmd->callback([args] { run(*args); });

@@ -28,6 +28,7 @@ struct SynthArgs {
   int test_views = 8;
   int width = 256, height = 256;
   std::string object = "mixed";
+  std::string task = "remove";
   std::string splats = "../shared/data/splats";
   std::string degrade = "none";
   double detail = 1.0;
@@ -59,6 +60,7 @@ void run(const SynthArgs& a) {
   options.splat_dir = a.splats;
   options.detail = a.detail;
   synth::SynthWriteOptions write;
+  write.task = synth::parse_synth_task(a.task == "multi" ? "remove" : a.task);
   write.degrade = synth::parse_degradation(a.degrade);
   write.downscale = a.downscale;
   write.save_gaussians = a.save_gaussians;
@@ -72,11 +74,13 @@ void run(const SynthArgs& a) {
   for (int i = a.first; i < a.first + a.scenes; ++i) {
     Stopwatch watch;
     const uint64_t seed = synth::scene_seed(a.seed, i);
+    options.objects = a.task == "multi" ? 2 + static_cast<int>(seed % 2) : 1;  // two or three
     const synth::SynthScene scene = synth::generate_scene(options, seed);
     const double generate_s = watch.ms() / 1000;
     write.generator = {{"command", "synth"}, {"run_seed", a.seed},         {"scene_index", i},
                        {"views", a.views},   {"test_views", a.test_views}, {"object", a.object},
-                       {"detail", a.detail}, {"degrade", a.degrade}};
+                       {"detail", a.detail}, {"degrade", a.degrade},         {"task", a.task},
+                       {"objects", options.objects}};
     const int index = i - a.first;
     write.progress = [&](int done, int views) { progress_line(index, a.scenes, done, views, watch.ms() / 1000); };
     const std::filesystem::path dir = out / fmt::format("scene_{:03d}", i);
@@ -86,7 +90,8 @@ void run(const SynthArgs& a) {
         "{}: {} + {} test views, {} + {} Gaussians, {}, object {:.1f}% of the pixels, {:.1f} s "
         "({:.1f} s building the scene)",
         dir.string(), s.views, s.test_views, scene.background.size(), scene.object.size(),
-        scene.description["object"].value("kind", "?") == "splat"
+        options.objects > 1 ? fmt::format("{} procedural objects", options.objects)
+        : scene.description["object"].value("kind", "?") == "splat"
             ? "splat " + scene.description["object"].value("file", "")
             : "procedural " + scene.description["object"].value("shape", ""),
         100 * s.object_fraction, watch.ms() / 1000, generate_s);
@@ -115,6 +120,11 @@ void add_synth_command(CLI::App& app) {
                   "mixed (a splat in about a third of the scenes, when --splats has any)")
       ->check(CLI::IsMember({"procedural", "splat", "mixed"}))
       ->capture_default_str();
+  cmd->add_option("--task", a->task,
+                  "remove: the inputs show the object, the truth is the room without it; insert: the reverse (the "
+                  "reference shows the object the other inputs lack); multi: two or three objects removed at once")
+      ->check(CLI::IsMember({"remove", "insert", "multi"}))
+      ->capture_default_str();
   cmd->add_option("--splats", a->splats, "Folder of captured splat objects (*.ply, 3DGS or compressed)")
       ->capture_default_str();
   cmd->add_option("--degrade", a->degrade,
@@ -133,7 +143,9 @@ void add_synth_command(CLI::App& app) {
       "Each scene folder holds poses_bounds.npy, images_K/ (test_* object-free test views first, then view_* with\n"
       "the object), images_K/label/ and images_K/test_label/ (object masks), clean/ (every view without the\n"
       "object), depth/ and depth_clean/ (float32 .npy z-depth of images_K/ and clean/), reference.png,\n"
-      "cameras.json and synth.json (seed, reference, context views).\n"
+      "cameras.json and synth.json (seed, task, reference, context views). With --task insert the roles swap:\n"
+      "the inputs lack the object, reference.png and the test views show it, original/ holds the test views\n"
+      "without it.\n"
       "Example: instainpaint synth --out synth-data --scenes 4 --seed 7 --views 24 --test-views 8");
   cmd->callback([a] { run(*a); });
 }

@@ -6,7 +6,17 @@
 
 namespace ii {
 
-Image inpaint_telea(const Image& rgb, const Image& mask, double radius) {
+std::string inpainter_name(ClassicalInpainter method) {
+  return method == ClassicalInpainter::NavierStokes ? "ns" : "telea";
+}
+
+ClassicalInpainter parse_inpainter(const std::string& name) {
+  if (name == "telea") return ClassicalInpainter::Telea;
+  if (name == "ns") return ClassicalInpainter::NavierStokes;
+  fail("unknown 2D inpainter '{}' (telea or ns)", name);
+}
+
+Image inpaint_classical(const Image& rgb, const Image& mask, ClassicalInpainter method, double radius) {
   if (rgb.channels != 3 || mask.channels != 1 || rgb.width != mask.width || rgb.height != mask.height)
     fail("inpainting needs an RGB image and a one-channel mask of the same size");
   // cv::inpaint works on 8-bit images.
@@ -15,7 +25,7 @@ Image inpaint_telea(const Image& rgb, const Image& mask, double radius) {
     src.data[i] = static_cast<uint8_t>(std::clamp(rgb.pixels[i], 0.f, 1.f) * 255.f + 0.5f);
   for (size_t i = 0; i < mask.pixels.size(); ++i) m.data[i] = mask.pixels[i] > 0.5f ? 255 : 0;
   cv::Mat dst;
-  cv::inpaint(src, m, dst, radius, cv::INPAINT_TELEA);
+  cv::inpaint(src, m, dst, radius, method == ClassicalInpainter::NavierStokes ? cv::INPAINT_NS : cv::INPAINT_TELEA);
   Image out(rgb.width, rgb.height, 3);
   for (size_t i = 0; i < out.pixels.size(); ++i) out.pixels[i] = dst.data[i] / 255.f;
   return out;

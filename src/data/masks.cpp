@@ -11,7 +11,6 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/error.h"
-#include "io/colmap.h"
 #include "io/npy.h"
 
 namespace ii {
@@ -187,19 +186,32 @@ std::vector<Image> carry_mask_through_depth(const Image& reference_mask, const I
   return out;
 }
 
+Image read_depth_map(const fs::path& file, int width, int height, double png_scale) {
+  Image depth;
+  if (file.extension() == ".npy") {
+    const NpyArray array = read_npy(file);
+    const bool shape_ok = (array.shape.size() == 2 || (array.shape.size() == 3 && array.shape[2] == 1));
+    if (!shape_ok) fail_file(file, "depth must be an (H, W) or (H, W, 1) array");
+    depth = Image(static_cast<int>(array.shape[1]), static_cast<int>(array.shape[0]), 1);
+    depth.pixels = array.as_float();
+  } else {
+    const DecodedImage decoded = decode_image(file);
+    if (decoded.bit_depth != 16) fail_file(file, "a depth image must be a 16-bit PNG (or a .npy array)");
+    depth = Image(decoded.color.width, decoded.color.height, 1);
+    // 16-bit levels times the scale; level 0 = unknown (stays 0).
+    for (int y = 0; y < depth.height; ++y)
+      for (int x = 0; x < depth.width; ++x)
+        depth.at(y, x) = static_cast<float>(std::round(decoded.color.at(y, x) * 65535.0) * png_scale);
+  }
+  if (depth.width != width || depth.height != height)
+    fail_file(file, "depth is {}x{} but the view is {}x{}", depth.width, depth.height, width, height);
+  return depth;
+}
+
 std::optional<Image> load_view_depth(const Scene& scene, const View& view, const std::string& folder) {
   const fs::path file = scene.root / folder / (view.name + ".npy");
   if (!fs::exists(file)) return std::nullopt;
-  const NpyArray array = read_npy(file);
-  const bool shape_ok = (array.shape.size() == 2 || (array.shape.size() == 3 && array.shape[2] == 1));
-  if (!shape_ok) fail_file(file, "depth must be an (H, W) or (H, W, 1) array");
-  const int h = static_cast<int>(array.shape[0]), w = static_cast<int>(array.shape[1]);
-  if (w != view.camera.K.width || h != view.camera.K.height)
-    fail_file(file, "depth is {}x{} but image {} is {}x{}", w, h, view.image_path.filename().string(),
-              view.camera.K.width, view.camera.K.height);
-  Image depth(w, h, 1);
-  depth.pixels = array.as_float();
-  return depth;
+  return read_depth_map(file, view.camera.K.width, view.camera.K.height);
 }
 
 namespace {
@@ -218,22 +230,9 @@ std::shared_ptr<const std::vector<Eigen::Vector3d>> scene_points(const Scene& sc
     if (auto it = cache.find(key); it != cache.end()) return it->second;
   }
   auto points = std::make_shared<std::vector<Eigen::Vector3d>>();
-  // Only formats whose poses live in the COLMAP model's world frame (nerfstudio files
-  // usually re-orient the world).
-  if (scene.format == "llff" || scene.format == "colmap") {
-    for (const char* sub : {"sparse/0", "sparse", "."}) {
-      const fs::path dir = scene.root / sub;
-      const bool has_points = fs::exists(dir / "points3D.bin") || fs::exists(dir / "points3D.txt");
-      const bool has_cameras = fs::exists(dir / "cameras.bin") || fs::exists(dir / "cameras.txt");
-      if (!has_points || !has_cameras) continue;
-      const ColmapModel model = read_colmap_model(dir);
-      const size_t stride = std::max<size_t>(1, (model.points.size() + kMaxPointsPerScene - 1) / kMaxPointsPerScene);
-      size_t k = 0;
-      for (const auto& [id, point] : model.points)
-        if (k++ % stride == 0) points->push_back(point.xyz);
-      break;
-    }
-  }
+  const std::vector<Eigen::Vector3d> all = load_scene_points(scene);
+  const size_t stride = std::max<size_t>(1, (all.size() + kMaxPointsPerScene - 1) / kMaxPointsPerScene);
+  for (size_t k = 0; k < all.size(); k += stride) points->push_back(all[k]);
   std::lock_guard<std::mutex> lock(mutex);
   const auto [it, inserted] = cache.emplace(key, std::move(points));
   if (inserted) {

@@ -73,6 +73,11 @@ std::vector<Image> carry_mask_through_depth(const Image& reference_mask, const I
                                             const Camera& reference_camera,
                                             const std::vector<Camera>& cameras, int dilations = 2);
 
+// A depth map of a view from a file: a .npy float array of shape (H, W) or (H, W, 1) holding
+// z-depth in the scene's units, or a 16-bit PNG whose levels times `png_scale` are (level 0 =
+// unknown). Errors name the file: another size than width x height, another format.
+Image read_depth_map(const std::filesystem::path& file, int width, int height, double png_scale = 0.001);
+
 // Per-view depth of a scene, when it has one: `<scene root>/<folder>/<view stem>.npy`, a float
 // array of shape (H, W) or (H, W, 1) at the view image's size holding z-depth in the scene's
 // units (0, negative or non-finite = unknown). nullopt when the file does not exist. Synthetic

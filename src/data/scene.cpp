@@ -11,6 +11,7 @@
 #include "data/image_ops.h"
 #include "data/scene_readers.h"
 #include "data/undistort.h"
+#include "io/colmap.h"
 
 namespace ii {
 
@@ -91,6 +92,22 @@ Scene load_scene(const fs::path& dir, const SceneOptions& options) {
   for (const std::string& note : scene.notes) spdlog::info("{}", note);
   for (const std::string& w : scene.warnings) spdlog::warn("{}", w);
   return scene;
+}
+
+std::vector<Eigen::Vector3d> load_scene_points(const Scene& scene) {
+  std::vector<Eigen::Vector3d> points;
+  // Only formats whose poses live in the COLMAP model's world frame (nerfstudio files
+  // usually re-orient the world).
+  if (scene.format != "llff" && scene.format != "colmap") return points;
+  for (const char* sub : {"sparse/0", "sparse", "."}) {
+    const fs::path dir = scene.root / sub;
+    const bool has_points = fs::exists(dir / "points3D.bin") || fs::exists(dir / "points3D.txt");
+    const bool has_cameras = fs::exists(dir / "cameras.bin") || fs::exists(dir / "cameras.txt");
+    if (!has_points || !has_cameras) continue;
+    for (const auto& [id, point] : read_colmap_model(dir).points) points.push_back(point.xyz);
+    break;
+  }
+  return points;
 }
 
 PoseNormalization scene_normalization(const Scene& scene) {

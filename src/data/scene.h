@@ -49,6 +49,11 @@ Scene load_scene(const std::filesystem::path& dir, const SceneOptions& options =
 // test views alike (spec §5.1, normalize_mode "all").
 PoseNormalization scene_normalization(const Scene& scene);
 
+// The points of the scene's COLMAP model (sparse/0, sparse or the root, when points3D and
+// cameras files are there) in the world frame of its cameras; empty for other formats
+// (nerfstudio files usually re-orient the world) and scenes without points.
+std::vector<Eigen::Vector3d> load_scene_points(const Scene& scene);
+
 // Decodes a view's image as RGB in [0,1] (alpha composited on white), undistorted when the
 // view has distortion.
 Image load_view_image(const View& view);

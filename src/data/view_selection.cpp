@@ -12,27 +12,28 @@
 
 namespace ii {
 
+int input_view_index(const Scene& scene, const std::string& name, const std::string& what) {
+  const auto it = std::find_if(scene.views.begin(), scene.views.end(), [&](const View& v) { return v.name == name; });
+  if (it != scene.views.end()) return static_cast<int>(it - scene.views.begin());
+  std::vector<std::string> known;
+  for (const View& v : scene.views) known.push_back(v.name);
+  const bool is_test = std::any_of(scene.test_views.begin(), scene.test_views.end(),
+                                   [&](const View& v) { return v.name == name; });
+  fail("unknown {} '{}'{} (views: {})", what, name, is_test ? " (it is an object-free test view)" : "",
+       fmt::join(known, ", "));
+}
+
 std::vector<int> context_views_by_name(const Scene& scene, const std::vector<std::string>& names) {
   std::vector<int> out;
   std::set<std::string> seen;
   for (const std::string& name : names) {
     if (!seen.insert(name).second) fail("context view '{}' is listed twice", name);
-    auto it = std::find_if(scene.views.begin(), scene.views.end(),
-                           [&](const View& v) { return v.name == name; });
-    if (it == scene.views.end()) {
-      std::vector<std::string> known;
-      for (const View& v : scene.views) known.push_back(v.name);
-      const bool is_test = std::any_of(scene.test_views.begin(), scene.test_views.end(),
-                                       [&](const View& v) { return v.name == name; });
-      fail("unknown context view '{}'{} (views: {})", name,
-           is_test ? " (it is an object-free test view)" : "", fmt::join(known, ", "));
-    }
-    out.push_back(static_cast<int>(it - scene.views.begin()));
+    out.push_back(input_view_index(scene, name, "context view"));
   }
   return out;
 }
 
-std::vector<int> select_context_views(const Scene& scene, int count) {
+std::vector<int> select_context_views(const Scene& scene, int count, std::optional<int> reference_view) {
   const int n = static_cast<int>(scene.views.size());
   if (count < 1) fail("the number of context views must be at least 1, got {}", count);
   if (n < count) fail("the scene has {} views, {} context views are needed", n, count);
@@ -49,7 +50,9 @@ std::vector<int> select_context_views(const Scene& scene, int count) {
 
   Eigen::Index nearest = 0;
   p.rowwise().squaredNorm().minCoeff(&nearest);
-  const int reference = static_cast<int>(nearest);
+  if (reference_view && (*reference_view < 0 || *reference_view >= n))
+    fail("reference view index {} is outside the scene's {} views", *reference_view, n);
+  const int reference = reference_view.value_or(static_cast<int>(nearest));
   std::vector<int> chosen = {reference};
   if (count == 1) return chosen;
 

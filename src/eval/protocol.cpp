@@ -14,7 +14,9 @@
 #include "common/stopwatch.h"
 #include "data/image_ops.h"
 #include "data/inpaint2d.h"
+#include "data/masks.h"
 #include "data/preprocess.h"
+#include "data/view_selection.h"
 #include "eval/fid.h"
 #include "eval/inception.h"
 #include "eval/lpips.h"
@@ -202,6 +204,15 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   opts.num_views = o.num_views;
   opts.reference = o.reference;
   opts.preprocess.height = o.height;
+  opts.inpainter = o.inpainter;
+  opts.reference_view = o.reference_view;
+  if (o.edit) {
+    spdlog::info("masks for every view from the region on {}", o.edit->view);
+    const SceneMasks masks = masks_from_one(scene, *o.edit, [&]() -> const Predictor& { return predictor; }, opts);
+    masks.apply_to(opts, *o.edit);
+    info["edit"] = masks.describe(*o.edit);
+    timings["masks_ms"] = watch.lap();
+  }
   spdlog::info("running the network ({})", precision_name(o.precision));
   const Prediction p = predictor.predict(scene, opts);
   info["context"] = json::array();
@@ -319,6 +330,64 @@ void write_report(const fs::path& out, const json& metrics) {
   write_file_atomic(out / "report.html", h);
 }
 
+// What a scene was made for: synthetic scenes say it in synth.json ("remove" or "insert"),
+// captures are removal scenes.
+std::string scene_task(const Scene& scene) {
+  const fs::path file = scene.root / "synth.json";
+  if (!fs::exists(file)) return "remove";
+  try {
+    return json::parse(read_file_text(file)).value("task", "remove");
+  } catch (const json::exception& e) {
+    fail_file(file, "not valid JSON: {}", e.what());
+  }
+}
+
+// The insertion baselines' inputs: the test views with nothing inserted and, for the sticker,
+// the edited reference with its region and background depth.
+struct InsertionBaseline {
+  EvalMethod method;
+  fs::path original;  // folder of the test views before the edit
+  View reference;
+  Image reference_image, region, depth;
+
+  Image predict(const View& view, const PreprocessOptions& preprocess) const {
+    View before = view;
+    before.image_path = original / view.image_path.filename();
+    if (!fs::exists(before.image_path))
+      fail_file(before.image_path, "missing: the test view {} with nothing inserted", view.name);
+    Image image = load_view_image(before);
+    if (method == EvalMethod::sticker)
+      image = sticker_view(image, view.camera, reference_image, region, depth, reference.camera);
+    return to_working_size(image, working_size(image.width, image.height, preprocess));
+  }
+};
+
+std::optional<InsertionBaseline> insertion_baseline(const Scene& scene, const EvalOptions& o) {
+  if (o.method != EvalMethod::floor && o.method != EvalMethod::sticker) return std::nullopt;
+  InsertionBaseline b;
+  b.method = o.method;
+  b.original = scene.root / "original";
+  if (!fs::is_directory(b.original))
+    fail("{}: --method {} needs original/ (the test views with nothing inserted, as synth --task insert writes)",
+         scene.root.string(), eval_method_name(o.method));
+  if (o.method == EvalMethod::floor) return b;
+  if (!o.reference) fail("--method sticker needs --reference: the reference view with the object painted in");
+  std::string name = o.reference_view;
+  if (name.empty() && !o.context.empty()) name = o.context.front();
+  if (name.empty() && fs::exists(scene.root / "synth.json"))
+    name = json::parse(read_file_text(scene.root / "synth.json")).value("reference", "");
+  if (name.empty()) fail("--method sticker needs the reference view: give --reference-view or --context");
+  b.reference = scene.views.at(static_cast<size_t>(input_view_index(scene, name, "reference view")));
+  b.reference_image = read_image_rgb(*o.reference);
+  const auto region = load_view_mask(b.reference);
+  if (!region) fail("--method sticker: reference view {} has no mask (its edit region)", name);
+  b.region = *region;
+  const auto depth = load_view_depth(scene, b.reference);
+  if (!depth) fail("--method sticker: no depth/{}.npy in {}", name, scene.root.string());
+  b.depth = *depth;
+  return b;
+}
+
 }  // namespace
 
 const char* eval_method_name(EvalMethod method) {
@@ -326,6 +395,8 @@ const char* eval_method_name(EvalMethod method) {
     case EvalMethod::model: return "model";
     case EvalMethod::telea: return "telea";
     case EvalMethod::mean_fill: return "mean-fill";
+    case EvalMethod::floor: return "floor";
+    case EvalMethod::sticker: return "sticker";
   }
   return "?";
 }
@@ -334,7 +405,9 @@ EvalMethod parse_eval_method(const std::string& name) {
   if (name == "model") return EvalMethod::model;
   if (name == "telea") return EvalMethod::telea;
   if (name == "mean-fill") return EvalMethod::mean_fill;
-  fail("--method: unknown method '{}' (expected model, telea or mean-fill)", name);
+  if (name == "floor") return EvalMethod::floor;
+  if (name == "sticker") return EvalMethod::sticker;
+  fail("--method: unknown method '{}' (expected model, telea, mean-fill, floor or sticker)", name);
 }
 
 torch::Tensor quantize_image(const torch::Tensor& images, const std::string& mode) {
@@ -377,6 +450,40 @@ Image mean_fill(const Image& rgb, const Image& mask, int ring_width) {
   return out;
 }
 
+Image sticker_view(const Image& floor, const Camera& view, const Image& reference, const Image& region,
+                   const Image& depth, const Camera& reference_camera) {
+  const Intrinsics& R = reference_camera.K;
+  for (const Image* image : {&reference, &region, &depth})
+    if (image->width != R.width || image->height != R.height)
+      fail("sticker: the reference's images must be {}x{} (the reference camera), got {}x{}", R.width, R.height,
+           image->width, image->height);
+  if (floor.width != view.K.width || floor.height != view.K.height)
+    fail("sticker: the floor image is {}x{}, its camera {}x{}", floor.width, floor.height, view.K.width, view.K.height);
+  const Eigen::Matrix4d ref_c2w = opengl_to_opencv(reference_camera.c2w), w2c = view.w2c_opencv();
+  const Eigen::Matrix4d ref_to_view = w2c * ref_c2w;
+  Image out = floor;
+  std::vector<float> nearest(static_cast<size_t>(floor.width) * floor.height, std::numeric_limits<float>::infinity());
+  for (int y = 0; y < R.height; ++y)
+    for (int x = 0; x < R.width; ++x) {
+      const float d = depth.at(y, x);
+      if (region.at(y, x) <= 0.5f || !(d > 0) || !std::isfinite(d)) continue;
+      const Eigen::Vector4d local(d * (x + 0.5 - R.cx) / R.fx, d * (y + 0.5 - R.cy) / R.fy, d, 1);
+      const Eigen::Vector4d p = ref_to_view * local;
+      if (p.z() <= 0) continue;
+      const double u = view.K.fx * p.x() / p.z() + view.K.cx - 0.5, v = view.K.fy * p.y() / p.z() + view.K.cy - 0.5;
+      const int x0 = static_cast<int>(std::floor(u)), y0 = static_cast<int>(std::floor(v));
+      for (int yy = y0; yy <= y0 + 1; ++yy)
+        for (int xx = x0; xx <= x0 + 1; ++xx) {
+          if (xx < 0 || yy < 0 || xx >= floor.width || yy >= floor.height) continue;
+          float& z = nearest[static_cast<size_t>(yy) * floor.width + xx];
+          if (p.z() >= z) continue;
+          z = static_cast<float>(p.z());
+          for (int c = 0; c < 3; ++c) out.at(yy, xx, c) = reference.at(y, x, c);
+        }
+    }
+  return out;
+}
+
 std::optional<PixelBox> crop_around_mask(const Image& mask) {
   const auto box = mask_bounding_box(mask);
   if (!box) return std::nullopt;
@@ -395,8 +502,7 @@ json run_evaluation(const EvalOptions& o) {
   if (o.method == EvalMethod::model && o.checkpoint && o.gaussians)
     fail("eval: give either --checkpoint or --gaussians, not both");
   if (o.method != EvalMethod::model && (o.checkpoint || o.gaussians))
-    fail("eval --method {} fills the test views from their own ground truth: drop --checkpoint/--gaussians",
-         eval_method_name(o.method));
+    fail("eval --method {} is a baseline without a model: drop --checkpoint/--gaussians", eval_method_name(o.method));
 
   spdlog::info("reading scene {}", o.scene_dir.string());
   const Scene scene = load_scene(o.scene_dir, o.scene);
@@ -406,6 +512,9 @@ json run_evaluation(const EvalOptions& o) {
   timings["read_scene_ms"] = watch.lap();
 
   json prediction = {{"method", eval_method_name(o.method)}};
+  const std::string task = scene_task(scene);
+  const std::optional<InsertionBaseline> baseline = insertion_baseline(scene, o);
+  if (baseline) prediction["reference_view"] = baseline->reference.name;
   std::optional<GaussianSet> gaussians;
   if (o.method == EvalMethod::model) {
     json stage_timings = json::object();
@@ -457,6 +566,8 @@ json run_evaluation(const EvalOptions& o) {
       RenderCamera rc;
       rc.camera = normalization.apply(pv.camera);
       a = render(*gaussians, rc).rgb.permute({2, 0, 1}).unsqueeze(0).to(device);
+    } else if (baseline) {
+      a = to_device(image_to_tensor(baseline->predict(view, preprocess)), device);
     } else {
       if (!pv.mask)
         fail("{}: test view {} has no mask; --method {} fills the masked region", o.scene_dir.string(), view.name,
@@ -571,6 +682,7 @@ json run_evaluation(const EvalOptions& o) {
       {"scene", scene.root.string()},
       {"format", scene.format},
       {"method", eval_method_name(o.method)},
+      {"task", task},
       {"prediction", prediction},
       {"working_size", {working_width, working_height}},
       {"quantize", o.quantize},

@@ -28,13 +28,17 @@
 #include <nlohmann/json.hpp>
 
 #include "data/scene.h"
+#include "edit/scene_masks.h"
 #include "eval/metrics.h"
 #include "model/network.h"
 
 namespace ii {
 
-enum class EvalMethod { model, telea, mean_fill };
-const char* eval_method_name(EvalMethod method);        // "model", "telea", "mean-fill"
+// floor and sticker are the insertion baselines (scenes from `synth --task insert`): the test
+// view with nothing inserted (original/), and that view with the reference's edit region
+// pasted flat at the background depth.
+enum class EvalMethod { model, telea, mean_fill, floor, sticker };
+const char* eval_method_name(EvalMethod method);  // "model", "telea", "mean-fill", "floor", "sticker"
 EvalMethod parse_eval_method(const std::string& name);  // throws on anything else
 
 struct EvalOptions {
@@ -49,7 +53,10 @@ struct EvalOptions {
   // Network inputs (checkpoint only).
   std::vector<std::string> context;  // reference first; empty = automatic
   int num_views = 4;
-  std::optional<std::filesystem::path> reference;  // 2D-inpainted reference (default: Telea)
+  std::optional<std::filesystem::path> reference;  // 2D-inpainted reference (default: `inpainter`)
+  ClassicalInpainter inpainter = ClassicalInpainter::Telea;
+  std::string reference_view;   // automatic context around this reference (default: the edit's view)
+  std::optional<OneMask> edit;  // one marked view instead of the scene's masks
   Precision precision = Precision::Float32;
   int sh_degree = 3;  // highest SH degree used from a PLY
 
@@ -75,6 +82,13 @@ nlohmann::json run_evaluation(const EvalOptions& options);
 // of pixels within `ring_width` (Chebyshev distance) outside the mask; the rest unchanged. An
 // empty ring (mask everywhere) fills grey 0.5.
 Image mean_fill(const Image& rgb, const Image& mask, int ring_width);
+
+// The "sticker" an insertion without 3D gives: every `region` pixel of the reference image,
+// placed at its `depth` (z-depth of the reference view's background; 0 = unknown, skipped) and
+// projected into `view` over `floor` (nearest surface wins; each pixel covers 2x2 pixels so
+// that a view nearer than the reference shows no holes). All images at their camera's size.
+Image sticker_view(const Image& floor, const Camera& view, const Image& reference, const Image& region,
+                   const Image& depth, const Camera& reference_camera);
 
 // Square crop around a mask for C-FID/C-KID: centred on the mask's bounding box, side 1.2 ×
 // its longer side (at least 16 px), shifted to lie inside the image and at most its shorter

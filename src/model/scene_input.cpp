@@ -39,7 +39,11 @@ Image mask_at_working_size(const Image& mask, const View& view, const Preprocess
 
 SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options) {
   SceneInput out;
-  out.context = options.context.empty() ? select_context_views(scene, options.num_views)
+  if (!options.context.empty() && !options.reference_view.empty())
+    fail("give the context views or the reference view, not both (the context's first view is the reference)");
+  std::optional<int> reference;
+  if (!options.reference_view.empty()) reference = input_view_index(scene, options.reference_view, "reference view");
+  out.context = options.context.empty() ? select_context_views(scene, options.num_views, reference)
                                         : context_views_by_name(scene, options.context);
   for (int index : out.context) {
     const View& view = scene.views[index];
@@ -75,11 +79,11 @@ SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& opti
   } else {
     if (!ref.mask)
       fail("no --reference image given and reference view {} has no mask to inpaint", ref.name);
-    spdlog::warn("no --reference given: inpainting view {} with OpenCV's Telea method; a learned "
+    spdlog::warn("no --reference given: inpainting view {} with OpenCV's {} method; a learned "
                  "2D inpainter gives much better results",
-                 ref.name);
-    ref.rgb = inpaint_telea(ref.rgb, *ref.mask);
-    out.reference_source = "telea";
+                 ref.name, options.inpainter == ClassicalInpainter::Telea ? "Telea" : "Navier-Stokes");
+    ref.rgb = inpaint_classical(ref.rgb, *ref.mask, options.inpainter);
+    out.reference_source = inpainter_name(options.inpainter);
   }
   out.normalization = scene_normalization(scene);
   out.input = build_model_input(out.views, out.normalization);

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "data/inpaint2d.h"
 #include "data/preprocess.h"
 #include "data/scene.h"
 #include "model/model_input.h"
@@ -17,10 +18,12 @@ namespace ii {
 struct SceneInputOptions {
   std::vector<std::string> context;  // view names, reference first; empty = automatic
   int num_views = 4;                 // when choosing automatically
+  std::string reference_view;        // when choosing automatically: this view is the reference
   // The 2D-inpainted reference image, at the reference photo's size or the working size:
-  // in memory (wins) or a file; neither = OpenCV Telea inpainting of the reference.
+  // in memory (wins) or a file; neither = classical inpainting of the reference (`inpainter`).
   std::optional<Image> reference_image;
   std::optional<std::filesystem::path> reference;
+  ClassicalInpainter inpainter = ClassicalInpainter::Telea;
   // Object masks by view name, at the view's image size (> 0.5 = object): they replace the
   // scene's own masks of those views, so a caller needs no mask files.
   std::map<std::string, Image> masks;
@@ -35,7 +38,7 @@ struct SceneInput {
   std::vector<PreparedView> views;       // working-size views; views[0].rgb = inpainted
   PoseNormalization normalization;       // fitted over all cameras of the scene
   ModelInput input;
-  std::string reference_source;          // file name, "image in memory", or "telea" when made here
+  std::string reference_source;          // file name, "image in memory", or "telea" / "ns" when made here
 };
 
 SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options);

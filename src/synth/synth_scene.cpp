@@ -22,7 +22,13 @@ constexpr double kDeg = M_PI / 180.0;
 
 // Independent random streams per part of a scene: changing how one part draws does not
 // change the others.
-enum Stream : uint64_t { kPlanStream = 1, kCameraStream = 2, kRoomStream = 3, kObjectStream = 4 };
+enum Stream : uint64_t { kPlanStream = 1, kCameraStream = 2, kRoomStream = 3, kObjectStream = 4, kLayoutStream = 5 };
+
+// Where one object stands and how big it is.
+struct ObjectSlot {
+  Eigen::Vector3d base;
+  double height, footprint;
+};
 
 struct CameraPath {
   bool arc = true;
@@ -83,6 +89,9 @@ void check_options(const SynthOptions& o) {
   if (o.width < 16 || o.height < 16 || o.width > 8192 || o.height > 8192)
     fail("synth: image size must be between 16 and 8192 pixels a side (got {}x{})", o.width, o.height);
   if (!(o.detail > 0.05 && o.detail <= 8)) fail("synth: detail must be in (0.05, 8] (got {})", o.detail);
+  if (o.objects < 1 || o.objects > 3) fail("synth: 1 to 3 objects (got {})", o.objects);
+  if (o.objects > 1 && o.object == ObjectSource::splat)
+    fail("synth: several objects are procedural: use --object procedural or mixed");
 }
 
 }  // namespace
@@ -157,13 +166,13 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
   const auto splat_files = list_splat_objects(options.splat_dir);
   const GaussianSet* splat = nullptr;
   std::filesystem::path splat_file;
-  if (want_splat && !splat_files.empty()) {
+  if (want_splat && !splat_files.empty() && options.objects == 1) {
     splat_file = plan_rng.pick(splat_files);
     splat = &normalized_splat_object(splat_file);
   } else if (options.object == ObjectSource::splat) {
     fail("synth: --object splat needs captured splats (*.ply) in '{}'", options.splat_dir.string());
   }
-  double height, footprint;
+  double height, footprint;  // of the object, or of the largest of several
   if (splat) {
     height = plan_rng.uniform(0.45, 0.9);
     footprint = splat_footprint(*splat) * height;
@@ -171,7 +180,7 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
     height = plan_rng.uniform(0.22, 0.6);
     footprint = height * plan_rng.uniform(0.3, 0.65);
   }
-  const double bounding = std::hypot(height / 2, footprint);
+  double bounding = std::hypot(height / 2, footprint);
 
   RoomPlan plan;
   plan.object_footprint = footprint;
@@ -182,6 +191,24 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
     plan.support_size = std::min(footprint + plan_rng.uniform(0.05, 0.25), std::max(0.45, footprint + 0.05));
   }
   plan.object_base = Vector3d(0, support_top, 0);
+  std::vector<ObjectSlot> slots = {{plan.object_base, height, footprint}};
+  if (options.objects > 1) {
+    // On the floor, evenly around the centre and far enough apart that their masks are
+    // separate regions in most views.
+    SynthRng layout_rng(mix_seed(seed, kLayoutStream));
+    plan.support = 0;
+    plan.support_size = 0;
+    plan.object_base = Vector3d::Zero();
+    const double spread = 1.6 * footprint + 0.15, turn = layout_rng.uniform(0, 2 * M_PI);
+    slots.clear();
+    for (int i = 0; i < options.objects; ++i) {
+      const double angle = turn + 2 * M_PI * i / options.objects;
+      slots.push_back({Vector3d(spread * std::cos(angle), 0, spread * std::sin(angle)),
+                       height * layout_rng.uniform(0.7, 1.0), footprint * layout_rng.uniform(0.7, 1.0)});
+    }
+    bounding = spread + bounding;
+    plan.object_footprint = spread + footprint;
+  }
 
   // ---- cameras ---------------------------------------------------------------------------
   SynthRng camera_rng(mix_seed(seed, kCameraStream));
@@ -275,7 +302,12 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
         {"kind", "splat"}, {"file", splat_file.filename().string()}, {"height", height}, {"footprint", footprint}};
   } else {
     GaussianBuilder object;
-    build_procedural_object(plan.object_base, height, footprint, detail, lighting, object_rng, object, object_json);
+    for (const ObjectSlot& slot : slots) {
+      nlohmann::json part;
+      build_procedural_object(slot.base, slot.height, slot.footprint, detail, lighting, object_rng, object, part);
+      if (slots.size() == 1) object_json = part;
+      else object_json["parts"].push_back(part);
+    }
     scene.object = object.build();
   }
   const torch::Tensor lo = std::get<0>(scene.object.means.min(0)), hi = std::get<0>(scene.object.means.max(0));

@@ -40,6 +40,9 @@ struct SynthOptions {
   // Gaussian density: 1 gives Gaussians about 2.5 pixels apart where the cameras see them
   // closest; higher is sharper and slower.
   double detail = 1.0;
+  // Objects to remove at once (1-3). Several are procedural, stand apart on the floor around
+  // the centre, and form one object set (the mask is their union).
+  int objects = 1;
 };
 
 struct SynthScene {

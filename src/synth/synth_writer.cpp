@@ -114,6 +114,14 @@ std::array<double, 17> llff_pose_row(const Camera& camera, int downscale, double
   return row;
 }
 
+SynthTask parse_synth_task(const std::string& text, const std::string& what) {
+  if (text == "remove") return SynthTask::remove;
+  if (text == "insert") return SynthTask::insert;
+  fail("{}: unknown task '{}' (expected remove or insert)", what, text);
+}
+
+std::string to_string(SynthTask task) { return task == SynthTask::insert ? "insert" : "remove"; }
+
 SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir, const SynthWriteOptions& options) {
   if (options.downscale < 1) fail("synth: downscale must be at least 1 (got {})", options.downscale);
   fs::path target = dir.lexically_normal();
@@ -125,7 +133,9 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
   fs::remove_all(partial);
   const std::string image_folder = "images_" + std::to_string(options.downscale);
   const fs::path images = partial / image_folder;
+  const bool insert = options.task == SynthTask::insert;
   for (const fs::path& p : {images / "label", images / "test_label", partial / "clean"}) fs::create_directories(p);
+  if (insert) fs::create_directories(partial / "original");
   if (options.write_depth)
     for (const char* folder : {"depth", "depth_clean"}) fs::create_directories(partial / folder);
 
@@ -142,18 +152,25 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
   };
 
   BackgroundWrites writes(8);
+  // Removal: test views and clean/ without the object, inputs with it. Insertion: the reverse.
+  using Member = Image SynthViewImages::*;
+  const Member with = &SynthViewImages::with_object, without = &SynthViewImages::clean;
+  const Member with_depth = &SynthViewImages::depth, without_depth = &SynthViewImages::clean_depth;
+  const Member input = insert ? without : with, edited = insert ? with : without;
+  const Member input_depth = insert ? without_depth : with_depth, target_depth = insert ? with_depth : without_depth;
   for (const NamedCamera& view : scene.test_views) {
     Stopwatch render_watch;
-    auto r = std::make_shared<const SynthViewImages>(renderer.render(view.camera, false));
+    auto r = std::make_shared<const SynthViewImages>(renderer.render(view.camera, insert));
     render_ms += render_watch.ms();
-    add_row(view.camera, r->clean_depth);
+    add_row(view.camera, (*r).*target_depth);
     const std::string file = view.name + ".png";
-    writes.add([=] { write_png(images / file, r->clean); });
+    writes.add([=] { write_png(images / file, (*r).*edited); });
     writes.add([=] { write_png(images / "test_label" / file, r->mask); });
-    writes.add([=] { write_png(partial / "clean" / file, r->clean); });
+    writes.add([=] { write_png(partial / "clean" / file, (*r).*edited); });
+    if (insert) writes.add([=] { write_png(partial / "original" / file, r->clean); });
     if (options.write_depth)
       for (const char* folder : {"depth", "depth_clean"})
-        writes.add([=] { write_depth(partial / folder / (view.name + ".npy"), r->clean_depth); });
+        writes.add([=] { write_depth(partial / folder / (view.name + ".npy"), (*r).*target_depth); });
     if (options.progress) options.progress(++done, total);
   }
 
@@ -165,7 +182,7 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
     Stopwatch render_watch;
     auto r = std::make_shared<const SynthViewImages>(renderer.render(view.camera, true));
     render_ms += render_watch.ms();
-    add_row(view.camera, r->depth);
+    add_row(view.camera, (*r).*input_depth);
     double covered = 0;
     for (float m : r->mask.pixels) covered += m;
     const double fraction = covered / r->mask.pixels.size();
@@ -173,21 +190,23 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
     summary.object_fraction += fraction / scene.views.size();
     if (static_cast<int>(k) == scene.reference) reference_view = r;
     const std::string file = view.name + ".png";
-    writes.add([=] { write_png(images / file, r->with_object); });
+    writes.add([=] { write_png(images / file, (*r).*input); });
     writes.add([=] { write_png(images / "label" / file, r->mask); });
-    writes.add([=] { write_png(partial / "clean" / file, r->clean); });
+    writes.add([=] { write_png(partial / "clean" / file, (*r).*edited); });
     if (options.write_depth) {
-      writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), r->depth); });
-      writes.add([=] { write_depth(partial / "depth_clean" / (view.name + ".npy"), r->clean_depth); });
+      writes.add([=] { write_depth(partial / "depth" / (view.name + ".npy"), (*r).*input_depth); });
+      writes.add([=] { write_depth(partial / "depth_clean" / (view.name + ".npy"), (*r).*target_depth); });
     }
     if (options.progress) options.progress(++done, total);
   }
   writes.finish();
   write_npy(partial / "poses_bounds.npy", rows, {static_cast<int64_t>(total), 17});
 
-  const Image reference =
-      degrade_reference(reference_view->clean, reference_view->with_object, reference_view->mask, options.degrade,
-                        mix_seed(scene.seed, kReferenceStream), &summary.degradation);
+  // The edited photo: the reference view as it should look after the edit, degraded like a
+  // 2D editor's output would be (insertion: the object is what was painted in).
+  const Image reference = degrade_reference((*reference_view).*edited, (*reference_view).*input, reference_view->mask,
+                                            options.degrade, mix_seed(scene.seed, kReferenceStream),
+                                            &summary.degradation);
   write_png(partial / "reference.png", reference);
 
   std::vector<NamedCamera> cameras = scene.test_views;
@@ -219,6 +238,7 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
       {"format", "instainpaint-synth"},
       {"version", 1},
       {"seed", scene.seed},
+      {"task", to_string(options.task)},
       {"generator", options.generator},
       {"width", K.width},
       {"height", K.height},
@@ -231,6 +251,7 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
       {"reference_degradation", summary.degradation},
       {"context", context},
       {"clean_folder", "clean"},
+      {"original_folder", insert ? nlohmann::json("original") : nlohmann::json(nullptr)},
       {"depth", depth_info},
       {"mask",
        {{"rule", "object weight (sum of the object's alpha*transmittance in the with-object render) >= threshold"},

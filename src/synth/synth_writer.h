@@ -18,6 +18,13 @@
 //   synth.json               seed, options, names, reference, context views, mask rule, ...
 //   background.ply, object.ply  the Gaussians (only with save_gaussians)
 //
+// Task insert (`task`): the same room the other way round, as ground truth for object
+// insertion. The training views show the room without the object, their label/ masks mark
+// where it will appear; reference.png is the reference view with the object (the edited
+// photo); test views, clean/ and depth_clean/ show the room with it (the edit's truth); depth/
+// is the depth of the images in images_<K>/; original/ holds the test views without the object
+// (what the scene looks like when nothing is inserted).
+//
 // The scene is written to "<dir>.partial" and renamed to `dir` when complete.
 #include <array>
 #include <filesystem>
@@ -29,7 +36,13 @@
 
 namespace ii::synth {
 
+enum class SynthTask { remove, insert };
+// "remove" | "insert"; throws Error naming `what` otherwise.
+SynthTask parse_synth_task(const std::string& text, const std::string& what = "--task");
+std::string to_string(SynthTask task);
+
 struct SynthWriteOptions {
+  SynthTask task = SynthTask::remove;
   Degradation degrade = Degradation::none;  // applied to reference.png only
   int downscale = 4;                        // the K of images_K
   bool save_gaussians = false;

@@ -242,7 +242,24 @@ TEST(Masks, DepthFolderIsReadAndChecked) {
   EXPECT_EQ(depth->at(2, 1), 10.5f);
   view.camera.K.width = 5;
   EXPECT_EQ(test::error_message([&] { load_view_depth(scene, view); }),
-            (scene.root / "depth" / "frame_003.npy").string() + ": depth is 4x3 but image frame_003.png is 5x3");
+            (scene.root / "depth" / "frame_003.npy").string() + ": depth is 4x3 but the view is 5x3");
+}
+
+TEST(Masks, SixteenBitDepthPngsAreScaledLevels) {
+  const fs::path dir = test::temp_dir("depth-png");
+  Image levels(3, 2, 1);
+  levels.at(0, 0) = 1000.f / 65535.f;
+  levels.at(1, 2) = 65535.f / 65535.f;
+  write_png(dir / "d.png", levels, 16);
+  const Image depth = read_depth_map(dir / "d.png", 3, 2, 0.001);
+  EXPECT_FLOAT_EQ(depth.at(0, 0), 1.0f);
+  EXPECT_FLOAT_EQ(depth.at(1, 2), 65.535f);
+  EXPECT_EQ(depth.at(0, 1), 0.f);  // level 0: unknown
+  write_png(dir / "e.png", levels, 8);
+  EXPECT_EQ(test::error_message([&] { read_depth_map(dir / "e.png", 3, 2); }),
+            (dir / "e.png").string() + ": a depth image must be a 16-bit PNG (or a .npy array)");
+  EXPECT_EQ(test::error_message([&] { read_depth_map(dir / "d.png", 4, 2); }),
+            (dir / "d.png").string() + ": depth is 3x2 but the view is 4x2");
 }
 
 TEST(Masks, TypicalDepthFallbacks) {

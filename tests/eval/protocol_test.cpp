@@ -13,6 +13,7 @@
 #include "eval/protocol.h"
 #include "io/image.h"
 #include "model/default_model.h"
+#include "synth/synth_writer.h"
 #include "synthetic_scene.h"
 #include "tensor/image_tensor.h"
 #include "test_support.h"
@@ -287,7 +288,7 @@ TEST_F(Protocol, BadRequestsNameTheProblem) {
   o.checkpoint.reset();
   o.method = EvalMethod::telea;
   EXPECT_EQ(test::error_message([&] { run_evaluation(o); }),
-            "eval --method telea fills the test views from their own ground truth: drop --checkpoint/--gaussians");
+            "eval --method telea is a baseline without a model: drop --checkpoint/--gaussians");
   o.method = EvalMethod::model;
   o.quantize = "floor";
   EXPECT_EQ(test::error_message([&] { run_evaluation(o); }),
@@ -306,6 +307,57 @@ TEST_F(Protocol, BadRequestsNameTheProblem) {
             no_tests.string() +
                 ": no object-free test views (SPIn-NeRF scenes list them by their masks in "
                 "images_K/test_label/)");
+}
+
+TEST_F(Protocol, InsertionBaselinesOnAnInsertionScene) {
+  synth::SynthOptions so;
+  so.views = 6;
+  so.test_views = 2;
+  so.width = 48;
+  so.height = 40;
+  so.object = synth::ObjectSource::procedural;
+  synth::SynthWriteOptions wo;
+  wo.task = synth::SynthTask::insert;
+  const fs::path dir = test::temp_dir("eval-insert") / "scene";
+  synth::write_synth_scene(synth::generate_scene(so, 8), dir, wo);
+  EvalOptions o = options("insert-floor");
+  o.scene_dir = dir;
+  o.height = 40;
+  o.method = EvalMethod::floor;
+  const json floor = run_evaluation(o);
+  EXPECT_EQ(floor["task"], "insert");
+  o.method = EvalMethod::sticker;
+  EXPECT_EQ(test::error_message([&] { run_evaluation(o); }),
+            "--method sticker needs --reference: the reference view with the object painted in");
+  o.reference = dir / "reference.png";
+  o.out = test::temp_dir("eval-insert-sticker");
+  const json sticker = run_evaluation(o);
+  EXPECT_EQ(sticker["prediction"]["reference_view"], synth::read_synth_json(dir)["reference"]);
+  // The sticker only paints inside the region's projection: outside the test masks it is the floor.
+  EXPECT_EQ(floor["views"].size(), 2u);
+  EXPECT_NE(sticker["mean"]["masked_psnr"], floor["mean"]["masked_psnr"]);
+  // A removal scene has no original/ to compare with.
+  EvalOptions r = options("insert-on-removal");
+  r.method = EvalMethod::floor;
+  EXPECT_EQ(test::error_message([&] { run_evaluation(r); }),
+            scene_dir().string() + ": --method floor needs original/ (the test views with nothing inserted, as "
+                                   "synth --task insert writes)");
+}
+
+TEST(Sticker, SeenFromTheReferenceItIsTheReference) {
+  Camera cam;
+  cam.K = Intrinsics::from_fov(20, 16, 1.0, 0.8);
+  const Image floor(20, 16, 3, 0.25f);
+  Image reference(20, 16, 3, 0.75f), region(20, 16, 1), depth(20, 16, 1, 2.f);
+  for (int y = 4; y < 10; ++y)
+    for (int x = 5; x < 12; ++x) region.at(y, x) = 1;
+  const Image out = sticker_view(floor, cam, reference, region, depth, cam);
+  EXPECT_EQ(out.at(6, 8, 1), 0.75f);   // inside the region
+  EXPECT_EQ(out.at(2, 2, 0), 0.25f);   // far outside it
+  EXPECT_EQ(out.at(12, 15, 2), 0.25f);
+  depth.at(6, 8) = 0;  // unknown depth: that pixel is not pasted (its neighbours' 2x2 may be)
+  EXPECT_EQ(test::error_message([&] { sticker_view(floor, cam, reference, Image(5, 5, 1), depth, cam); }),
+            "sticker: the reference's images must be 20x16 (the reference camera), got 5x5");
 }
 
 TEST(MeanFill, FillsWithTheRingMean) {

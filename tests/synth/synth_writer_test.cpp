@@ -175,5 +175,45 @@ TEST(SynthWriter, ReplacesAnEarlierSceneButNotOtherFolders) {
   EXPECT_FALSE(fs::exists(root / "mine.partial"));
 }
 
+
+TEST(SynthWriter, InsertionSwapsWhatTheInputsAndTheTruthShow) {
+  const fs::path root = test::temp_dir("synth-insert");
+  const SynthScene scene = generate_scene(tiny(), 31);
+  SynthWriteOptions options;
+  write_synth_scene(scene, root / "remove", options);
+  options.task = SynthTask::insert;
+  write_synth_scene(scene, root / "insert", options);
+  const auto removal = folder_bytes(root / "remove"), insertion = folder_bytes(root / "insert");
+  // Inputs without the object, the edit's truth with it; masks and cameras as for removal.
+  EXPECT_EQ(insertion.at("images_4/view_002.png"), removal.at("clean/view_002.png"));
+  EXPECT_EQ(insertion.at("clean/view_002.png"), removal.at("images_4/view_002.png"));
+  EXPECT_EQ(insertion.at("images_4/label/view_002.png"), removal.at("images_4/label/view_002.png"));
+  EXPECT_EQ(insertion.at("depth/view_002.npy"), removal.at("depth_clean/view_002.npy"));
+  EXPECT_EQ(insertion.at("original/test_001.png"), removal.at("images_4/test_001.png"));
+  EXPECT_EQ(insertion.at("images_4/test_label/test_001.png"), removal.at("images_4/test_label/test_001.png"));
+  EXPECT_NE(insertion.at("images_4/test_001.png"), removal.at("images_4/test_001.png"));
+  const std::string reference = read_synth_json(root / "insert")["reference"];
+  EXPECT_EQ(insertion.at("reference.png"), removal.at("images_4/" + reference + ".png"));
+  EXPECT_EQ(read_synth_json(root / "insert")["task"], "insert");
+  EXPECT_EQ(read_synth_json(root / "remove")["task"], "remove");
+  EXPECT_EQ(removal.count("original/test_001.png"), 0u);
+  EXPECT_EQ(test::error_message([] { parse_synth_task("erase"); }),
+            "--task: unknown task 'erase' (expected remove or insert)");
+}
+
+TEST(SynthScene, SeveralObjectsStandApart) {
+  SynthOptions o = tiny();
+  o.objects = 3;
+  const SynthScene scene = generate_scene(o, 5);
+  EXPECT_EQ(scene.description["object"]["parts"].size(), 3u);
+  EXPECT_GT(scene.object_radius, generate_scene(tiny(), 5).object_radius);  // spread around the centre
+  o.objects = 4;
+  EXPECT_EQ(test::error_message([&] { generate_scene(o, 5); }), "synth: 1 to 3 objects (got 4)");
+  o.objects = 2;
+  o.object = ObjectSource::splat;
+  EXPECT_EQ(test::error_message([&] { generate_scene(o, 5); }),
+            "synth: several objects are procedural: use --object procedural or mixed");
+}
+
 }  // namespace
 }  // namespace ii::synth

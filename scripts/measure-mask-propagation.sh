@@ -1,0 +1,98 @@
+#!/usr/bin/env bash
+# Measures one-mask propagation (`instainpaint masks`) against true masks in every view:
+# synthetic rooms (exact masks and depth) with each depth source, and ../shared/data/statue
+# (SPIn-NeRF, a mask in every view) with the network's depth. Prints a markdown table of
+# per-view recall and precision (mean and worst over the views other than the marked one),
+# then the removal quality on the rooms' test views (eval, masked PSNR) with the true masks
+# and with masks propagated from the reference view's (network depth), same reference image.
+#
+#   scripts/measure-mask-propagation.sh [--bin build/instainpaint] [--rooms 6] [--seed 11]
+#       [--out mask-propagation] [--checkpoint FILE]
+set -euo pipefail
+BIN=build/instainpaint ROOMS=6 SEED=11 OUT=mask-propagation CHECKPOINT=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --bin) BIN=$2; shift 2 ;;
+    --rooms) ROOMS=$2; shift 2 ;;
+    --seed) SEED=$2; shift 2 ;;
+    --out) OUT=$2; shift 2 ;;
+    --checkpoint) CHECKPOINT=$2; shift 2 ;;
+    -h|--help) sed -n '2,8p' "$0"; exit 0 ;;
+    *) echo "unknown argument $1" >&2; exit 2 ;;
+  esac
+done
+SHARED=${INSTAINPAINT_SHARED:-$(dirname "$0")/../../shared}
+MODEL=()
+[ -n "$CHECKPOINT" ] && MODEL=(--checkpoint "$CHECKPOINT")
+mkdir -p "$OUT"
+
+# One `masks` run; its agreement goes to $OUT/results.tsv as: label, source, mean/worst recall,
+# mean/worst precision.
+measure() {  # label source out masks-args...
+  local label=$1 source=$2 dir=$3
+  shift 3
+  "$BIN" masks "$@" --out "$dir" > "$dir.log" 2>&1 || { echo "failed: see $dir.log" >&2; exit 1; }
+  python3 - "$dir/masks.json" "$label" "$source" >> "$OUT/results.tsv" <<'PY'
+import json, sys
+a = json.load(open(sys.argv[1]))["agreement"]
+print("\t".join([sys.argv[2], sys.argv[3]] + ["%.3f" % a[k] for k in
+      ("mean_recall", "worst_recall", "mean_precision", "worst_precision")]))
+PY
+}
+
+: > "$OUT/results.tsv"
+"$BIN" synth --out "$OUT/rooms" --scenes "$ROOMS" --seed "$SEED" --views 12 --test-views 2 --width 256 \
+  --height 256 --object procedural --degrade none > "$OUT/synth.log" 2>&1
+for scene in "$OUT"/rooms/scene_*; do
+  name=$(basename "$scene")
+  ref=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["reference"])' "$scene/synth.json")
+  mask="$scene/images_4/label/$ref.png"
+  measure "$name" "depth file (exact)" "$OUT/$name-file" --scene "$scene" --view "$ref" --mask "$mask" \
+    --depth "$scene/depth/$ref.npy"
+  measure "$name" "network" "$OUT/$name-network" --scene "$scene" --view "$ref" --mask "$mask" --height 256 "${MODEL[@]}"
+  context=$(python3 -c 'import json,sys; print(",".join(json.load(open(sys.argv[1]))["context"]))' "$scene/synth.json")
+  for masks in true propagated; do
+    extra=()
+    [ "$masks" = propagated ] && extra=(--view "$ref" --mask "$mask")
+    "$BIN" eval --scene "$scene" --reference "$scene/reference.png" --context "$context" --height 256 \
+      "${MODEL[@]}" "${extra[@]}" --out "$OUT/$name-eval-$masks" > "$OUT/$name-eval-$masks.log" 2>&1 ||
+      { echo "failed: see $OUT/$name-eval-$masks.log" >&2; exit 1; }
+  done
+done
+if [ -d "$SHARED/data/statue" ]; then
+  measure statue network "$OUT/statue-network" --scene "$SHARED/data/statue" --view IMG_2707 \
+    --mask "$SHARED/data/statue/images_2/label/IMG_2707.png" "${MODEL[@]}"
+fi
+
+python3 - "$OUT/results.tsv" <<'PY'
+import sys
+rows = [l.rstrip("\n").split("\t") for l in open(sys.argv[1]) if l.strip()]
+print("| scene | depth | recall mean | recall worst | precision mean | precision worst |")
+print("|---|---|---|---|---|---|")
+for r in rows:
+    print("| " + " | ".join(r) + " |")
+for source in sorted({r[1] for r in rows}):
+    for group, sel in (("rooms", lambda r: r[0].startswith("scene_")), ("statue", lambda r: r[0] == "statue")):
+        sub = [r for r in rows if r[1] == source and sel(r)]
+        if not sub:
+            continue
+        mean = lambda i: sum(float(r[i]) for r in sub) / len(sub)
+        worst = lambda i: min(float(r[i]) for r in sub)
+        print(f"| **{group} ({len(sub)})** | {source} | {mean(2):.3f} | {worst(3):.3f} | {mean(4):.3f} | {worst(5):.3f} |")
+PY
+
+echo
+python3 - "$OUT" <<'PY'
+import glob, json, os, sys
+print("| room | masked PSNR, true masks | masked PSNR, propagated masks | difference |")
+print("|---|---|---|---|")
+diffs = []
+for true_dir in sorted(glob.glob(os.path.join(sys.argv[1], "scene_*-eval-true"))):
+    name = os.path.basename(true_dir)[: -len("-eval-true")]
+    t = json.load(open(os.path.join(true_dir, "metrics.json")))["mean"]["masked_psnr"]
+    p = json.load(open(os.path.join(sys.argv[1], name + "-eval-propagated", "metrics.json")))["mean"]["masked_psnr"]
+    diffs.append(p - t)
+    print(f"| {name} | {t:.2f} | {p:.2f} | {p - t:+.2f} dB |")
+if diffs:
+    print(f"| **mean** | | | {sum(diffs) / len(diffs):+.2f} dB |")
+PY

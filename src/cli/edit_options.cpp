@@ -1,0 +1,81 @@
+#include "cli/edit_options.h"
+
+#include <spdlog/spdlog.h>
+
+#include "data/view_selection.h"
+#include "model/default_model.h"
+
+namespace ii::cli {
+
+void add_edit_options(CLI::App* cmd, EditArgs& args) {
+  auto* view = cmd->add_option("--view", args.view,
+                               "The view the region is marked on: masks for every other view are made from it");
+  auto* mask = cmd->add_option("--mask", args.mask, "The region on that view (white = object or edit region)")
+                   ->check(CLI::ExistingFile);
+  view->needs(mask);
+  mask->needs(view);
+  cmd->add_option("--mode", args.mode,
+                  "remove: the region shows an object to take out; insert: the edited reference shows a new "
+                  "object there")
+      ->check(CLI::IsMember({"remove", "insert"}))
+      ->capture_default_str();
+  cmd->add_option("--depth", args.depth,
+                  "Depth of the marked view: .npy (H, W) z-depth in scene units or a 16-bit PNG (default: the "
+                  "scene's COLMAP points, else the network's reconstruction)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--depth-scale", args.depth_scale, "Scene units per level of a 16-bit depth PNG")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--extent", args.extent,
+                  "Insert: how far the new object reaches towards the camera, in scene units (default: the "
+                  "region's width in 3D)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--depth-margin", args.depth_margin,
+                  "How far the depth may be off, relative (default: 0.05 for --depth, 0.1 for COLMAP points, 0.3 for "
+                  "the network's depth)")
+      ->check(CLI::Range(0.0, 0.9));
+  cmd->add_option("--dilate", args.dilate,
+                  "Pixels added around every propagated mask (default: 1 % of the view's larger side, at least 2)")
+      ->check(CLI::Range(0, 64));
+}
+
+void add_reference_options(CLI::App* cmd, EditArgs& args) {
+  cmd->add_option("--reference-view", args.reference_view,
+                  "The reference view when the context is chosen automatically (default: the --view of a one-mask "
+                  "edit, else the view nearest the middle of the capture)");
+  cmd->add_option("--reference-inpainter", args.inpainter,
+                  "Classical 2D inpainting of the reference when no --reference is given: telea or ns "
+                  "(Navier-Stokes)")
+      ->check(CLI::IsMember({"telea", "ns"}))
+      ->capture_default_str();
+}
+
+void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
+  options.reference_view = args.reference_view;
+  options.inpainter = parse_inpainter(args.inpainter);
+}
+
+std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene) {
+  if (args.view.empty()) return std::nullopt;
+  OneMask request;
+  request.view = args.view;
+  request.region = read_region_mask(args.mask, scene.views[static_cast<size_t>(input_view_index(scene, args.view))]);
+  request.propagation.mode = parse_edit_mode(args.mode);
+  if (args.extent > 0) request.propagation.extent = args.extent;
+  request.propagation.dilation = args.dilate;
+  if (args.depth_margin >= 0) request.depth_margin = args.depth_margin;
+  if (!args.depth.empty()) request.depth_file = args.depth;
+  request.depth_png_scale = args.depth_scale;
+  return request;
+}
+
+const Predictor& LazyPredictor::get() {
+  if (!predictor_) {
+    const Runtime runtime = apply_runtime_options(runtime_);
+    spdlog::info("loading model {} for the marked view's depth", checkpoint_.empty() ? kDefaultModelName : checkpoint_);
+    predictor_.emplace(checkpoint_, runtime.device, runtime.precision);
+  }
+  return *predictor_;
+}
+
+}  // namespace ii::cli

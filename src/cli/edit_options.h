@@ -1,0 +1,54 @@
+#pragma once
+// The one-mask editing options shared by masks, prepare, infer and eval: a region marked on one
+// view (--view, --mask) stands in for a mask on every view.
+#include <optional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "cli/runtime.h"
+#include "edit/scene_masks.h"
+
+namespace ii::cli {
+
+struct EditArgs {
+  std::string view, mask;
+  std::string mode = "remove";
+  std::string depth;
+  double depth_scale = 0.001;
+  double extent = 0;        // 0 = the region's width in 3D
+  double depth_margin = -1;  // < 0 = the depth source's own
+  int dilate = -1;  // -1 = automatic
+  std::string reference_view;       // --reference-view
+  std::string inpainter = "telea";  // --reference-inpainter
+};
+
+// --view, --mask, --mode, --depth, --depth-scale, --extent, --dilate.
+void add_edit_options(CLI::App* cmd, EditArgs& args);
+// --reference-view, --reference-inpainter (commands that build the network's input).
+void add_reference_options(CLI::App* cmd, EditArgs& args);
+
+// The request the options describe for this scene, or nullopt without --view/--mask.
+std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene);
+// The reference options into the network's input options.
+void apply_reference_options(const EditArgs& args, SceneInputOptions& options);
+
+// The model, loaded on first use: a one-mask edit needs the network only when no other depth
+// of the marked view exists.
+class LazyPredictor {
+ public:
+  LazyPredictor(std::string checkpoint, RuntimeOptions runtime)
+      : checkpoint_(std::move(checkpoint)), runtime_(std::move(runtime)) {}
+  const Predictor& get();
+  PredictorSource source() {
+    return [this]() -> const Predictor& { return get(); };
+  }
+  const Predictor* loaded() const { return predictor_ ? &*predictor_ : nullptr; }
+
+ private:
+  std::string checkpoint_;
+  RuntimeOptions runtime_;
+  std::optional<Predictor> predictor_;
+};
+
+}  // namespace ii::cli

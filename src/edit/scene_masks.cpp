@@ -1,0 +1,150 @@
+#include "edit/scene_masks.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/ranges.h>
+#include <spdlog/spdlog.h>
+
+#include "common/error.h"
+#include "data/masks.h"
+#include "data/view_selection.h"
+
+namespace ii {
+
+namespace {
+
+const View& marked_view(const Scene& scene, const std::string& name) {
+  return scene.views[static_cast<size_t>(input_view_index(scene, name))];
+}
+
+// Enough depth samples for every region: a sparse source that misses a region is passed over.
+constexpr int kMinDepthSamples = 5;
+
+}  // namespace
+
+Image read_region_mask(const std::filesystem::path& file, const View& view) {
+  const ImageInfo info = probe_image(file);
+  if (info.width != view.camera.K.width || info.height != view.camera.K.height)
+    fail_file(file, "the mask is {}x{} but view {} is {}x{}", info.width, info.height, view.name,
+              view.camera.K.width, view.camera.K.height);
+  Image mask = read_mask(file);
+  if (std::none_of(mask.pixels.begin(), mask.pixels.end(), [](float v) { return v > 0.5f; }))
+    fail_file(file, "the mask is empty: mark the region in white");
+  return mask;
+}
+
+std::optional<Image> colmap_points_depth(const Scene& scene, const View& view) {
+  const std::vector<Eigen::Vector3d> points = load_scene_points(scene);
+  if (points.empty()) return std::nullopt;
+  const Camera& cam = view.camera;
+  const Eigen::Matrix4d w2c = cam.w2c_opencv();
+  Image depth(cam.K.width, cam.K.height, 1);
+  for (const Eigen::Vector3d& X : points) {
+    const Eigen::Vector3d Y = w2c.topLeftCorner<3, 3>() * X + w2c.topRightCorner<3, 1>();
+    if (!(Y.z() > 0)) continue;
+    const double u = cam.K.fx * Y.x() / Y.z() + cam.K.cx, v = cam.K.fy * Y.y() / Y.z() + cam.K.cy;
+    if (!(u >= 0 && v >= 0 && u < cam.K.width && v < cam.K.height)) continue;
+    float& d = depth.at(static_cast<int>(v), static_cast<int>(u));
+    if (d == 0 || Y.z() < d) d = static_cast<float>(Y.z());
+  }
+  return depth;
+}
+
+Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const std::string& view,
+                           const SceneInputOptions& options) {
+  const View& marked = marked_view(scene, view);
+  SceneInputOptions o;
+  o.num_views = options.num_views;
+  o.preprocess = options.preprocess;
+  o.reference_view = view;
+  o.keep_object = true;
+  const Prediction p = predictor.predict(scene, o);
+  // z-depth scales with the pose normalisation; the working image is the view resized, then cropped.
+  const torch::Tensor working = (p.maps.depth[0][0][0].to(torch::kCPU, torch::kFloat) * p.input.normalization.scale)
+                                    .contiguous();
+  const int W = marked.camera.K.width, H = marked.camera.K.height;
+  const WorkingSize ws = working_size(W, H, o.preprocess);
+  const auto d = working.accessor<float, 2>();
+  Image depth(W, H, 1);
+  for (int y = 0; y < H; ++y) {
+    const long wy = std::lround((y + 0.5) * ws.resized_height / H - 0.5) - ws.crop_y;
+    if (wy < 0 || wy >= ws.height) continue;
+    for (int x = 0; x < W; ++x) {
+      const long wx = std::lround((x + 0.5) * ws.resized_width / W - 0.5) - ws.crop_x;
+      if (wx >= 0 && wx < ws.width) depth.at(y, x) = d[wy][wx];
+    }
+  }
+  return depth;
+}
+
+nlohmann::json SceneMasks::describe(const OneMask& request) const {
+  nlohmann::json regions_json = nlohmann::json::array();
+  for (const LiftedRegion& r : regions)
+    regions_json.push_back({{"pixels", r.pixels},
+                            {"depth_inside", r.depth_inside},
+                            {"depth_ring", r.depth_ring},
+                            {"near", r.near},
+                            {"far", r.far}});
+  return {{"view", request.view},
+          {"mode", edit_mode_name(request.propagation.mode)},
+          {"depth_source", depth_source},
+          {"notes", notes},
+          {"regions", regions_json}};
+}
+
+void SceneMasks::apply_to(SceneInputOptions& options, const OneMask& request) const {
+  options.masks = masks;
+  if (options.reference_view.empty() && options.context.empty()) options.reference_view = request.view;
+}
+
+SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
+                          const SceneInputOptions& options) {
+  const View& marked = marked_view(scene, request.view);
+  std::vector<Camera> cameras;
+  for (const View& v : scene.views) cameras.push_back(v.camera);
+
+  SceneMasks out;
+  auto lift = [&](const Image& depth, double margin, bool pixel_depth) {
+    PropagationOptions o = request.propagation;
+    o.depth_margin = request.depth_margin.value_or(margin);
+    o.pixel_depth = pixel_depth;
+    return propagate_mask(request.region, depth, marked.camera, cameras, o);
+  };
+  auto finish = [&](const PropagatedMasks& p, std::string source) {
+    for (size_t i = 0; i < scene.views.size(); ++i) out.masks[scene.views[i].name] = p.masks[i];
+    Image exact = request.region;
+    for (float& v : exact.pixels) v = v > 0.5f ? 1.f : 0.f;
+    out.masks[marked.name] = exact;
+    out.regions = p.regions;
+    out.depth_source = std::move(source);
+    return out;
+  };
+
+  if (request.depth_file) {
+    const Image depth = read_depth_map(*request.depth_file, marked.camera.K.width, marked.camera.K.height,
+                                       request.depth_png_scale);
+    return finish(lift(depth, kFileDepthMargin, true), "file " + request.depth_file->string());
+  }
+  if (const auto sparse = colmap_points_depth(scene, marked)) {
+    try {
+      const PropagatedMasks p = lift(*sparse, kColmapDepthMargin, true);
+      const bool enough = std::all_of(p.regions.begin(), p.regions.end(), [](const LiftedRegion& r) {
+        return r.depth_inside + r.depth_ring >= kMinDepthSamples;
+      });
+      if (enough) return finish(p, "colmap points");
+      out.notes.push_back(fmt::format("fewer than {} COLMAP points fall in a region or on its ring", kMinDepthSamples));
+    } catch (const Error& e) {
+      out.notes.push_back(fmt::format("COLMAP points: {}", e.what()));
+    }
+  }
+  if (!predictor)
+    fail("no depth for view {}: give a depth map (--depth), a scene with COLMAP points, or let the network "
+         "reconstruct it{}",
+         marked.name, out.notes.empty() ? "" : fmt::format(" ({})", fmt::join(out.notes, "; ")));
+  for (const std::string& note : out.notes) spdlog::info("{}: using the network's depth", note);
+  const Image depth = predicted_view_depth(predictor(), scene, marked.name, options);
+  return finish(lift(depth, kNetworkDepthMargin, false), "network");
+}
+
+}  // namespace ii

@@ -1,0 +1,73 @@
+#pragma once
+// Editing a scene from one mask: the region a user marked on one view becomes a mask for every
+// view (edit/propagate.h), lifted with the best depth of that view there is: a depth file the
+// user gives, else the scene's COLMAP points, else the network's own reconstruction of the
+// scene as captured.
+//
+//   OneMask edit{"IMG_2707", read_mask("region.png")};
+//   const SceneMasks m = masks_from_one(scene, edit, [&]() -> const Predictor& { return predictor; }, input_options);
+//   m.apply_to(input_options, edit);  // masks, and the marked view as the reference
+//   predictor.predict(scene, input_options);
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "data/scene.h"
+#include "edit/propagate.h"
+#include "model/predictor.h"
+
+namespace ii {
+
+struct OneMask {
+  std::string view;  // name of the marked view (one of scene.views)
+  Image region;      // 1 channel at that view's image size, > 0.5 = marked
+  PropagationOptions propagation;  // its depth_margin is replaced by the source's unless `depth_margin` is set
+  std::optional<double> depth_margin;
+  std::optional<std::filesystem::path> depth_file;  // see read_depth_map (data/masks.h)
+  double depth_png_scale = 0.001;                   // scene units per level of a 16-bit depth PNG
+};
+
+// A region mask file for a view: read_mask, then checked against the view's image size.
+Image read_region_mask(const std::filesystem::path& file, const View& view);
+
+// How far each depth source may be off (relative), i.e. the slack the lifted segments get:
+// a depth file is taken as exact, COLMAP points as accurate but sparse, the network's
+// reconstruction as biased (the default model's depth of the statue scene is about 25 % far;
+// its segments also span the region's whole depth range instead of starting at each pixel's).
+constexpr double kFileDepthMargin = 0.05, kColmapDepthMargin = 0.1, kNetworkDepthMargin = 0.3;
+
+// Sparse depth of a view from the scene's COLMAP points (the nearest point per pixel; 0 where
+// none falls); nullopt when the scene has no points.
+std::optional<Image> colmap_points_depth(const Scene& scene, const View& view);
+
+// The network's z-depth of `view` (scene units, at the view's image size; 0 outside the
+// working crop), reconstructed with the object present: that view is the reference, the
+// other context views are chosen around it, nothing is masked.
+Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const std::string& view,
+                           const SceneInputOptions& options);
+
+struct SceneMasks {
+  std::map<std::string, Image> masks;  // every view of the scene by name; the marked one = its region
+  std::string depth_source;            // "file <path>", "colmap points" or "network"
+  std::vector<std::string> notes;      // why a preferred depth source was passed over
+  std::vector<LiftedRegion> regions;
+  // {"view", "mode", "depth_source", "notes", "regions": [{pixels, depth_inside, depth_ring, near, far}]}
+  nlohmann::json describe(const OneMask& request) const;
+  // Gives the network these masks; the marked view becomes the reference unless the caller
+  // chose one (options.reference_view or options.context).
+  void apply_to(SceneInputOptions& options, const OneMask& request) const;
+};
+
+// The predictor (asked for only when the network's depth is needed, so a caller can load it
+// lazily; may be empty, which is then an error naming the other sources) runs with `options`'
+// preprocessing and number of context views.
+using PredictorSource = std::function<const Predictor&()>;
+SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
+                          const SceneInputOptions& options);
+
+}  // namespace ii

@@ -1,0 +1,195 @@
+// Mask propagation on scenes traced exactly: spheres in front of a wall, seen by cameras around
+// them. True masks and depth come from ray casting, so recall and precision are exact.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <optional>
+
+#include <Eigen/Dense>
+
+#include "camera/camera.h"
+#include "edit/propagate.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+struct Sphere {
+  Eigen::Vector3d centre;
+  double radius;
+};
+
+// The wall is the plane z = -6 (world units); cameras sit near z = 0 looking along -z.
+constexpr double kWallZ = -6;
+
+Camera camera_at(const Eigen::Vector3d& position, const Eigen::Vector3d& target, int width = 96, int height = 72) {
+  Camera c;
+  c.K = Intrinsics::from_fov(width, height, 1.0, 1.0 * height / width);
+  const Eigen::Vector3d back = (position - target).normalized();  // OpenGL +z points backwards
+  const Eigen::Vector3d right = Eigen::Vector3d::UnitY().cross(back).normalized();
+  const Eigen::Vector3d up = back.cross(right);
+  c.c2w.block<3, 1>(0, 0) = right;
+  c.c2w.block<3, 1>(0, 1) = up;
+  c.c2w.block<3, 1>(0, 2) = back;
+  c.c2w.block<3, 1>(0, 3) = position;
+  return c;
+}
+
+// Traces every pixel: the z-depth of the nearest surface (spheres, else the wall) and which
+// pixels see a sphere.
+struct Traced {
+  Image depth, mask;
+};
+Traced trace(const Camera& cam, const std::vector<Sphere>& spheres) {
+  Traced t{Image(cam.K.width, cam.K.height, 1), Image(cam.K.width, cam.K.height, 1)};
+  const Eigen::Matrix4d c2w = opengl_to_opencv(cam.c2w);
+  const Eigen::Vector3d o = cam.center();
+  for (int y = 0; y < cam.K.height; ++y)
+    for (int x = 0; x < cam.K.width; ++x) {
+      const Eigen::Vector3d local((x + 0.5 - cam.K.cx) / cam.K.fx, (y + 0.5 - cam.K.cy) / cam.K.fy, 1);
+      const Eigen::Vector3d d = c2w.topLeftCorner<3, 3>() * local;  // z-depth 1 along this ray
+      double best = d.z() < 0 ? (kWallZ - o.z()) / d.z() : 1e9;
+      bool object = false;
+      for (const Sphere& s : spheres) {
+        const Eigen::Vector3d oc = o - s.centre;
+        const double a = d.squaredNorm(), b = 2 * oc.dot(d), c = oc.squaredNorm() - s.radius * s.radius;
+        const double disc = b * b - 4 * a * c;
+        if (disc < 0) continue;
+        const double hit = (-b - std::sqrt(disc)) / (2 * a);
+        if (hit > 0 && hit < best) {
+          best = hit;
+          object = true;
+        }
+      }
+      t.depth.at(y, x) = static_cast<float>(best);
+      t.mask.at(y, x) = object ? 1.f : 0.f;
+    }
+  return t;
+}
+
+std::vector<Camera> cameras_around(const Eigen::Vector3d& target) {
+  std::vector<Camera> cams;
+  for (int i = 0; i < 6; ++i) {
+    const double a = -0.35 + 0.7 * i / 5.0;
+    cams.push_back(camera_at(Eigen::Vector3d(2.5 * std::sin(a), 0.3 * std::cos(3 * a), 2.5 * std::cos(a) - 2.5 + 1.0), target));
+  }
+  return cams;
+}
+
+TEST(Propagate, RemovalCoversTheObjectInEveryView) {
+  const std::vector<Sphere> spheres = {{{0, 0, -3}, 0.6}};
+  const std::vector<Camera> cams = cameras_around(spheres[0].centre);
+  const Traced marked = trace(cams[0], spheres);
+  const PropagatedMasks p = propagate_mask(marked.mask, marked.depth, cams[0], cams);
+  ASSERT_EQ(p.masks.size(), cams.size());
+  ASSERT_EQ(p.regions.size(), 1u);
+  // From its front to beyond its back, but not to the wall: a sphere is as deep as it is wide.
+  const double distance = (spheres[0].centre - cams[0].center()).norm();
+  EXPECT_LT(p.regions[0].near, distance - spheres[0].radius);
+  EXPECT_GT(p.regions[0].far, distance + spheres[0].radius);
+  EXPECT_LT(p.regions[0].far, -kWallZ);
+  for (size_t v = 1; v < cams.size(); ++v) {
+    const MaskAgreement a = mask_agreement(p.masks[v], trace(cams[v], spheres).mask);
+    EXPECT_EQ(a.recall, 1.0) << "view " << v;
+    EXPECT_GT(a.precision, 0.3) << "view " << v;
+  }
+  // Reaching the wall instead (max_depth_ratio 0) covers as much and more.
+  PropagationOptions to_the_wall;
+  to_the_wall.max_depth_ratio = 0;
+  const PropagatedMasks wall = propagate_mask(marked.mask, marked.depth, cams[0], cams, to_the_wall);
+  EXPECT_GT(wall.regions[0].far, -kWallZ);
+  EXPECT_LT(mask_agreement(wall.masks[5], trace(cams[5], spheres).mask).precision,
+            mask_agreement(p.masks[5], trace(cams[5], spheres).mask).precision);
+}
+
+TEST(Propagate, DisjointRegionsAreLiftedOneByOne) {
+  const std::vector<Sphere> spheres = {{{-0.9, 0, -3}, 0.4}, {{1.0, 0.2, -4}, 0.5}};
+  const std::vector<Camera> cams = cameras_around(Eigen::Vector3d(0, 0, -3.5));
+  const Traced marked = trace(cams[2], spheres);
+  const PropagatedMasks p = propagate_mask(marked.mask, marked.depth, cams[2], cams);
+  ASSERT_EQ(p.regions.size(), 2u);
+  // Each region keeps its own depth range: the nearer sphere starts nearer.
+  EXPECT_NE(p.regions[0].near, p.regions[1].near);
+  for (size_t v = 0; v < cams.size(); ++v)
+    EXPECT_EQ(mask_agreement(p.masks[v], trace(cams[v], spheres).mask).recall, 1.0) << "view " << v;
+}
+
+TEST(Propagate, InsertionReachesFromTheWallTowardsTheCamera) {
+  // The user paints a sphere touching the wall into view 0; the other views only see the wall.
+  const Sphere inserted{{0.3, -0.2, kWallZ + 0.7}, 0.7};
+  const std::vector<Camera> cams = cameras_around(inserted.centre);
+  const Traced with_object = trace(cams[0], {inserted});
+  const Traced wall = trace(cams[0], {});
+  PropagationOptions o;
+  o.mode = EditMode::Insert;
+  const PropagatedMasks p = propagate_mask(with_object.mask, wall.depth, cams[0], cams, o);
+  ASSERT_EQ(p.regions.size(), 1u);
+  for (size_t v = 1; v < cams.size(); ++v) {
+    const MaskAgreement a = mask_agreement(p.masks[v], trace(cams[v], {inserted}).mask);
+    EXPECT_EQ(a.recall, 1.0) << "view " << v;
+    EXPECT_GT(a.precision, 0.3) << "view " << v;
+  }
+  // A flat extent (no margin, no dilation) leaves the object's front out of the other views.
+  o.extent = 1e-3;
+  o.depth_margin = 0;
+  o.dilation = 0;
+  const PropagatedMasks flat = propagate_mask(with_object.mask, wall.depth, cams[0], cams, o);
+  EXPECT_LT(mask_agreement(flat.masks[5], trace(cams[5], {inserted}).mask).recall, 0.9);
+}
+
+TEST(Propagate, SparseDepthStillCovers) {
+  const std::vector<Sphere> spheres = {{{0, 0, -3}, 0.6}};
+  const std::vector<Camera> cams = cameras_around(spheres[0].centre);
+  Traced marked = trace(cams[0], spheres);
+  // Keep one pixel in 23 (like COLMAP points): bounds come from the region and its ring.
+  for (size_t i = 0; i < marked.depth.pixels.size(); ++i)
+    if (i % 23) marked.depth.pixels[i] = 0;
+  const PropagatedMasks p = propagate_mask(marked.mask, marked.depth, cams[0], cams);
+  for (size_t v = 1; v < cams.size(); ++v)
+    EXPECT_EQ(mask_agreement(p.masks[v], trace(cams[v], spheres).mask).recall, 1.0) << "view " << v;
+}
+
+TEST(Propagate, BadInputsAreClearErrors) {
+  const Camera cam = camera_at({0, 0, 1}, {0, 0, -3});
+  const Image depth(96, 72, 1, 2.f), empty(96, 72, 1);
+  Image region(96, 72, 1);
+  region.at(30, 40) = 1;
+  EXPECT_EQ(test::error_message([&] { propagate_mask(empty, depth, cam, {cam}); }),
+            "the region mask is empty: mark the region with white (> 0.5) pixels");
+  EXPECT_EQ(test::error_message([&] { propagate_mask(Image(90, 72, 1), depth, cam, {cam}); }),
+            "region mask: 90x72 with 1 channels, the view is 96x72 (one channel expected)");
+  EXPECT_EQ(test::error_message([&] { propagate_mask(region, Image(96, 70, 1), cam, {cam}); }),
+            "depth map: 96x70 with 1 channels, the view is 96x72 (one channel expected)");
+  EXPECT_EQ(test::error_message([&] { propagate_mask(region, Image(96, 72, 1), cam, {cam}); }),
+            "region 1 of 1 (1 pixels) has no known depth inside it or around it");
+  PropagationOptions o;
+  o.extent = -1;
+  EXPECT_EQ(test::error_message([&] { propagate_mask(region, depth, cam, {cam}, o); }),
+            "the insertion extent must be a positive number of scene units, got -1");
+  EXPECT_EQ(test::error_message([] { parse_edit_mode("erase"); }), "unknown edit mode 'erase' (remove or insert)");
+}
+
+TEST(Propagate, TheMarkedViewGetsItsRegionBack) {
+  const std::vector<Sphere> spheres = {{{0, 0, -3}, 0.6}};
+  const Camera cam = camera_at({0, 0, 1}, spheres[0].centre);
+  const Traced marked = trace(cam, spheres);
+  PropagationOptions o;
+  o.dilation = 0;
+  const PropagatedMasks p = propagate_mask(marked.mask, marked.depth, cam, {cam}, o);
+  const MaskAgreement a = mask_agreement(p.masks[0], marked.mask);
+  EXPECT_EQ(a.recall, 1.0);
+  EXPECT_GT(a.precision, 0.97);  // the closing may round the staircase of the outline
+}
+
+TEST(Propagate, AgreementCountsPixels) {
+  Image truth(4, 1, 1), mask(4, 1, 1);
+  truth.pixels = {1, 1, 0, 0};
+  mask.pixels = {1, 0, 1, 1};
+  const MaskAgreement a = mask_agreement(mask, truth);
+  EXPECT_DOUBLE_EQ(a.recall, 0.5);
+  EXPECT_DOUBLE_EQ(a.precision, 1.0 / 3.0);
+  EXPECT_EQ(mask_agreement(Image(4, 1, 1), Image(4, 1, 1)).recall, 1.0);
+}
+
+}  // namespace
+}  // namespace ii
