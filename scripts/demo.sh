@@ -2,10 +2,12 @@
 # The main job of `make demo`: a complete run on a scene made here, with the model built into
 # instainpaint (no download, no shared data). Everything goes to demo-out/:
 #   1. a small synthetic room with an object, and its exact object-free ground truth;
-#   2. inference: the Gaussians of the room without the object (gaussians.ply);
-#   3. the same model given the object (no masks), to compare with;
-#   4. novel views of both next to the ground truth, and an orbit video;
-#   5. metrics against the exact ground truth, next to two 2D baselines.
+#   2. masks for every view from ONE mask (the reference view's) and its depth map, compared with
+#      the exact ones (and the same with the default model's depth);
+#   3. inference from that one mask: the Gaussians of the room without the object (gaussians.ply);
+#   4. the same model given the object (no masks), to compare with;
+#   5. novel views of both next to the ground truth, and an orbit video;
+#   6. metrics against the exact ground truth, next to two 2D baselines.
 set -euo pipefail
 BIN=${1:-build/instainpaint}
 OUT=${DEMO_OUT:-demo-out}
@@ -17,21 +19,31 @@ step() { printf '\n== %s\n' "$*"; }
 
 # --degrade none: the reference view is the exact object-free image, standing in for a good 2D
 # inpainter (--degrade telea would give OpenCV's fill instead).
-step "1/5 a synthetic room with an object, and the same room without it (ground truth)"
+step "1/6 a synthetic room with an object, and the same room without it (ground truth)"
 "$BIN" synth --out "$OUT/data" --scenes 1 --seed 2024 --views 12 --test-views 4 \
   --width "$SIZE" --height "$SIZE" --object procedural --degrade none
 SCENE="$OUT/data/scene_000"
 # The generator picks four context views (reference first) and records them in synth.json.
 CONTEXT=$(sed -n '/"context"/,/]/p' "$SCENE/synth.json" | grep -o '"view_[0-9]*"' | tr -d '"' | paste -sd, -)
+REF=${CONTEXT%%,*}
+# The user marks the object on the reference view only; every other view's mask is made from it,
+# lifted with that view's depth map (the room's own, as a depth camera would give it).
+ONE_MASK=(--view "$REF" --mask "$SCENE/images_4/label/$REF.png" --depth "$SCENE/depth/$REF.npy")
 
-step "2/5 inference with the default model: the room without the object"
-"$BIN" infer --scene "$SCENE" --reference "$SCENE/reference.png" --context "$CONTEXT" \
+step "2/6 masks for every view from the mask of $REF alone, lifted with its depth map"
+"$BIN" masks --scene "$SCENE" "${ONE_MASK[@]}" --out "$OUT/masks" | sed 's/^/  /'
+echo "  (without --depth the default model's reconstruction gives the depth, about twice too far in this room:"
+"$BIN" masks --scene "$SCENE" "${ONE_MASK[@]:0:4}" --height "$SIZE" --out "$OUT/masks-network" 2> /dev/null |
+  grep against | sed 's/^/   /; s/$/)/'
+
+step "3/6 inference with the default model from that one mask: the room without the object"
+"$BIN" infer --scene "$SCENE" --reference "$SCENE/reference.png" --context "$CONTEXT" "${ONE_MASK[@]}" \
   --height "$SIZE" --out "$OUT/inpainted"
 
-step "3/5 the same model given the object (no masks), to compare with"
+step "4/6 the same model given the object (no masks), to compare with"
 "$BIN" infer --scene "$SCENE" --context "$CONTEXT" --height "$SIZE" --keep-object --out "$OUT/with-object"
 
-step "4/5 novel views (the scene's held-out test cameras) and an orbit video"
+step "5/6 novel views (the scene's held-out test cameras) and an orbit video"
 for run in inpainted with-object; do
   "$BIN" render --ply "$OUT/$run/gaussians.ply" --scene "$SCENE" --normalize --test-views \
     --no-video --out "$OUT/$run/novel" > /dev/null
@@ -51,16 +63,19 @@ ffmpeg -loglevel error -y "${inputs[@]}" \
 "$BIN" render --ply "$OUT/inpainted/gaussians.ply" --scene "$SCENE" --normalize --trajectory orbit \
   --frames 60 --width $((2 * SIZE)) --height $((2 * SIZE)) --out "$OUT/orbit" > /dev/null
 
-step "5/5 metrics on the object-free test views, next to two 2D baselines"
+step "6/6 metrics on the object-free test views, next to two 2D baselines"
 for method in model telea mean-fill; do
+  edit=()
+  [ "$method" = model ] && edit=("${ONE_MASK[@]}")
   "$BIN" eval --scene "$SCENE" --reference "$SCENE/reference.png" --context "$CONTEXT" --height "$SIZE" \
-    --method "$method" --out "$OUT/eval-$method" > "$OUT/eval-$method.log" 2>&1
+    --method "$method" "${edit[@]}" --out "$OUT/eval-$method" > "$OUT/eval-$method.log" 2>&1
   printf '  %-10s %s\n' "$method" "$(grep -m1 '^  PSNR' "$OUT/eval-$method.log" | sed 's/^ *//')"
 done
 
 cat <<TXT
 
 Done in $(($(date +%s) - start)) s. In $OUT/:
+  masks/                    a mask per view made from the reference view's mask and depth (masks.json: recall, precision)
   inpainted/gaussians.ply   3D Gaussians of the room without the object (standard 3DGS PLY)
   inpainted/depth/          the predicted depth of each context view
   novel-views.png           novel views, one per row: with the object | object removed | ground truth
@@ -69,9 +84,9 @@ Done in $(($(date +%s) - start)) s. In $OUT/:
   eval-*/metrics.json       PSNR, SSIM and their masked variants (model; baselines: OpenCV Telea, mean fill)
 (telea and mean-fill fill each test view's mask from that view's own ground truth: 2D, no 3D consistency.)
 
-The same on your own capture (LLFF/SPIn-NeRF, nerfstudio transforms.json or COLMAP; object masks
-in images_K/label/ or --masks DIR; the reference view painted out by any 2D inpainter):
-  $BIN infer --scene my_capture --reference my_inpainted_reference.png --out out/my_capture
+The same on your own capture (LLFF/SPIn-NeRF, nerfstudio transforms.json or COLMAP; the object
+marked on one photo; that photo painted out by any 2D inpainter):
+  $BIN infer --scene my_capture --view IMG_0001 --mask object.png --reference my_inpainted_IMG_0001.png --out out/my_capture
   $BIN render --ply out/my_capture/gaussians.ply --scene my_capture --normalize --trajectory orbit --out out/video
   $BIN --help    (every command; the released official checkpoint: --checkpoint instainpaint.pth)
 TXT
