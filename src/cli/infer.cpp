@@ -65,7 +65,7 @@ void run(const InferArgs& a) {
   apply_reference_options(a.edit, opts);
   nlohmann::json edit_report;
   if (edit) {
-    spdlog::info("[2/4] masks for every view from the region on {}", edit->view);
+    spdlog::info("masks for every view from the region on {}", edit->view);
     const SceneMasks masks = masks_from_one(scene, *edit, [&]() -> const Predictor& { return predictor; }, opts);
     masks.apply_to(opts, *edit);
     edit_report = masks.describe(*edit);

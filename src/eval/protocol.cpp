@@ -330,17 +330,22 @@ void write_report(const fs::path& out, const json& metrics) {
   write_file_atomic(out / "report.html", h);
 }
 
-// What a scene was made for: synthetic scenes say it in synth.json ("remove" or "insert"),
-// captures are removal scenes.
-std::string scene_task(const Scene& scene) {
+// A synthetic scene's synth.json (an empty object for captures).
+json synth_description(const Scene& scene) {
   const fs::path file = scene.root / "synth.json";
-  if (!fs::exists(file)) return "remove";
+  if (!fs::exists(file)) return json::object();
   try {
-    return json::parse(read_file_text(file)).value("task", "remove");
+    json j = json::parse(read_file_text(file));
+    if (!j.is_object()) fail_file(file, "not a JSON object");
+    return j;
   } catch (const json::exception& e) {
     fail_file(file, "not valid JSON: {}", e.what());
   }
 }
+
+// What a scene was made for: synthetic scenes say it ("remove" or "insert"), captures are
+// removal scenes.
+std::string scene_task(const Scene& scene) { return synth_description(scene).value("task", "remove"); }
 
 // The insertion baselines' inputs: the test views with nothing inserted and, for the sticker,
 // the edited reference with its region and background depth.
@@ -374,8 +379,7 @@ std::optional<InsertionBaseline> insertion_baseline(const Scene& scene, const Ev
   if (!o.reference) fail("--method sticker needs --reference: the reference view with the object painted in");
   std::string name = o.reference_view;
   if (name.empty() && !o.context.empty()) name = o.context.front();
-  if (name.empty() && fs::exists(scene.root / "synth.json"))
-    name = json::parse(read_file_text(scene.root / "synth.json")).value("reference", "");
+  if (name.empty()) name = synth_description(scene).value("reference", "");
   if (name.empty()) fail("--method sticker needs the reference view: give --reference-view or --context");
   b.reference = scene.views.at(static_cast<size_t>(input_view_index(scene, name, "reference view")));
   b.reference_image = read_image_rgb(*o.reference);
@@ -471,6 +475,7 @@ Image sticker_view(const Image& floor, const Camera& view, const Image& referenc
       const Eigen::Vector4d p = ref_to_view * local;
       if (p.z() <= 0) continue;
       const double u = view.K.fx * p.x() / p.z() + view.K.cx - 0.5, v = view.K.fy * p.y() / p.z() + view.K.cy - 0.5;
+      if (!(u > -2 && v > -2 && u < floor.width + 1 && v < floor.height + 1)) continue;
       const int x0 = static_cast<int>(std::floor(u)), y0 = static_cast<int>(std::floor(v));
       for (int yy = y0; yy <= y0 + 1; ++yy)
         for (int xx = x0; xx <= x0 + 1; ++xx) {
