@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 #include <spdlog/spdlog.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <optional>
 
@@ -16,6 +17,8 @@
 #include "io/ply.h"
 #include "model/default_model.h"
 #include "model/predictor.h"
+#include "refine/refine.h"
+#include "render/rasterizer.h"
 #include "render/visualize.h"
 
 namespace ii::cli {
@@ -35,6 +38,8 @@ struct InferArgs {
   int height = 512;
   bool keep_object = false;
   EditArgs edit;
+  int refine = 0;
+  bool keep_unrefined = false;
   RuntimeOptions runtime;
 };
 
@@ -82,9 +87,33 @@ void run(const InferArgs& a) {
   timings["network_ms"] = p.network_ms;
   watch.lap();  // the prediction's parts are timed above
 
-  spdlog::info("[4/4] writing {}", a.out);
   const fs::path out(a.out);
-  const SplatCloud cloud = splats_from_gaussians(p.gaussians());
+  GaussianSet gaussians = p.gaussians();
+  nlohmann::json refine_report;
+  if (a.refine > 0) {
+    if (a.keep_unrefined) write_splat_ply(out / "gaussians-unrefined.ply", splats_from_gaussians(gaussians));
+    const std::vector<RefineView> views = refinement_views(scene, p, opts);
+    spdlog::info("refining {} Gaussians for {} steps against {} views", gaussians.size(), a.refine, views.size());
+    RefineOptions ro;
+    ro.steps = a.refine;
+    Stopwatch refine_watch;
+    ro.progress = [&](int done, int steps, double loss) {
+      const double eta = refine_watch.ms() / done * (steps - done) / 1000;
+      std::fprintf(stderr, "\rrefine %d/%d  loss %.4f  ETA %.0f s ", done, steps, loss, eta);
+      if (done == steps) std::fprintf(stderr, "\n");
+    };
+    const RefineResult r = refine_gaussians(gaussians.to(render_device(runtime.device)), views, ro);
+    gaussians = r.gaussians;
+    nlohmann::json names = nlohmann::json::array();
+    for (const RefineView& v : views) names.push_back(v.name);
+    refine_report = {{"steps", a.refine},        {"ms_per_step", r.ms_per_step}, {"views", names},
+                     {"losses", r.losses},       {"dropped", r.dropped},
+                     {"unrefined", a.keep_unrefined ? nlohmann::json("gaussians-unrefined.ply") : nlohmann::json()}};
+    timings["refine_ms"] = watch.lap();
+  }
+
+  spdlog::info("[4/4] writing {}", a.out);
+  const SplatCloud cloud = splats_from_gaussians(gaussians);
   write_splat_ply(out / "gaussians.ply", cloud);
   nlohmann::json depth_files = nlohmann::json::array();
   for (int64_t v = 0; v < p.maps.depth.size(1); ++v) {
@@ -103,6 +132,7 @@ void run(const InferArgs& a) {
       {"context", nlohmann::json::array()},
       {"reference", p.input.reference_source},
       {"edit", edit_report},
+      {"refine", refine_report},
       {"working_size", {shape[3], shape[2]}},
       {"model", predictor.describe()},
       {"precision", precision_name(predictor.precision())},
@@ -145,6 +175,13 @@ void add_infer_command(CLI::App& app) {
       ->check(CLI::Range(8, 4096));
   add_reference_options(cmd, args->edit);
   add_edit_options(cmd, args->edit);
+  cmd->add_option("--refine", args->refine,
+                  "Optimise the predicted Gaussians for this many steps against every view of the scene (outside "
+                  "the object masks; the reference everywhere); 0 = the feed-forward result, as the paper")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100000));
+  cmd->add_flag("--keep-unrefined", args->keep_unrefined,
+                "With --refine: also write the feed-forward Gaussians (gaussians-unrefined.ply)");
   cmd->add_flag("--keep-object", args->keep_object,
                 "Reconstruct the scene as captured, object included (no masks, no reference): a comparison "
                 "for the inpainted result");
