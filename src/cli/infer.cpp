@@ -3,12 +3,12 @@
 #include <fmt/core.h>
 #include <spdlog/spdlog.h>
 
-#include <cstdio>
 #include <filesystem>
 #include <optional>
 
 #include "cli/commands.h"
 #include "cli/edit_options.h"
+#include "cli/refine_options.h"
 #include "cli/runtime.h"
 #include "common/error.h"
 #include "common/files.h"
@@ -17,7 +17,6 @@
 #include "io/ply.h"
 #include "model/default_model.h"
 #include "model/predictor.h"
-#include "refine/refine.h"
 #include "render/rasterizer.h"
 #include "render/visualize.h"
 
@@ -92,23 +91,10 @@ void run(const InferArgs& a) {
   nlohmann::json refine_report;
   if (a.refine > 0) {
     if (a.keep_unrefined) write_splat_ply(out / "gaussians-unrefined.ply", splats_from_gaussians(gaussians));
-    const std::vector<RefineView> views = refinement_views(scene, p, opts);
-    spdlog::info("refining {} Gaussians for {} steps against {} views", gaussians.size(), a.refine, views.size());
-    RefineOptions ro;
-    ro.steps = a.refine;
-    Stopwatch refine_watch;
-    ro.progress = [&](int done, int steps, double loss) {
-      const double eta = refine_watch.ms() / done * (steps - done) / 1000;
-      std::fprintf(stderr, "\rrefine %d/%d  loss %.4f  ETA %.0f s ", done, steps, loss, eta);
-      if (done == steps) std::fprintf(stderr, "\n");
-    };
-    const RefineResult r = refine_gaussians(gaussians.to(render_device(runtime.device)), views, ro);
-    gaussians = r.gaussians;
-    nlohmann::json names = nlohmann::json::array();
-    for (const RefineView& v : views) names.push_back(v.name);
-    refine_report = {{"steps", a.refine},        {"ms_per_step", r.ms_per_step}, {"views", names},
-                     {"losses", r.losses},       {"dropped", r.dropped},
-                     {"unrefined", a.keep_unrefined ? nlohmann::json("gaussians-unrefined.ply") : nlohmann::json()}};
+    spdlog::info("refining {} Gaussians for {} steps against every view", gaussians.size(), a.refine);
+    gaussians = refine_prediction(scene, p, opts, gaussians.to(render_device(runtime.device)), refine_options(a.refine),
+                                  refine_report);
+    refine_report["unrefined"] = a.keep_unrefined ? nlohmann::json("gaussians-unrefined.ply") : nlohmann::json();
     timings["refine_ms"] = watch.lap();
   }
 
@@ -175,11 +161,7 @@ void add_infer_command(CLI::App& app) {
       ->check(CLI::Range(8, 4096));
   add_reference_options(cmd, args->edit);
   add_edit_options(cmd, args->edit);
-  cmd->add_option("--refine", args->refine,
-                  "Optimise the predicted Gaussians for this many steps against every view of the scene (outside "
-                  "the object masks; the reference everywhere); 0 = the feed-forward result, as the paper")
-      ->capture_default_str()
-      ->check(CLI::Range(0, 100000));
+  add_refine_option(cmd, args->refine);
   cmd->add_flag("--keep-unrefined", args->keep_unrefined,
                 "With --refine: also write the feed-forward Gaussians (gaussians-unrefined.ply)");
   cmd->add_flag("--keep-object", args->keep_object,

@@ -224,6 +224,11 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   GaussianSet g = p.gaussians();
   for (torch::Tensor* t : {&g.means, &g.quats, &g.scales, &g.opacities, &g.colors})
     *t = t->to(render_on, torch::kFloat32);
+  watch.lap();
+  if (o.after_prediction) {
+    g = o.after_prediction(scene, p, opts, g, info["after_prediction"]);
+    timings["after_prediction_ms"] = watch.lap();
+  }
   return g;
 }
 

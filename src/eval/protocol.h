@@ -21,6 +21,7 @@
 // Writes OUT/metrics.json, OUT/report.html, OUT/renders/<view>.png and OUT/sheets/<view>.png
 // (ground truth | prediction | error map | mask outline).
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -31,6 +32,7 @@
 #include "edit/scene_masks.h"
 #include "eval/metrics.h"
 #include "model/network.h"
+#include "model/predictor.h"
 
 namespace ii {
 
@@ -57,6 +59,10 @@ struct EvalOptions {
   ClassicalInpainter inpainter = ClassicalInpainter::Telea;
   std::string reference_view;   // automatic context around this reference (default: the edit's view)
   std::optional<OneMask> edit;  // one marked view instead of the scene's masks
+  // Applied to the network's Gaussians before rendering (e.g. refinement, which lives above
+  // eval): given the scene, the prediction and its input options; fills `report`.
+  std::function<GaussianSet(const Scene&, const Prediction&, const SceneInputOptions&, GaussianSet, nlohmann::json& report)>
+      after_prediction;
   Precision precision = Precision::Float32;
   int sh_degree = 3;  // highest SH degree used from a PLY
 

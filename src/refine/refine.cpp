@@ -137,4 +137,18 @@ std::vector<RefineView> refinement_views(const Scene& scene, const Prediction& p
   return views;
 }
 
+GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, const SceneInputOptions& options,
+                              const GaussianSet& start, const RefineOptions& refine, nlohmann::json& report) {
+  const std::vector<RefineView> views = refinement_views(scene, prediction, options);
+  RefineResult r = refine_gaussians(start, views, refine);
+  nlohmann::json names = nlohmann::json::array();
+  for (const RefineView& v : views) names.push_back(v.name);
+  report = {{"steps", refine.steps},
+            {"ms_per_step", r.ms_per_step},
+            {"views", names},
+            {"losses", r.losses},
+            {"dropped", r.dropped}};
+  return std::move(r.gaussians);
+}
+
 }  // namespace ii

@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "camera/camera.h"
 #include "data/preprocess.h"
 #include "gaussians/gaussians.h"
@@ -52,5 +54,11 @@ RefineResult refine_gaussians(const GaussianSet& start, const std::vector<Refine
 // reference is the inpainted image the network saw, unmasked.
 std::vector<RefineView> refinement_views(const Scene& scene, const Prediction& prediction,
                                          const SceneInputOptions& options);
+
+// Both of the above for a prediction: `start` (its Gaussians, on the device to refine on)
+// refined against the scene's views; `report` receives {"steps", "ms_per_step", "views",
+// "losses", "dropped"} for run.json / metrics.json.
+GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, const SceneInputOptions& options,
+                              const GaussianSet& start, const RefineOptions& refine, nlohmann::json& report);
 
 }  // namespace ii

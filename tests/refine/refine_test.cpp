@@ -120,5 +120,28 @@ TEST(RefineCli, InferRefinesAgainstEveryView) {
   EXPECT_NE(test::file_bytes(log).find("refine 2/2"), std::string::npos) << test::file_bytes(log);
 }
 
+TEST(RefineCli, EvalRefinesBeforeRendering) {
+  II_REQUIRE_CLI(exe);
+  const std::filesystem::path tmp = test::temp_dir("refine-eval");
+  const std::filesystem::path log = tmp / "log.txt";
+  ASSERT_EQ(test::run_command(exe.string() + " synth --out '" + (tmp / "rooms").string() +
+                                  "' --views 5 --test-views 2 --width 48 --height 40 --object procedural",
+                              log),
+            0)
+      << test::file_bytes(log);
+  const std::string scene = (tmp / "rooms" / "scene_000").string();
+  ASSERT_EQ(test::run_command(exe.string() + " eval --scene '" + scene + "' --height 40 --refine 3 --out '" +
+                                  (tmp / "eval").string() + "'",
+                              log),
+            0)
+      << test::file_bytes(log);
+  const nlohmann::json m = nlohmann::json::parse(test::file_bytes(tmp / "eval" / "metrics.json"));
+  EXPECT_EQ(m["prediction"]["after_prediction"]["refine"]["steps"], 3);
+  EXPECT_EQ(m["prediction"]["after_prediction"]["refine"]["views"].size(), 5u);
+  EXPECT_EQ(test::run_command(exe.string() + " eval --scene '" + scene + "' --method telea --refine 3 --out x", log), 1);
+  EXPECT_NE(test::file_bytes(log).find("error: --refine refines the network's prediction"), std::string::npos)
+      << test::file_bytes(log);
+}
+
 }  // namespace
 }  // namespace ii
