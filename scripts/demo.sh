@@ -4,11 +4,12 @@
 #   1. a small synthetic room with an object, and its exact object-free ground truth;
 #   2. masks for every view from ONE mask (the reference view's) and its depth map, compared with
 #      the exact ones (and the same with the default model's depth);
-#   3. inference from that one mask: the Gaussians of the room without the object (gaussians.ply);
+#   3. inference from that one mask: the Gaussians of the room without the object, as the network
+#      predicts them (gaussians-unrefined.ply) and refined for 100 steps on all the room's views
+#      (gaussians.ply, --refine);
 #   4. the same model given the object (no masks), to compare with;
-#   5. novel views of both next to the ground truth, and an orbit video;
-#   6. metrics against the exact ground truth, next to two 2D baselines and the same prediction
-#      refined for 100 steps on all the room's views (--refine).
+#   5. novel views of all three next to the ground truth, and an orbit video;
+#   6. metrics against the exact ground truth, next to two 2D baselines.
 set -euo pipefail
 BIN=${1:-build/instainpaint}
 OUT=${DEMO_OUT:-demo-out}
@@ -37,25 +38,27 @@ echo "  (without --depth the default model's reconstruction gives the depth, abo
 "$BIN" masks --scene "$SCENE" "${ONE_MASK[@]:0:4}" --height "$SIZE" --out "$OUT/masks-network" 2> /dev/null |
   grep against | sed 's/^/   /; s/$/)/'
 
-step "3/6 inference with the default model from that one mask: the room without the object"
+step "3/6 inference with the default model from that one mask: the room without the object, refined on all 12 views"
 "$BIN" infer --scene "$SCENE" --reference "$SCENE/reference.png" --context "$CONTEXT" "${ONE_MASK[@]}" \
-  --height "$SIZE" --out "$OUT/inpainted"
+  --height "$SIZE" --refine 100 --keep-unrefined --out "$OUT/inpainted"
 
 step "4/6 the same model given the object (no masks), to compare with"
 "$BIN" infer --scene "$SCENE" --context "$CONTEXT" --height "$SIZE" --keep-object --out "$OUT/with-object"
 
 step "5/6 novel views (the scene's held-out test cameras) and an orbit video"
-for run in inpainted with-object; do
-  "$BIN" render --ply "$OUT/$run/gaussians.ply" --scene "$SCENE" --normalize --test-views \
-    --no-video --out "$OUT/$run/novel" > /dev/null
+for ply in with-object/gaussians inpainted/gaussians-unrefined inpainted/gaussians; do
+  "$BIN" render --ply "$OUT/$ply.ply" --scene "$SCENE" --normalize --test-views \
+    --no-video --out "$OUT/$ply-novel" > /dev/null
 done
-# One row per test view: with the object | object removed | ground truth (nearest-neighbour x2).
+# One row per test view: with the object | object removed | refined | ground truth
+# (nearest-neighbour x2).
 inputs=() rows="" row_labels=""
 n=0
 for truth in "$SCENE"/images_4/test_*.png; do
   frame=$(printf '%04d.png' "$n")
-  inputs+=(-i "$OUT/with-object/novel/rgb/$frame" -i "$OUT/inpainted/novel/rgb/$frame" -i "$truth")
-  rows+="[$((3 * n))][$((3 * n + 1))][$((3 * n + 2))]hstack=3[r$n];"
+  inputs+=(-i "$OUT/with-object/gaussians-novel/rgb/$frame" -i "$OUT/inpainted/gaussians-unrefined-novel/rgb/$frame"
+    -i "$OUT/inpainted/gaussians-novel/rgb/$frame" -i "$truth")
+  rows+="[$((4 * n))][$((4 * n + 1))][$((4 * n + 2))][$((4 * n + 3))]hstack=4[r$n];"
   row_labels+="[r$n]"
   n=$((n + 1))
 done
@@ -64,11 +67,12 @@ ffmpeg -loglevel error -y "${inputs[@]}" \
 "$BIN" render --ply "$OUT/inpainted/gaussians.ply" --scene "$SCENE" --normalize --trajectory orbit \
   --frames 60 --width $((2 * SIZE)) --height $((2 * SIZE)) --out "$OUT/orbit" > /dev/null
 
-step "6/6 metrics on the object-free test views, next to two 2D baselines and the model refined on all 12 views"
-for method in model telea mean-fill refined; do
+step "6/6 metrics on the object-free test views: the model, refined, and two 2D baselines"
+for method in model refined telea mean-fill; do
   args=(--method "$method")
   [ "$method" = model ] && args+=("${ONE_MASK[@]}")
-  [ "$method" = refined ] && args=(--method model "${ONE_MASK[@]}" --refine 100)
+  # The refined Gaussians as infer wrote them (in the scene's normalised frame, as eval renders).
+  [ "$method" = refined ] && args=(--method model --gaussians "$OUT/inpainted/gaussians.ply")
   "$BIN" eval --scene "$SCENE" --reference "$SCENE/reference.png" --context "$CONTEXT" --height "$SIZE" \
     "${args[@]}" --out "$OUT/eval-$method" > "$OUT/eval-$method.log" 2>&1
   printf '  %-10s %s\n' "$method" "$(grep -m1 '^  PSNR' "$OUT/eval-$method.log" | sed 's/^ *//')"
@@ -78,13 +82,14 @@ cat <<TXT
 
 Done in $(($(date +%s) - start)) s. In $OUT/:
   masks/                    a mask per view made from the reference view's mask and depth (masks.json: recall, precision)
-  inpainted/gaussians.ply   3D Gaussians of the room without the object (standard 3DGS PLY)
+  inpainted/gaussians.ply   3D Gaussians of the room without the object (standard 3DGS PLY), refined for
+                            100 steps; gaussians-unrefined.ply: the network's own prediction
   inpainted/depth/          the predicted depth of each context view
-  novel-views.png           novel views, one per row: with the object | object removed | ground truth
+  novel-views.png           novel views, one per row: with the object | object removed | refined | ground truth
   orbit/rgb.mp4             an orbit around the scene, object removed
   eval-model/report.html    per test view: ground truth, render, error map, mask outline
-  eval-*/metrics.json       PSNR, SSIM and their masked variants (model; refined: the model + 100 refinement
-                            steps on every view; baselines: OpenCV Telea, mean fill)
+  eval-*/metrics.json       PSNR, SSIM and their masked variants (model; refined: inpainted/gaussians.ply;
+                            baselines: OpenCV Telea, mean fill)
 (telea and mean-fill fill each test view's mask from that view's own ground truth: 2D, no 3D consistency.)
 
 The same on your own capture (LLFF/SPIn-NeRF, nerfstudio transforms.json or COLMAP; the object

@@ -30,7 +30,7 @@ struct EvalArgs {
   std::string lpips_vgg, lpips_alex, lpips_heads, inception;
   bool no_report = false;
   EditArgs edit;
-  int refine = 0;
+  RefineArgs refine;
   RuntimeOptions runtime;
 };
 
@@ -71,9 +71,9 @@ void run(const EvalArgs& a) {
   o.lpips_heads_dir = optional_path(a.lpips_heads);
   o.inception = optional_path(a.inception);
   o.write_report = !a.no_report;
-  if (a.refine > 0 && (o.method != EvalMethod::model || o.gaussians))
+  if (a.refine.steps > 0 && (o.method != EvalMethod::model || o.gaussians))
     fail("--refine refines the network's prediction: use it with --method model and without --gaussians");
-  if (a.refine > 0)
+  if (a.refine.steps > 0)
     o.after_prediction = [&a](const Scene& scene, const Prediction& p, const SceneInputOptions& input,
                               GaussianSet g, nlohmann::json& report) {
       report["refine"] = nlohmann::json::object();
@@ -133,7 +133,7 @@ void add_eval_command(CLI::App& app) {
       ->delimiter(',');
   add_reference_options(cmd, a->edit);
   add_edit_options(cmd, a->edit);
-  add_refine_option(cmd, a->refine);
+  add_refine_options(cmd, a->refine);
   cmd->add_option("--views", a->views, "Number of context views when chosen automatically")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));

@@ -37,7 +37,7 @@ struct InferArgs {
   int height = 512;
   bool keep_object = false;
   EditArgs edit;
-  int refine = 0;
+  RefineArgs refine;
   bool keep_unrefined = false;
   RuntimeOptions runtime;
 };
@@ -89,9 +89,9 @@ void run(const InferArgs& a) {
   const fs::path out(a.out);
   GaussianSet gaussians = p.gaussians();
   nlohmann::json refine_report;
-  if (a.refine > 0) {
+  if (a.refine.steps > 0) {
     if (a.keep_unrefined) write_splat_ply(out / "gaussians-unrefined.ply", splats_from_gaussians(gaussians));
-    spdlog::info("refining {} Gaussians for {} steps against every view", gaussians.size(), a.refine);
+    spdlog::info("refining {} Gaussians for {} steps against every view", gaussians.size(), a.refine.steps);
     gaussians = refine_prediction(scene, p, opts, gaussians.to(render_device(runtime.device)), refine_options(a.refine),
                                   refine_report);
     refine_report["unrefined"] = a.keep_unrefined ? nlohmann::json("gaussians-unrefined.ply") : nlohmann::json();
@@ -161,7 +161,7 @@ void add_infer_command(CLI::App& app) {
       ->check(CLI::Range(8, 4096));
   add_reference_options(cmd, args->edit);
   add_edit_options(cmd, args->edit);
-  add_refine_option(cmd, args->refine);
+  add_refine_options(cmd, args->refine);
   cmd->add_flag("--keep-unrefined", args->keep_unrefined,
                 "With --refine: also write the feed-forward Gaussians (gaussians-unrefined.ply)");
   cmd->add_flag("--keep-object", args->keep_object,

@@ -7,17 +7,23 @@
 
 namespace ii::cli {
 
-void add_refine_option(CLI::App* cmd, int& steps) {
-  cmd->add_option("--refine", steps,
+void add_refine_options(CLI::App* cmd, RefineArgs& args) {
+  cmd->add_option("--refine", args.steps,
                   "Optimise the predicted Gaussians for this many steps against every view of the scene (outside "
                   "the object masks; the reference everywhere); 0 = the feed-forward result, as the paper")
       ->capture_default_str()
       ->check(CLI::Range(0, 100000));
+  cmd->add_option("--refine-sh-degree", args.sh_degree,
+                  "With --refine: 0 = one colour per Gaussian; 1-3 = fit view-dependent colour (spherical "
+                  "harmonics of this degree, written to the PLY's f_rest)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 3));
 }
 
-RefineOptions refine_options(int steps) {
+RefineOptions refine_options(const RefineArgs& args) {
   RefineOptions o;
-  o.steps = steps;
+  o.steps = args.steps;
+  o.sh_degree = args.sh_degree;
   auto watch = std::make_shared<Stopwatch>();
   o.progress = [watch](int done, int total, double loss) {
     const double eta = watch->ms() / done * (total - done) / 1000;

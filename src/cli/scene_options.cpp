@@ -19,6 +19,10 @@ void add_scene_options(CLI::App* cmd, std::string& scene_dir, SceneOptions& opti
       ->check(CLI::ExistingDirectory);
   cmd->add_flag("--alpha-masks", options.alpha_masks,
                 "Take each view's object mask from its image's alpha channel (alpha 0 = object)");
+  cmd->add_option("--hold-out-every", options.hold_out_every,
+                  "Hold out input views 0, N, 2N, ... as test views that show the object (compared outside their "
+                  "masks; never given to the network or to --refine); for scenes without object-free test views")
+      ->check(CLI::Range(1, 1000));
 }
 
 }  // namespace ii::cli

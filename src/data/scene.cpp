@@ -89,6 +89,26 @@ Scene load_scene(const fs::path& dir, const SceneOptions& options) {
       v.mask_from_alpha = true;  // asked for explicitly: wins over mask files
       v.mask_path.reset();
     }
+  if (options.hold_out_every < 0) fail("hold-out: every N views needs N >= 1, got {}", options.hold_out_every);
+  if (options.hold_out_every > 0) {
+    std::vector<View> inputs;
+    for (size_t i = 0; i < scene.views.size(); ++i) {
+      View& v = scene.views[i];
+      if (i % static_cast<size_t>(options.hold_out_every) != 0) {
+        inputs.push_back(std::move(v));
+        continue;
+      }
+      if (!v.mask_path && !v.mask_from_alpha)
+        fail_file(dir, "view {} has no object mask; a held-out view is compared outside its mask", v.name);
+      v.shows_object = true;
+      scene.test_views.push_back(std::move(v));
+    }
+    if (inputs.empty()) fail_file(dir, "holding out every view leaves no input view");
+    scene.notes.push_back(fmt::format("{} of {} views held out as test views (one in {})",
+                                      scene.views.size() - inputs.size(), scene.views.size(),
+                                      options.hold_out_every));
+    scene.views = std::move(inputs);
+  }
   for (const std::string& note : scene.notes) spdlog::info("{}", note);
   for (const std::string& w : scene.warnings) spdlog::warn("{}", w);
   return scene;

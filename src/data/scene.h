@@ -19,13 +19,16 @@ struct View {
   bool mask_from_alpha = false;      // mask = alpha channel of the image, alpha 0 = object
   Camera camera;                     // intrinsics for the image file's own size
   Distortion distortion;             // undistorted on load when non-zero
+  bool shows_object = false;         // a test view held out from the inputs (SceneOptions::hold_out_every)
 };
 
 struct Scene {
   std::filesystem::path root;
   std::string format;             // "llff", "nerfstudio", "colmap"
   std::vector<View> views;        // input candidates (with the object)
-  std::vector<View> test_views;   // object-free ground-truth views (SPIn-NeRF), may be empty
+  // Ground-truth views never given to the network: object-free (SPIn-NeRF), or input views
+  // held out (`shows_object`; compared outside their masks). May be empty.
+  std::vector<View> test_views;
   std::optional<double> near, far;  // depth bounds when the format stores them
   std::vector<std::string> warnings;  // non-fatal oddities found while reading
   std::vector<std::string> notes;     // how the reader interpreted an ambiguous layout
@@ -39,6 +42,9 @@ struct SceneOptions {
   std::string image_folder;        // e.g. "images_4"; empty = the format's default
   std::optional<std::filesystem::path> mask_dir;  // masks matched by stem or "<file>.png"
   bool alpha_masks = false;        // take masks from the images' alpha channel
+  // > 0: input views 0, N, 2N, ... (3DGS's LLFF hold-out) become test views that show the
+  // object, for scenes without object-free test views (they need masks).
+  int hold_out_every = 0;
 };
 
 // Reads a scene folder in any supported format (detected from its files when

@@ -287,7 +287,8 @@ std::string metric_cell(const json& v, int decimals) {
 
 void write_report(const fs::path& out, const json& metrics) {
   static const std::vector<std::pair<std::string, int>> columns = {
-      {"psnr", 2}, {"ssim", 4}, {"masked_psnr", 2}, {"masked_ssim", 4}, {"lpips", 4}, {"masked_lpips", 4}};
+      {"psnr", 2}, {"ssim", 4}, {"masked_psnr", 2}, {"masked_ssim", 4}, {"outside_psnr", 2}, {"lpips", 4},
+      {"masked_lpips", 4}};
   std::string h;
   h += "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>instainpaint eval: " +
        html_escape(metrics["scene"].get<std::string>()) + "</title>\n";
@@ -517,7 +518,8 @@ json run_evaluation(const EvalOptions& o) {
   spdlog::info("reading scene {}", o.scene_dir.string());
   const Scene scene = load_scene(o.scene_dir, o.scene);
   if (scene.test_views.empty())
-    fail("{}: no object-free test views (SPIn-NeRF scenes list them by their masks in images_K/test_label/)",
+    fail("{}: no test views (SPIn-NeRF scenes list object-free ones by their masks in images_K/test_label/; "
+         "--hold-out-every N holds out input views that have masks)",
          o.scene_dir.string());
   timings["read_scene_ms"] = watch.lap();
 
@@ -582,6 +584,10 @@ json run_evaluation(const EvalOptions& o) {
       if (!pv.mask)
         fail("{}: test view {} has no mask; --method {} fills the masked region", o.scene_dir.string(), view.name,
              eval_method_name(o.method));
+      if (view.shows_object)
+        fail("{}: --method {} fills the mask of the ground truth itself; held-out views that show the object "
+             "(--hold-out-every) compare nothing else",
+             o.scene_dir.string(), eval_method_name(o.method));
       a = to_device(image_to_tensor(o.method == EvalMethod::telea ? inpaint_telea(truth, *pv.mask)
                                                                    : mean_fill(truth, *pv.mask, o.ring_width)),
                     device);
@@ -598,18 +604,26 @@ json run_evaluation(const EvalOptions& o) {
     };
     {
       torch::NoGradGuard no_grad;
-      put("psnr", psnr(a, b)[0].item<double>());
-      put("ssim", ssim(a, b)[0].item<double>());
       if (pv.mask) {
-        put("masked_psnr", masked_psnr(a, b, m)[0].item<double>());
-        put("masked_ssim", masked_ssim(a, b, m)[0].item<double>());
-        put("box_psnr", box_psnr(a, b, m));
-        put("box_ssim", box_ssim(a, b, m));
+        // Held-out views show the object the prediction removed: only the rest compares.
+        const torch::Tensor outside = (m <= 0.5).to(m.dtype());
+        put("outside_psnr", masked_psnr(a, b, outside)[0].item<double>());
+        put("outside_ssim", masked_ssim(a, b, outside)[0].item<double>());
         v["mask_pixels"] = (m > 0.5).sum().item<int64_t>();
+      }
+      if (!view.shows_object) {
+        put("psnr", psnr(a, b)[0].item<double>());
+        put("ssim", ssim(a, b)[0].item<double>());
+        if (pv.mask) {
+          put("masked_psnr", masked_psnr(a, b, m)[0].item<double>());
+          put("masked_ssim", masked_ssim(a, b, m)[0].item<double>());
+          put("box_psnr", box_psnr(a, b, m));
+          put("box_ssim", box_ssim(a, b, m));
+        }
       }
       image_metrics_ms += step.lap();
 
-      if (nets.lpips_vgg || nets.lpips_alex) {
+      if (!view.shows_object && (nets.lpips_vgg || nets.lpips_alex)) {
         const torch::Tensor as = a * 2 - 1, bs = b * 2 - 1;
         if (nets.lpips_vgg) {
           put("lpips", nets.lpips_vgg->forward(as, bs)[0].item<double>());
@@ -618,7 +632,7 @@ json run_evaluation(const EvalOptions& o) {
         if (nets.lpips_alex) put("lpips_alex", nets.lpips_alex->forward(as, bs)[0].item<double>());
         lpips_ms += step.lap();
       }
-      if (nets.inception) {
+      if (!view.shows_object && nets.inception) {
         const torch::Tensor pair = torch::cat({b, a}, 0);
         const torch::Tensor f = nets.inception->forward(pair);
         real.push_back(row_of(f, 0));
@@ -645,9 +659,13 @@ json run_evaluation(const EvalOptions& o) {
     }
     write_ms += step.lap();
     v["predict_ms"] = view_predict_ms;
-    spdlog::info("[{}/{}] {}: PSNR {} SSIM {}{}", index, scene.test_views.size(), view.name, metric_cell(v["psnr"], 2),
-                 metric_cell(v["ssim"], 4),
-                 pv.mask ? ", masked PSNR " + metric_cell(v["masked_psnr"], 2) : std::string());
+    if (view.shows_object)
+      spdlog::info("[{}/{}] {} (held out, shows the object): PSNR outside the mask {}", index,
+                   scene.test_views.size(), view.name, metric_cell(v["outside_psnr"], 2));
+    else
+      spdlog::info("[{}/{}] {}: PSNR {} SSIM {}{}", index, scene.test_views.size(), view.name,
+                   metric_cell(v["psnr"], 2), metric_cell(v["ssim"], 4),
+                   pv.mask ? ", masked PSNR " + metric_cell(v["masked_psnr"], 2) : std::string());
     views.push_back(std::move(v));
   }
   timings["decode_test_views_ms"] = decode_ms;
@@ -657,14 +675,18 @@ json run_evaluation(const EvalOptions& o) {
   if (nets.inception) timings["inception_ms"] = inception_ms;
 
   json mean = json::object();
-  for (const char* key :
-       {"psnr", "ssim", "masked_psnr", "masked_ssim", "box_psnr", "box_ssim", "lpips", "masked_lpips", "lpips_alex"}) {
+  if (!means.count("psnr"))
+    for (const char* key : {"psnr", "ssim", "masked_psnr", "masked_ssim", "lpips", "masked_lpips"})
+      unavailable[key] =
+          "every test view is a held-out view that shows the object (--hold-out-every): see outside_psnr, outside_ssim";
+  for (const char* key : {"psnr", "ssim", "masked_psnr", "masked_ssim", "outside_psnr", "outside_ssim", "box_psnr",
+                          "box_ssim", "lpips", "masked_lpips", "lpips_alex"}) {
     if (means.count(key))
       mean[key] = number(means[key].mean());
     else if (unavailable.contains(key))
       mean[key] = nullptr;
   }
-  if (!means.count("masked_psnr")) {
+  if (!means.count("masked_psnr") && !unavailable.contains("masked_psnr")) {
     for (const char* key : {"masked_psnr", "masked_ssim"}) {
       mean[key] = nullptr;
       unavailable[key] = "no test view has a mask";
@@ -706,6 +728,8 @@ json run_evaluation(const EvalOptions& o) {
         {"ssim", "Gaussian window 11, sigma 1.5, K1 0.01, K2 0.03, valid positions, mean over channels"},
         {"masked_psnr", "PSNR over the pixels of the view's test mask"},
         {"masked_ssim", "SSIM map averaged over valid positions whose centre is in the mask"},
+        {"outside_psnr", "PSNR over the pixels outside the view's mask (the only comparison on held-out views)"},
+        {"outside_ssim", "SSIM map averaged over valid positions whose centre is outside the mask"},
         {"box_psnr", "PSNR on the mask's bounding box"},
         {"box_ssim", "SSIM on the mask's bounding box grown to at least 11x11"},
         {"lpips",

@@ -92,12 +92,23 @@ GaussianSet gaussians_from_splats(const SplatCloud& cloud, int max_sh_degree) {
 }
 
 SplatCloud splats_from_gaussians(const GaussianSet& g) {
-  if (g.sh_degree >= 0) fail("splats_from_gaussians: expects RGB colours (sh_degree -1), got SH degree {}", g.sh_degree);
   const torch::Tensor opacity = g.opacities.reshape({-1}).to(torch::kFloat32).clamp(1e-6, 1.0 - 1e-6);
   SplatCloud c;
   c.means = to_vector(g.means);
   c.normals.assign(c.means.size(), 0.f);
-  c.sh_dc = to_vector(sh_dc_from_rgb(g.colors.to(torch::kFloat32)));
+  if (g.sh_degree < 0) {
+    c.sh_dc = to_vector(sh_dc_from_rgb(g.colors.to(torch::kFloat32)));
+  } else {
+    const int64_t used = (g.sh_degree + 1) * (g.sh_degree + 1);
+    if (g.colors.dim() != 3 || g.colors.size(1) < used || g.colors.size(2) != 3)
+      fail("splats_from_gaussians: SH degree {} needs colours of shape (N, {}, 3) or more coefficients",
+           g.sh_degree, used);
+    const torch::Tensor sh = g.colors.to(torch::kFloat32).narrow(1, 0, used);
+    c.sh_dc = to_vector(sh.select(1, 0));
+    // The file's order: per splat, every coefficient of R, then of G, then of B.
+    c.sh_rest = to_vector(sh.narrow(1, 1, used - 1).transpose(1, 2));
+    c.sh_rest_per_channel = static_cast<int>(used - 1);
+  }
   c.opacity_logit = to_vector(torch::log(opacity / (1.0 - opacity)));
   c.log_scales = to_vector(g.scales.to(torch::kFloat32).clamp_min(1e-12).log());  // flat splats: zero scales
   c.rotations = to_vector(g.quats);

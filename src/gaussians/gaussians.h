@@ -52,9 +52,9 @@ GaussianSet gaussians_from_maps(const GaussianMaps& maps);
 // float32 on the CPU.
 GaussianSet gaussians_from_splats(const SplatCloud& cloud, int max_sh_degree = 3);
 
-// The standard 3DGS parameterisation of a set with RGB colours (sh_degree -1; the colour
-// becomes the DC term), float32 on the CPU: log scales (of at least 1e-12), opacity logits
-// (opacities clamped to [1e-6, 1 - 1e-6] first), zero normals.
+// The standard 3DGS parameterisation, float32 on the CPU: log scales (of at least 1e-12),
+// opacity logits (opacities clamped to [1e-6, 1 - 1e-6] first), zero normals; RGB colours
+// (sh_degree -1) become the DC term, SH colours are written up to the set's degree.
 SplatCloud splats_from_gaussians(const GaussianSet& gaussians);
 
 // Where the set is, for framing it in a view: the centre and half-diagonal of the box that

@@ -37,6 +37,27 @@ Image mask_at_working_size(const Image& mask, const View& view, const Preprocess
 
 }  // namespace
 
+std::vector<PreparedView> prepare_masked_views(const Scene& scene, const std::vector<int>& indices,
+                                               const SceneInputOptions& options, const std::string& role) {
+  std::vector<PreparedView> views;
+  for (int index : indices) {
+    const View& view = scene.views.at(static_cast<size_t>(index));
+    const auto given_mask = options.masks.find(view.name);
+    const bool has_mask = view.mask_path || view.mask_from_alpha || given_mask != options.masks.end();
+    if (!options.keep_object && !views.empty() && !has_mask)
+      fail("view {} has no object mask: give masks for every {} (--masks DIR or --alpha-masks)", view.name, role);
+    View source = view;
+    if (given_mask != options.masks.end()) {  // the caller's mask: the scene's file is not read
+      source.mask_path.reset();
+      source.mask_from_alpha = false;
+    }
+    views.push_back(prepare_view(source, options.preprocess));
+    if (given_mask != options.masks.end())
+      views.back().mask = mask_at_working_size(given_mask->second, view, options.preprocess);
+  }
+  return views;
+}
+
 SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options) {
   SceneInput out;
   if (!options.context.empty() && !options.reference_view.empty())
@@ -45,22 +66,7 @@ SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& opti
   if (!options.reference_view.empty()) reference = input_view_index(scene, options.reference_view, "reference view");
   out.context = options.context.empty() ? select_context_views(scene, options.num_views, reference)
                                         : context_views_by_name(scene, options.context);
-  for (int index : out.context) {
-    const View& view = scene.views[index];
-    const auto given_mask = options.masks.find(view.name);
-    const bool has_mask = view.mask_path || view.mask_from_alpha || given_mask != options.masks.end();
-    if (!options.keep_object && &view != &scene.views[out.context[0]] && !has_mask)
-      fail("view {} has no object mask: give masks for every context view (--masks DIR or "
-           "--alpha-masks)", view.name);
-    View source = view;
-    if (given_mask != options.masks.end()) {  // the caller's mask: the scene's file is not read
-      source.mask_path.reset();
-      source.mask_from_alpha = false;
-    }
-    out.views.push_back(prepare_view(source, options.preprocess));
-    if (given_mask != options.masks.end())
-      out.views.back().mask = mask_at_working_size(given_mask->second, view, options.preprocess);
-  }
+  out.views = prepare_masked_views(scene, out.context, options, "context view");
 
   PreparedView& ref = out.views[0];
   const View& ref_view = scene.views[out.context[0]];

@@ -43,4 +43,10 @@ struct SceneInput {
 
 SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options);
 
+// The views `indices` of scene.views at the working size with their object masks, the
+// caller's (options.masks) in place of the scene's. Every view after the first (the reference)
+// needs a mask unless options.keep_object; the error calls them `role`s ("context view").
+std::vector<PreparedView> prepare_masked_views(const Scene& scene, const std::vector<int>& indices,
+                                               const SceneInputOptions& options, const std::string& role);
+
 }  // namespace ii

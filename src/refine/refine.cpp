@@ -8,6 +8,7 @@
 #include "common/stopwatch.h"
 #include "data/masks.h"
 #include "eval/metrics.h"
+#include "model/scene_input.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
 
@@ -29,6 +30,8 @@ RefineResult refine_gaussians(const GaussianSet& start, const std::vector<Refine
   if (views.empty()) fail("refine: no views to refine against");
   if (options.steps < 0) fail("refine: the number of steps must be 0 or more, got {}", options.steps);
   if (start.sh_degree >= 0) fail("refine: the Gaussians must have RGB colours (as the network predicts them)");
+  if (options.sh_degree < 0 || options.sh_degree > 3)
+    fail("refine: the SH degree must be 0 to 3, got {}", options.sh_degree);
   const torch::Device device = start.means.device();
   std::vector<Target> targets;
   for (const RefineView& v : views) {
@@ -51,7 +54,16 @@ RefineResult refine_gaussians(const GaussianSet& start, const std::vector<Refine
   torch::Tensor quats = start.quats.to(f32).detach().clone().requires_grad_(true);
   torch::Tensor logits =
       torch::logit(start.opacities.to(f32).reshape({-1}).clamp(1e-6, 1 - 1e-6)).detach().requires_grad_(true);
-  torch::Tensor colours = start.colors.to(f32).detach().clone().requires_grad_(true);
+  // Degree 0 keeps the network's RGB colours; higher degrees start from the same colour (the
+  // DC term) with zero view dependence.
+  const bool sh = options.sh_degree > 0;
+  torch::Tensor colours = sh ? sh_dc_from_rgb(start.colors.to(f32)).unsqueeze(1).detach().requires_grad_(true)
+                             : start.colors.to(f32).detach().clone().requires_grad_(true);
+  torch::Tensor sh_rest;
+  if (sh) {
+    const int64_t rest = (options.sh_degree + 1) * (options.sh_degree + 1) - 1;
+    sh_rest = torch::zeros({start.size(), rest, 3}, f32).requires_grad_(true);
+  }
 
   const double extent = std::max(visible_bounds(start).radius, 1e-6);
   auto group = [](torch::Tensor t, double lr) {
@@ -65,6 +77,7 @@ RefineResult refine_gaussians(const GaussianSet& start, const std::vector<Refine
   groups.push_back(group(quats, options.rotation_lr));
   groups.push_back(group(logits, options.opacity_lr));
   groups.push_back(group(colours, options.colour_lr));
+  if (sh) groups.push_back(group(sh_rest, options.colour_lr / 20));
   torch::optim::Adam adam(std::move(groups), torch::optim::AdamOptions(1e-3));
 
   auto current = [&] {
@@ -73,7 +86,8 @@ RefineResult refine_gaussians(const GaussianSet& start, const std::vector<Refine
     g.scales = log_scales.exp();
     g.quats = quats;
     g.opacities = torch::sigmoid(logits);
-    g.colors = colours;
+    g.colors = sh ? torch::cat({colours, sh_rest}, 1) : colours;
+    g.sh_degree = sh ? options.sh_degree : -1;
     return g;
   };
 
@@ -116,21 +130,18 @@ RefineResult refine_gaussians(const GaussianSet& start, const std::vector<Refine
 
 std::vector<RefineView> refinement_views(const Scene& scene, const Prediction& prediction,
                                          const SceneInputOptions& options) {
-  // Every input view, prepared as the network's own inputs are (masks given, propagated or
-  // the scene's), the reference first with the image the network saw.
-  SceneInputOptions all = options;
-  all.reference_view.clear();
-  all.context = {scene.views[static_cast<size_t>(prediction.input.context[0])].name};
-  for (const View& v : scene.views)
-    if (v.name != all.context[0]) all.context.push_back(v.name);
-  const SceneInput input = prepare_scene_input(scene, all);
+  const int reference = prediction.input.context[0];
+  std::vector<int> indices = {reference};
+  for (int i = 0; i < static_cast<int>(scene.views.size()); ++i)
+    if (i != reference) indices.push_back(i);
+  std::vector<PreparedView> prepared = prepare_masked_views(scene, indices, options, "view --refine compares with");
   std::vector<RefineView> views;
-  for (size_t i = 0; i < input.views.size(); ++i) {
-    const PreparedView& pv = input.views[i];
+  for (size_t i = 0; i < prepared.size(); ++i) {
+    PreparedView& pv = prepared[i];
     RefineView v;
     v.name = pv.name;
-    v.rgb = i == 0 ? prediction.input.views[0].rgb : pv.rgb;
-    if (i > 0 && !options.keep_object) v.mask = pv.mask;
+    v.rgb = i == 0 ? prediction.input.views[0].rgb : std::move(pv.rgb);
+    if (i > 0 && !options.keep_object) v.mask = std::move(pv.mask);
     v.camera = prediction.input.normalization.apply(pv.camera);
     views.push_back(std::move(v));
   }
@@ -147,7 +158,8 @@ GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, 
             {"ms_per_step", r.ms_per_step},
             {"views", names},
             {"losses", r.losses},
-            {"dropped", r.dropped}};
+            {"dropped", r.dropped},
+            {"sh_degree", refine.sh_degree}};
   return std::move(r.gaussians);
 }
 

@@ -31,27 +31,32 @@ struct RefineOptions {
   int steps = 300;
   double ssim_weight = 0.2;  // λ
   uint64_t seed = 0;         // the order the views are visited in
+  // 0: one colour per Gaussian (as the network predicts); 1-3: view-dependent colour, SH
+  // coefficients of this degree fitted from zero (3DGS's rate: colour_lr / 20).
+  int sh_degree = 0;
   // Adam learning rates (3DGS's); positions are scaled by the set's extent.
   double position_lr = 1.6e-4, scale_lr = 5e-3, rotation_lr = 1e-3, opacity_lr = 5e-2, colour_lr = 2.5e-3;
   std::function<void(int done, int total, double loss)> progress;  // after each step
 };
 
 struct RefineResult {
-  GaussianSet gaussians;      // float32 on the start set's device; fully transparent ones dropped
+  // float32 on the start set's device; fully transparent ones dropped; RGB colours for
+  // sh_degree 0, else SH of that degree.
+  GaussianSet gaussians;
   std::vector<double> losses;  // per step
   double ms_per_step = 0;
   int64_t dropped = 0;  // Gaussians whose opacity ended below 1/255
 };
 
 // `start` has RGB colours (sh_degree -1), like the network's. Errors: no views, a view whose
-// mask does not fit its image, steps < 0.
+// mask does not fit its image, steps < 0, an SH degree outside 0-3.
 RefineResult refine_gaussians(const GaussianSet& start, const std::vector<RefineView>& views,
                               const RefineOptions& options);
 
-// The supervising views of a prediction: every input view of the scene (not the object-free
-// test views) at the working size with its object mask (the prediction's own, given or
-// propagated, for its context views), cameras in the prediction's normalised frame; the
-// reference is the inpainted image the network saw, unmasked.
+// The supervising views of a prediction: every input view of the scene (not its test views)
+// at the working size with its object mask (given, propagated or the scene's, as for the
+// network's inputs), cameras in the prediction's normalised frame; the reference first, as the
+// inpainted image the network saw, unmasked.
 std::vector<RefineView> refinement_views(const Scene& scene, const Prediction& prediction,
                                          const SceneInputOptions& options);
 

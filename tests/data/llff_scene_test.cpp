@@ -42,6 +42,29 @@ TEST(LlffScene, StatueReadsViewsMasksAndIntrinsics) {
   EXPECT_LT(coverage, 0.10);
 }
 
+TEST(LlffScene, HoldOutEveryNthViewAsATestViewThatShowsTheObject) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  SceneOptions o;
+  o.hold_out_every = 8;
+  const Scene s = load_scene(dir, o);
+  // Views 0, 8, 16, 24 of 29 (3DGS's LLFF hold-out).
+  ASSERT_EQ(s.test_views.size(), 4u);
+  ASSERT_EQ(s.views.size(), 25u);
+  EXPECT_EQ(s.test_views[0].name, "IMG_2707");
+  EXPECT_EQ(s.test_views[1].name, "IMG_2715");
+  for (const View& v : s.test_views) EXPECT_TRUE(v.shows_object && v.mask_path) << v.name;
+  for (const View& v : s.views) EXPECT_FALSE(v.shows_object) << v.name;
+  EXPECT_EQ(s.views.front().name, "IMG_2708");
+  EXPECT_NE(std::find(s.notes.begin(), s.notes.end(), "4 of 29 views held out as test views (one in 8)"),
+            s.notes.end());
+
+  // Held-out views need masks: fern has none.
+  II_REQUIRE_SHARED(fern, "data/fern");
+  EXPECT_EQ(test::error_message([&] { load_scene(fern, o); }),
+            fern.string() + ": view " + load_scene(fern).views[0].name +
+                " has no object mask; a held-out view is compared outside its mask");
+}
+
 TEST(LlffScene, FernHasNoMasks) {
   II_REQUIRE_SHARED(dir, "data/fern");
   const Scene s = load_scene(dir);

@@ -305,8 +305,62 @@ TEST_F(Protocol, BadRequestsNameTheProblem) {
   p.gaussians = no_tests / "truth.ply";
   EXPECT_EQ(test::error_message([&] { run_evaluation(p); }),
             no_tests.string() +
-                ": no object-free test views (SPIn-NeRF scenes list them by their masks in "
-                "images_K/test_label/)");
+                ": no test views (SPIn-NeRF scenes list object-free ones by their masks in images_K/test_label/; "
+                "--hold-out-every N holds out input views that have masks)");
+}
+
+TEST_F(Protocol, HeldOutViewsCompareOutsideTheirMasks) {
+  // A scene without object-free test views: every third input view is held out. Those show
+  // the object, so only the pixels outside their masks are compared.
+  const fs::path dir = test::temp_dir("eval-hold-out") / "scene";
+  test::write_scene(dir, /*with_test_views=*/false);
+  const fs::path ply = test::temp_dir("eval-hold-out-ply") / "shifted.ply";
+  const SplatCloud shifted = test::wall_of_splats(0.15f);
+  write_splat_ply(ply, shifted);
+  EvalOptions o = options("hold-out");
+  o.scene_dir = dir;
+  o.scene.hold_out_every = 3;
+  o.gaussians = ply;
+  const json m = run_evaluation(o);
+
+  const Scene scene = load_scene(dir, o.scene);
+  ASSERT_EQ(scene.test_views.size(), 2u);
+  ASSERT_EQ(m["views"].size(), 2u);
+  for (size_t i = 0; i < scene.test_views.size(); ++i) {
+    const View& v = scene.test_views[i];
+    EXPECT_TRUE(v.shows_object);
+    const Image predicted = quantize_image(test::render_view(scene, v, shifted), "round");
+    const Image truth = load_view_image(v);
+    double sum = 0;
+    int count = 0;
+    for (int y = 0; y < truth.height; ++y)
+      for (int x = 0; x < truth.width; ++x)
+        if (!in_mask(y, x)) {
+          for (int c = 0; c < 3; ++c) sum += std::pow(double(truth.at(y, x, c)) - predicted.at(y, x, c), 2);
+          count += 3;
+        }
+    ASSERT_GT(sum, 0);
+    const json& mv = m["views"][i];
+    EXPECT_EQ(mv["name"], v.name);
+    EXPECT_NEAR(mv["outside_psnr"].get<double>(), psnr_of(sum / count), 1e-3) << v.name;
+    EXPECT_LT(mv["outside_ssim"].get<double>(), 0.999);
+    EXPECT_FALSE(mv.contains("psnr"));
+    EXPECT_FALSE(mv.contains("masked_psnr"));
+  }
+  EXPECT_TRUE(m["mean"]["outside_psnr"].is_number());
+  EXPECT_TRUE(m["mean"]["psnr"].is_null());
+  EXPECT_EQ(m["unavailable"]["psnr"],
+            "every test view is a held-out view that shows the object (--hold-out-every): see outside_psnr, "
+            "outside_ssim");
+
+  // A baseline would fill the very mask that is not compared.
+  EvalOptions b = o;
+  b.gaussians.reset();
+  b.method = EvalMethod::telea;
+  EXPECT_EQ(test::error_message([&] { run_evaluation(b); }),
+            dir.string() +
+                ": --method telea fills the mask of the ground truth itself; held-out views that show the object "
+                "(--hold-out-every) compare nothing else");
 }
 
 TEST_F(Protocol, InsertionBaselinesOnAnInsertionScene) {

@@ -70,9 +70,29 @@ TEST(Gaussians, SplatsOfAPredictionReadBackAsTheSameSet) {
   EXPECT_TRUE(torch::allclose(back.scales, g.scales, 1e-5, 1e-7));
   EXPECT_TRUE(torch::allclose(back.opacities, g.opacities, 1e-5, 1e-6));
   EXPECT_TRUE(torch::allclose(rgb_from_sh_dc(back.colors.select(1, 0)), g.colors, 1e-5, 1e-6));
-  // Colours of SH sets are not RGB: refused rather than written wrong.
-  EXPECT_EQ(test::error_message([&] { splats_from_gaussians(back); }),
-            "splats_from_gaussians: expects RGB colours (sh_degree -1), got SH degree 0");
+}
+
+// An SH set (as --refine-sh-degree fits) round-trips through the PLY's f_dc/f_rest layout.
+TEST(Gaussians, ShSetsRoundTripThroughSplats) {
+  torch::manual_seed(3);
+  GaussianSet g;
+  g.means = torch::randn({6, 3});
+  g.quats = torch::randn({6, 4});
+  g.scales = torch::rand({6, 3}) + 0.01;
+  g.opacities = torch::rand({6}) * 0.9 + 0.05;
+  g.colors = torch::randn({6, 16, 3});
+  g.sh_degree = 2;  // the coefficients beyond degree 2 are not written
+  const SplatCloud cloud = splats_from_gaussians(g);
+  EXPECT_EQ(cloud.sh_rest_per_channel, 8);
+  // Splat 1's second coefficient of G is f_rest_{8 + 1}.
+  EXPECT_EQ(cloud.sh_rest[1 * 24 + 8 + 1], g.colors[1][2][1].item<float>());
+  const GaussianSet back = gaussians_from_splats(cloud);
+  EXPECT_EQ(back.sh_degree, 2);
+  EXPECT_TRUE(torch::equal(back.colors, g.colors.narrow(1, 0, 9)));
+
+  g.colors = torch::randn({6, 4, 3});
+  EXPECT_EQ(test::error_message([&] { splats_from_gaussians(g); }),
+            "splats_from_gaussians: SH degree 2 needs colours of shape (N, 9, 3) or more coefficients");
 }
 
 TEST(Gaussians, VisibleBoundsIgnoreFloatersAndTransparentSplats) {

@@ -2,8 +2,11 @@
 // pixels entirely, repeats exactly for a seed, and drops what became transparent.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <nlohmann/json.hpp>
 
+#include "io/ply.h"
 #include "refine/refine.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
@@ -93,30 +96,56 @@ TEST(Refine, TransparentGaussiansAreDropped) {
   EXPECT_EQ(r.gaussians.size(), 35);
 }
 
+TEST(Refine, ShDegreeStartsFromTheColoursAndFitsViewDependence) {
+  RefineOptions o = few_steps(0);
+  o.sh_degree = 2;
+  const RefineResult start = refine_gaussians(grid(0.25f), views_of(grid()), o);
+  ASSERT_EQ(start.gaussians.sh_degree, 2);
+  ASSERT_EQ(start.gaussians.colors.sizes(), (std::vector<int64_t>{36, 9, 3}));
+  EXPECT_TRUE(torch::allclose(rgb_from_sh_dc(start.gaussians.colors.select(1, 0)), grid(0.25f).colors, 1e-5, 1e-6));
+  EXPECT_EQ(start.gaussians.colors.narrow(1, 1, 8).abs().max().item<float>(), 0.f);
+
+  o.steps = 30;
+  const RefineResult r = refine_gaussians(grid(0.25f), views_of(grid()), o);
+  EXPECT_LT(r.losses.back(), 0.5 * r.losses.front());
+  EXPECT_GT(r.gaussians.colors.narrow(1, 1, 8).abs().max().item<float>(), 0.f);
+}
+
 TEST(Refine, BadInputsAreClearErrors) {
   EXPECT_EQ(test::error_message([] { refine_gaussians(grid(), {}, few_steps(1)); }), "refine: no views to refine against");
   std::vector<RefineView> views = views_of(grid());
   views[1].mask = Image(5, 5, 1);
   EXPECT_EQ(test::error_message([&] { refine_gaussians(grid(), views, few_steps(1)); }),
             "refine: the mask of view v1 does not fit its 32x24 image");
+  RefineOptions o = few_steps(1);
+  o.sh_degree = 4;
+  EXPECT_EQ(test::error_message([&] { refine_gaussians(grid(), views_of(grid()), o); }),
+            "refine: the SH degree must be 0 to 3, got 4");
 }
 
-TEST(RefineCli, InferRefinesAgainstEveryView) {
+TEST(RefineCli, InferRefinesAgainstEveryViewNotHeldOut) {
   II_REQUIRE_CLI(exe);
   II_REQUIRE_SHARED(dir, "data/statue");
   const std::filesystem::path tmp = test::temp_dir("refine-cli");
   const std::filesystem::path log = tmp / "log.txt";
   ASSERT_EQ(test::run_command(exe.string() + " infer --scene '" + dir.string() +
-                                  "' --height 64 --refine 2 --keep-unrefined --threads 2 --out '" + tmp.string() + "'",
+                                  "' --height 64 --hold-out-every 8 --refine 2 --refine-sh-degree 1 "
+                                  "--keep-unrefined --threads 2 --out '" +
+                                  tmp.string() + "'",
                               log),
             0)
       << test::file_bytes(log);
   const nlohmann::json run = nlohmann::json::parse(test::file_bytes(tmp / "run.json"));
   EXPECT_EQ(run["refine"]["steps"], 2);
-  EXPECT_EQ(run["refine"]["views"].size(), 29u);  // every input view of the scene
-  EXPECT_EQ(run["refine"]["views"][0], run["context"][0]);  // the reference first
+  const nlohmann::json& views = run["refine"]["views"];
+  EXPECT_EQ(views.size(), 25u);  // every input view of the scene but 0, 8, 16, 24
+  for (const char* held_out : {"IMG_2707", "IMG_2715", "IMG_2723", "IMG_2731"})
+    EXPECT_EQ(std::find(views.begin(), views.end(), held_out), views.end()) << held_out;
+  EXPECT_EQ(views[0], run["context"][0]);  // the reference first
   EXPECT_EQ(run["refine"]["losses"].size(), 2u);
-  EXPECT_TRUE(std::filesystem::exists(tmp / "gaussians-unrefined.ply"));
+  EXPECT_EQ(run["refine"]["sh_degree"], 1);
+  EXPECT_EQ(read_splat_ply(tmp / "gaussians.ply").sh_rest_per_channel, 3);
+  EXPECT_EQ(read_splat_ply(tmp / "gaussians-unrefined.ply").sh_rest_per_channel, 0);
   EXPECT_NE(test::file_bytes(log).find("refine 2/2"), std::string::npos) << test::file_bytes(log);
 }
 
@@ -125,7 +154,7 @@ TEST(RefineCli, EvalRefinesBeforeRendering) {
   const std::filesystem::path tmp = test::temp_dir("refine-eval");
   const std::filesystem::path log = tmp / "log.txt";
   ASSERT_EQ(test::run_command(exe.string() + " synth --out '" + (tmp / "rooms").string() +
-                                  "' --views 5 --test-views 2 --width 48 --height 40 --object procedural",
+                                  "' --views 4 --test-views 2 --width 48 --height 40 --object procedural",
                               log),
             0)
       << test::file_bytes(log);
@@ -137,7 +166,8 @@ TEST(RefineCli, EvalRefinesBeforeRendering) {
       << test::file_bytes(log);
   const nlohmann::json m = nlohmann::json::parse(test::file_bytes(tmp / "eval" / "metrics.json"));
   EXPECT_EQ(m["prediction"]["after_prediction"]["refine"]["steps"], 3);
-  EXPECT_EQ(m["prediction"]["after_prediction"]["refine"]["views"].size(), 5u);
+  // A scene with no views besides the context: the reference and the other context views.
+  EXPECT_EQ(m["prediction"]["after_prediction"]["refine"]["views"].size(), 4u);
   EXPECT_EQ(test::run_command(exe.string() + " eval --scene '" + scene + "' --method telea --refine 3 --out x", log), 1);
   EXPECT_NE(test::file_bytes(log).find("error: --refine refines the network's prediction"), std::string::npos)
       << test::file_bytes(log);
