@@ -2,7 +2,8 @@
 # Measures --refine (issue 21) with the default model (or --checkpoint):
 #   rooms:  the model card's evaluation rooms (synth --seed 9000, never used in training), at
 #           128² (8 rooms) and 256² (4 rooms), 12 input views and 4 object-free test views each:
-#           PSNR, SSIM, masked PSNR, masked SSIM of the test views for --refine 0, 100, 300;
+#           PSNR, SSIM, masked PSNR, masked SSIM of the test views for --refine 0, 100, 300, with
+#           the rooms' own context views and exact object-free reference (a perfect 2D inpainter);
 #   statue: ../shared/data/statue with every 8th view held out (it shows the statue, so only
 #           the pixels outside its mask are compared), at 256 rows, --refine 0 vs 300.
 # Each run's time per step and peak memory (RSS) go beside its metrics in results.tsv.
@@ -20,7 +21,7 @@ while [ $# -gt 0 ]; do
     --rooms128) ROOMS128=$2; shift 2 ;;
     --rooms256) ROOMS256=$2; shift 2 ;;
     --shared) SHARED=$2; shift 2 ;;
-    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
     *) echo "unknown argument $1" >&2; exit 2 ;;
   esac
 done
@@ -60,7 +61,10 @@ for size in 128 256; do
   "$BIN" synth --out "$OUT/rooms-$size" --scenes "$rooms" --seed 9000 --views 12 --test-views 4 \
     --width "$size" --height "$size" --degrade none > "$OUT/synth-$size.log" 2>&1
   for room in "$OUT/rooms-$size"/scene_*; do
-    for steps in $STEPS; do evaluate "rooms-$size" "$room" "$steps" --height "$size"; done
+    context=$(python3 -c "import json, sys; print(','.join(json.load(open(sys.argv[1]))['context']))" "$room/synth.json")
+    for steps in $STEPS; do
+      evaluate "rooms-$size" "$room" "$steps" --height "$size" --reference "$room/reference.png" --context "$context"
+    done
   done
 done
 

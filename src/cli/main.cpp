@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   ii::cli::add_metrics_command(app);
   ii::cli::add_eval_command(app);
   ii::cli::add_train_command(app);
+  ii::cli::add_serve_command(app);
 
   try {
     app.parse(argc, argv);

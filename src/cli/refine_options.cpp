@@ -1,7 +1,12 @@
 #include "cli/refine_options.h"
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <cstdio>
 #include <memory>
+
+#include <spdlog/spdlog.h>
 
 #include "common/stopwatch.h"
 
@@ -25,10 +30,16 @@ RefineOptions refine_options(const RefineArgs& args) {
   o.steps = args.steps;
   o.sh_degree = args.sh_degree;
   auto watch = std::make_shared<Stopwatch>();
-  o.progress = [watch](int done, int total, double loss) {
+  // A terminal gets one line rewritten in place; a log file a line per tenth of the run.
+  const bool tty = ::isatty(::fileno(stderr));
+  o.progress = [watch, tty](int done, int total, double loss) {
     const double eta = watch->ms() / done * (total - done) / 1000;
-    std::fprintf(stderr, "\rrefine %d/%d  loss %.4f  ETA %.0f s ", done, total, loss, eta);
-    if (done == total) std::fprintf(stderr, "\n");
+    if (tty) {
+      std::fprintf(stderr, "\rrefine %d/%d  loss %.4f  ETA %.0f s\033[K", done, total, loss, eta);
+      if (done == total) std::fprintf(stderr, "\n");
+    } else if (done == 1 || done == total || done % std::max(1, total / 10) == 0) {
+      spdlog::info("refine {}/{}  loss {:.4f}  ETA {:.0f} s", done, total, loss, eta);
+    }
   };
   return o;
 }

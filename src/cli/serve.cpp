@@ -1,0 +1,98 @@
+#include <spdlog/spdlog.h>
+
+#include <csignal>
+#include <memory>
+#include <optional>
+#include <thread>
+
+#include "cli/commands.h"
+#include "cli/runtime.h"
+#include "web/server.h"
+
+namespace ii::cli {
+
+namespace {
+
+struct ServeArgs {
+  std::string scene_dir;
+  SceneOptions scene;
+  std::vector<std::string> plys;
+  std::string out = "serve-out";
+  std::string host = "127.0.0.1";
+  int port = 8080;
+  int height = 256;
+  int views = 4;
+  std::string checkpoint;
+  RuntimeOptions runtime;
+};
+
+WebServer* running_server = nullptr;
+
+void run(const ServeArgs& a) {
+  ServeOptions o;
+  if (!a.scene_dir.empty()) o.scene_dir = a.scene_dir;
+  o.scene = a.scene;
+  for (const std::string& p : a.plys) o.plys.emplace_back(p);
+  o.out = a.out;
+  o.host = a.host;
+  o.port = a.port;
+  o.height = a.height;
+  o.views = a.views;
+  if (o.host != "127.0.0.1" && o.host != "localhost" && o.host != "::1")
+    spdlog::warn("listening on {}: anyone who can reach this machine can see the scene and run edits", o.host);
+
+  // The model is loaded once, before the first request, when there is a scene to edit.
+  std::optional<Predictor> predictor;
+  if (o.scene_dir) {
+    const Runtime runtime = apply_runtime_options(a.runtime);
+    predictor.emplace(a.checkpoint, runtime.device, runtime.precision);
+    spdlog::info("model {} on {}", predictor->model_name(), runtime.device.str());
+  }
+  WebServer server(o, predictor ? &*predictor : nullptr);
+  const int port = server.bind();
+  const std::string host = o.host.find(':') != std::string::npos ? "[" + o.host + "]" : o.host;
+  fmt::print("instainpaint serve: open http://{}:{}/ (Ctrl-C stops)\n", host, port);
+  std::fflush(stdout);
+  running_server = &server;
+  std::signal(SIGINT, [](int) { running_server->stop(); });
+  std::signal(SIGTERM, [](int) { running_server->stop(); });
+  server.run();
+  running_server = nullptr;
+  spdlog::info("stopped");
+}
+
+}  // namespace
+
+void add_serve_command(CLI::App& app) {
+  auto args = std::make_shared<ServeArgs>();
+  auto* cmd = app.add_subcommand("serve", "Look at splats and edit a scene in the browser");
+  cmd->add_option("--scene", args->scene_dir, "Scene to show and edit (its views, cameras and masks)")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--format", args->scene.format, "Scene format")
+      ->check(CLI::IsMember({"auto", "llff", "nerfstudio", "colmap"}))
+      ->capture_default_str();
+  cmd->add_option("--images", args->scene.image_folder, "Image sub-folder of the scene (e.g. images_4)");
+  cmd->add_option("--hold-out-every", args->scene.hold_out_every,
+                  "Hold out views 0, N, 2N, ... as test views for the evaluation report (see infer --help)")
+      ->check(CLI::Range(1, 1000));
+  cmd->add_option("--ply", args->plys, "Splat PLY files to show (3DGS or SuperSplat compressed); several allowed")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--out", args->out, "Folder for the edits' results")->capture_default_str();
+  cmd->add_option("--host", args->host, "Address to listen on (anything but loopback is reachable by others)")
+      ->capture_default_str();
+  cmd->add_option("--port", args->port, "Port (0 = any free one)")->capture_default_str()->check(CLI::Range(0, 65535));
+  cmd->add_option("--height", args->height, "Working height of edits in pixels")
+      ->capture_default_str()
+      ->check(CLI::Range(8, 4096));
+  cmd->add_option("--views", args->views, "Context views of an edit")->capture_default_str()->check(CLI::Range(1, 64));
+  cmd->add_option("--checkpoint", args->checkpoint, "Model weights (default: the model built into instainpaint)")
+      ->check(CLI::ExistingFile);
+  add_runtime_options(cmd, args->runtime);
+  cmd->footer(
+      "Examples:\n"
+      "  instainpaint serve --scene ../shared/data/statue --ply out/statue/gaussians.ply\n"
+      "  instainpaint serve --ply guitar.compressed.ply --port 0");
+  cmd->callback([args] { run(*args); });
+}
+
+}  // namespace ii::cli

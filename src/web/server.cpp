@@ -1,0 +1,555 @@
+#include "web/server.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <fstream>
+#include <mutex>
+#include <regex>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "common/error.h"
+#include "common/files.h"
+#include "common/stopwatch.h"
+#include "data/scene_cameras.h"
+#include "edit/scene_masks.h"
+#include "eval/protocol.h"
+#include "gaussians/gaussians.h"
+#include "io/image.h"
+#include "io/ply.h"
+#include "io/video.h"
+#include "refine/refine.h"
+#include "render/rasterizer.h"
+#include "tensor/image_tensor.h"
+#include "web/assets.h"
+
+// Last: it includes <resolv.h>, whose `_res` macro breaks Eigen headers included after it.
+#include <httplib.h>
+
+namespace ii {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+// A request the server refuses: the status and the message the client sees.
+struct Refusal {
+  int status;
+  std::string message;
+};
+
+void reply(httplib::Response& res, int status, const json& body) {
+  res.status = status;
+  res.set_content(body.dump(), "application/json");
+}
+
+void refuse(httplib::Response& res, const Refusal& r) { reply(res, r.status, {{"error", r.message}}); }
+
+const char* image_type(std::string_view bytes) {
+  if (bytes.size() >= 8 && bytes.substr(0, 8) == std::string_view("\x89PNG\r\n\x1a\n", 8)) return "png";
+  if (bytes.size() >= 3 && bytes.substr(0, 3) == std::string_view("\xFF\xD8\xFF", 3)) return "jpg";
+  return nullptr;
+}
+
+// Streams a file (PLYs may be hundreds of MB).
+void send_file(httplib::Response& res, const fs::path& path, const std::string& type) {
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  if (ec) return refuse(res, {404, "not found"});
+  auto in = std::make_shared<std::ifstream>(path, std::ios::binary);
+  if (!*in) return refuse(res, {404, "not found"});
+  res.set_content_provider(static_cast<size_t>(size), type,
+                           [in](size_t offset, size_t length, httplib::DataSink& sink) {
+                             std::vector<char> buffer(std::min<size_t>(length, 1 << 20));
+                             in->seekg(static_cast<std::streamoff>(offset));
+                             in->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+                             const auto got = in->gcount();
+                             if (got <= 0) return false;
+                             sink.write(buffer.data(), static_cast<size_t>(got));
+                             return true;
+                           });
+}
+
+// The last job's state, as GET /api/job returns it.
+struct Job {
+  int id = 0;
+  std::string kind;             // "masks" or "edit"
+  std::string state = "idle";   // "running", "done", "failed"
+  std::string stage;
+  double progress = 0;          // 0..1
+  std::string error;
+  json result = json::object();
+  double seconds = 0;
+
+  json to_json() const {
+    return {{"id", id}, {"kind", kind}, {"state", state}, {"stage", stage}, {"progress", progress},
+            {"error", error}, {"result", result}, {"seconds", seconds}};
+  }
+};
+
+// What a job request asks for, checked before any work starts.
+struct JobRequest {
+  std::string kind;  // "masks", "edit", "video", "eval"
+  // masks, edit:
+  int view = -1;
+  EditMode mode = EditMode::Remove;
+  fs::path mask, reference;  // uploaded files in the job's folder
+  int refine = 0;
+  // video, eval: the PLY, one the server serves
+  fs::path ply;
+};
+
+const char* content_type_of(const fs::path& file) {
+  const std::string ext = file.extension().string();
+  if (ext == ".png") return "image/png";
+  if (ext == ".html") return "text/html; charset=utf-8";
+  if (ext == ".mp4") return "video/mp4";
+  return "application/octet-stream";
+}
+
+}  // namespace
+
+struct WebServer::State {
+  ServeOptions options;
+  const Predictor* predictor = nullptr;
+  std::optional<Scene> scene;
+  PoseNormalization normalization;
+  httplib::Server http;
+  fs::path out;  // canonical
+
+  std::mutex mutex;  // guards job, next_id, worker and the view cache
+  Job job;
+  int next_id = 1;
+  std::thread worker;
+
+  json info() const;
+  std::optional<Refusal> parse_edit(const httplib::Request& req, JobRequest& edit, const fs::path& dir) const;
+  std::optional<Refusal> parse_export(const httplib::Request& req, JobRequest& job) const;
+  // A file a job wrote, from its URL path below /api/jobs/ ("3/gaussians.ply"); empty when
+  // it is not one (or leads outside `out`).
+  fs::path job_file(const std::string& id, const std::string& relative) const;
+  void run_job(JobRequest request, fs::path dir);
+  json run_edit(const JobRequest& edit, const fs::path& dir, int id,
+                const std::function<void(const std::string&, double)>& stage);
+  json run_video(const JobRequest& job, const fs::path& dir, int id,
+                 const std::function<void(const std::string&, double)>& stage);
+  json run_eval(const JobRequest& job, const fs::path& dir, int id);
+  fs::path cached_view_file(int index, bool mask);
+  void update(const std::function<void(Job&)>& change) {
+    std::lock_guard<std::mutex> lock(mutex);
+    change(job);
+  }
+};
+
+json WebServer::State::info() const {
+  json views = json::array();
+  if (scene)
+    for (size_t i = 0; i < scene->views.size(); ++i) {
+      const View& v = scene->views[i];
+      const Camera c = normalization.apply(v.camera);
+      json c2w = json::array();
+      for (int r = 0; r < 4; ++r)
+        for (int k = 0; k < 4; ++k) c2w.push_back(c.c2w(r, k));
+      views.push_back({{"index", i}, {"name", v.name}, {"width", c.K.width}, {"height", c.K.height},
+                       {"fx", c.K.fx}, {"fy", c.K.fy}, {"cx", c.K.cx}, {"cy", c.K.cy}, {"c2w", c2w},
+                       {"image", fmt::format("/api/views/{}/image", i)},
+                       {"mask", v.mask_path || v.mask_from_alpha ? json(fmt::format("/api/views/{}/mask", i))
+                                                                 : json()}});
+    }
+  json plys = json::array();
+  for (size_t i = 0; i < options.plys.size(); ++i)
+    plys.push_back({{"index", i}, {"name", options.plys[i].filename().string()},
+                    {"url", fmt::format("/api/plys/{}", i)}});
+  return {{"scene", scene ? json{{"root", scene->root.string()},
+                                 {"format", scene->format},
+                                 {"views", views},
+                                 {"test_views", scene->test_views.size()}}
+                          : json()},
+          {"plys", plys},
+          {"editing", scene.has_value() && predictor != nullptr},
+          {"model", predictor ? predictor->describe() : json()},
+          {"working_height", options.height}};
+}
+
+fs::path WebServer::State::cached_view_file(int index, bool mask) {
+  const View& view = scene->views.at(static_cast<size_t>(index));
+  const fs::path file = out / "cache" / fmt::format("{}-{}.png", mask ? "mask" : "view", index);
+  std::lock_guard<std::mutex> lock(mutex);
+  if (!fs::exists(file)) {
+    fs::create_directories(file.parent_path());
+    if (mask) {
+      const std::optional<Image> m = load_view_mask(view);
+      if (!m) return {};
+      write_png(file, *m);
+    } else {
+      write_png(file, load_view_image(view));
+    }
+  }
+  return file;
+}
+
+fs::path WebServer::State::job_file(const std::string& id, const std::string& relative) const {
+  const fs::path file = out / "jobs" / id / relative;
+  std::error_code ec;
+  const fs::path real = fs::canonical(file, ec);
+  if (ec || fs::is_symlink(file) || real.string().rfind(out.string() + "/", 0) != 0 || !fs::is_regular_file(real))
+    return {};
+  return real;
+}
+
+std::optional<Refusal> WebServer::State::parse_export(const httplib::Request& req, JobRequest& job) const {
+  const std::string url = req.has_file("ply") ? req.get_file_value("ply").content : req.get_param_value("ply");
+  std::smatch m;
+  static const std::regex served_ply(R"(/api/plys/(\d{1,6}))"), job_ply(R"(/api/jobs/(\d{1,8})/gaussians\.ply)");
+  if (std::regex_match(url, m, served_ply) && std::stoul(m[1]) < options.plys.size())
+    job.ply = options.plys[std::stoul(m[1])];
+  else if (std::regex_match(url, m, job_ply))
+    job.ply = job_file(m[1], "gaussians.ply");
+  if (job.ply.empty()) return Refusal{400, fmt::format("ply must be the URL of a PLY this server serves, not '{}'", url)};
+  if (job.kind == "eval" && scene->test_views.empty())
+    return Refusal{400, "the scene has no test views to evaluate on (SPIn-NeRF test_label/, or serve --hold-out-every N)"};
+  return std::nullopt;
+}
+
+std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req, JobRequest& edit,
+                                                    const fs::path& dir) const {
+  const bool run_network = edit.kind == "edit";
+  if (!req.is_multipart_form_data()) return Refusal{400, "send multipart/form-data with view and mask"};
+  if (!req.has_file("view")) return Refusal{400, "no view given"};
+  const std::string name = req.get_file_value("view").content;
+  for (size_t i = 0; i < scene->views.size(); ++i)
+    if (scene->views[i].name == name) edit.view = static_cast<int>(i);
+  if (edit.view < 0) return Refusal{400, fmt::format("no view '{}' in the scene", name)};
+  const View& view = scene->views[static_cast<size_t>(edit.view)];
+
+  if (req.has_file("mode")) {
+    const std::string mode = req.get_file_value("mode").content;
+    if (mode != "remove" && mode != "insert") return Refusal{400, "mode must be remove or insert"};
+    edit.mode = parse_edit_mode(mode);
+  }
+  if (req.has_file("refine")) {
+    const std::string text = req.get_file_value("refine").content;
+    char* end = nullptr;
+    const long steps = std::strtol(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0' || steps < 0 || steps > 5000)
+      return Refusal{400, "refine must be a number of steps from 0 to 5000"};
+    edit.refine = static_cast<int>(steps);
+  }
+
+  // Uploaded images: PNG or JPEG, written into the job's folder under fixed names.
+  auto save_image = [&](const char* field, fs::path& to) -> std::optional<Refusal> {
+    const std::string& bytes = req.get_file_value(field).content;
+    const char* type = image_type(bytes);
+    if (!type) return Refusal{415, fmt::format("{}: not a PNG or JPEG image", field)};
+    fs::create_directories(dir);
+    to = dir / (std::string(field) + "." + type);
+    write_file_atomic(to, bytes);
+    try {  // decoded whole now: a broken file is the request's fault, not the job's
+      const Image image = std::string(field) == "mask" ? read_mask(to) : read_image_rgb(to);
+      if (std::string(field) == "mask" && (image.width != view.camera.K.width || image.height != view.camera.K.height))
+        return Refusal{400, fmt::format("mask is {}x{}, view {} is {}x{}", image.width, image.height, view.name,
+                                        view.camera.K.width, view.camera.K.height)};
+    } catch (const std::exception& e) {
+      return Refusal{400, fmt::format("{}: {}", field, e.what())};
+    }
+    return std::nullopt;
+  };
+  if (!req.has_file("mask")) return Refusal{400, "no mask given (a PNG of the view's size, white = region)"};
+  if (auto r = save_image("mask", edit.mask)) return r;
+  if (run_network && req.has_file("reference") && !req.get_file_value("reference").content.empty())
+    if (auto r = save_image("reference", edit.reference)) return r;
+  if (run_network && edit.mode == EditMode::Insert && edit.reference.empty())
+    return Refusal{400, "insert needs a reference: the view's photo with the new object painted in"};
+  return std::nullopt;
+}
+
+json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int id,
+                                const std::function<void(const std::string&, double)>& stage) {
+  const View& view = scene->views[static_cast<size_t>(edit.view)];
+  SceneInputOptions input;
+  input.preprocess.height = options.height;
+  input.num_views = options.views;
+  OneMask request;
+  request.view = view.name;
+  request.region = read_region_mask(edit.mask, view);
+  request.propagation.mode = edit.mode;
+  stage("propagating the mask to every view", 0.05);
+  const SceneMasks masks = masks_from_one(
+      *scene, request, [this]() -> const Predictor& { return *predictor; }, input);
+  json mask_files = json::object();
+  for (size_t i = 0; i < scene->views.size(); ++i) {
+    const auto m = masks.masks.find(scene->views[i].name);
+    if (m == masks.masks.end()) continue;
+    write_png(dir / "masks" / fmt::format("{}.png", i), m->second);
+    mask_files[scene->views[i].name] = fmt::format("/api/jobs/{}/masks/{}.png", id, i);
+  }
+  json result = {{"masks", mask_files}, {"edit", masks.describe(request)}};
+  if (edit.kind == "masks") return result;
+
+  masks.apply_to(input, request);
+  if (!edit.reference.empty()) input.reference = edit.reference;
+  stage("running the network", 0.3);
+  const Prediction p = predictor->predict(*scene, input);
+  GaussianSet gaussians = p.gaussians();
+  if (edit.refine > 0) {
+    RefineOptions refine;
+    refine.steps = edit.refine;
+    refine.progress = [&](int done, int total, double loss) {
+      if (done % 10 == 0 || done == total)
+        stage(fmt::format("refining {}/{} (loss {:.4f})", done, total, loss), 0.4 + 0.5 * done / total);
+    };
+    json report;
+    gaussians =
+        refine_prediction(*scene, p, input, gaussians.to(render_device(predictor->device())), refine, report);
+    report.erase("losses");
+    result["refine"] = report;
+  }
+  stage("writing the Gaussians", 0.95);
+  write_splat_ply(dir / "gaussians.ply", splats_from_gaussians(gaussians));
+  result["ply"] = fmt::format("/api/jobs/{}/gaussians.ply", id);
+  result["gaussians"] = gaussians.size();
+  result["reference"] = p.input.reference_source;
+  return result;
+}
+
+json WebServer::State::run_video(const JobRequest& job, const fs::path& dir, int id,
+                                 const std::function<void(const std::string&, double)>& stage) {
+  // The official orbit around the scene's cameras, in the frame of infer's PLYs.
+  SceneCameraOptions o;
+  o.normalize = true;
+  o.trajectory = "orbit";
+  o.frames = 48;
+  o.width = o.height = std::max(64, options.height);
+  const std::vector<NamedCamera> cameras = scene_cameras(*scene, o);
+  const torch::Device device = render_device(predictor ? predictor->device() : torch::Device(torch::kCPU));
+  const GaussianSet g = gaussians_from_splats(read_splat_ply(job.ply)).to(device);
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    RenderCamera rc;
+    rc.camera = cameras[i].camera;
+    write_png(dir / "orbit" / fmt::format("{:04d}.png", i), image_from_hwc(render(g, rc).rgb));
+    stage(fmt::format("rendering the orbit {}/{}", i + 1, cameras.size()), 0.9 * (i + 1) / cameras.size());
+  }
+  if (!ffmpeg_available()) fail("ffmpeg is not installed (scripts/install-deps.sh installs it): no video");
+  if (!encode_video(dir / "orbit", dir / "orbit.mp4", 24)) fail("ffmpeg failed to write the video");
+  return {{"video", fmt::format("/api/jobs/{}/orbit.mp4", id)}, {"frames", cameras.size()}};
+}
+
+json WebServer::State::run_eval(const JobRequest& job, const fs::path& dir, int id) {
+  EvalOptions o;
+  o.scene_dir = *options.scene_dir;
+  o.scene = options.scene;
+  o.gaussians = job.ply;
+  o.out = dir / "eval";
+  o.height = options.height;
+  const json metrics = run_evaluation(o);
+  return {{"report", fmt::format("/api/jobs/{}/eval/report.html", id)}, {"mean", metrics["mean"]}};
+}
+
+void WebServer::State::run_job(JobRequest request, fs::path dir) {
+  Stopwatch watch;
+  const int id = job.id;
+  auto stage = [&](const std::string& text, double progress) {
+    update([&](Job& j) {
+      j.stage = text;
+      j.progress = progress;
+    });
+    spdlog::info("job {}: {}", id, text);
+  };
+  try {
+    if (options.before_job) options.before_job(id);
+    json result;
+    if (request.kind == "video") {
+      result = run_video(request, dir, id, stage);
+    } else if (request.kind == "eval") {
+      stage("evaluating on the scene's test views", 0.1);
+      result = run_eval(request, dir, id);
+    } else {
+      result = run_edit(request, dir, id, stage);
+    }
+    const double seconds = watch.ms() / 1000;
+    update([&](Job& j) {
+      j.state = "done";
+      j.stage = "done";
+      j.progress = 1;
+      j.result = result;
+      j.seconds = seconds;
+    });
+    spdlog::info("job {}: done in {:.1f} s", id, seconds);
+  } catch (const std::exception& e) {
+    const double seconds = watch.ms() / 1000;
+    update([&](Job& j) {
+      j.state = "failed";
+      j.error = e.what();
+      j.seconds = seconds;
+    });
+    spdlog::error("job {}: {}", id, e.what());
+  }
+}
+
+WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.options = std::move(options);
+  s.predictor = predictor;
+  for (const fs::path& p : s.options.plys)
+    if (!fs::is_regular_file(p)) fail_file(p, "no such PLY file");
+  if (s.options.scene_dir) {
+    s.scene = load_scene(*s.options.scene_dir, s.options.scene);
+    s.normalization = scene_normalization(*s.scene);
+  }
+  fs::create_directories(s.options.out / "jobs");
+  s.out = fs::canonical(s.options.out);
+  for (const auto& e : fs::directory_iterator(s.out / "jobs")) {  // job numbers go on from a previous run
+    const std::string n = e.path().filename().string();
+    if (!n.empty() && std::all_of(n.begin(), n.end(), ::isdigit) && n.size() < 9)
+      s.next_id = std::max(s.next_id, std::stoi(n) + 1);
+  }
+
+  httplib::Server& http = s.http;
+  http.set_payload_max_length(s.options.max_upload_bytes);
+  http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
+    std::string what = "internal error";
+    try {
+      std::rethrow_exception(ep);
+    } catch (const std::exception& e) {
+      what = e.what();
+    } catch (...) {
+    }
+    spdlog::error("request failed: {}", what);
+    reply(res, 500, {{"error", what}});
+  });
+  http.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+    if (res.body.empty())
+      reply(res, res.status,
+            {{"error", res.status == 413   ? "upload too large"
+                       : res.status == 404 ? "not found"
+                       : res.status == 405 ? "method not allowed"
+                                           : "bad request"}});
+  });
+
+  auto asset = [](const httplib::Request& req, httplib::Response& res) {
+    if (const WebAsset* a = find_web_asset(req.path)) {
+      res.set_content(std::string(a->body), std::string(a->content_type));
+      return;
+    }
+    if (req.path == "/" && web_assets().empty()) {
+      res.set_content(
+          "<!doctype html><meta charset=utf-8><title>instainpaint</title><p>This instainpaint was built without "
+          "its web page: run <code>make deps</code> (installs the page's npm packages) and build again. The API "
+          "under <a href=\"/api/info\">/api/info</a> works.",
+          "text/html; charset=utf-8");
+      return;
+    }
+    refuse(res, {404, "not found"});
+  };
+  http.Get("/", asset);
+  http.Get("/index.html", asset);
+  http.Get("/app.js", asset);
+
+  http.Get("/api/info", [&s](const httplib::Request&, httplib::Response& res) {
+    json info = s.info();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    info["job"] = s.job.to_json();
+    reply(res, 200, info);
+  });
+  http.Get("/api/job", [&s](const httplib::Request&, httplib::Response& res) {
+    std::lock_guard<std::mutex> lock(s.mutex);
+    reply(res, 200, s.job.to_json());
+  });
+  http.Get(R"(/api/views/(\d{1,6})/(image|mask))", [&s](const httplib::Request& req, httplib::Response& res) {
+    const size_t index = std::stoul(req.matches[1]);
+    if (!s.scene || index >= s.scene->views.size()) return refuse(res, {404, "no such view"});
+    const fs::path file = s.cached_view_file(static_cast<int>(index), req.matches[2] == "mask");
+    if (file.empty()) return refuse(res, {404, "this view has no mask"});
+    send_file(res, file, "image/png");
+  });
+  http.Get(R"(/api/plys/(\d{1,6}))", [&s](const httplib::Request& req, httplib::Response& res) {
+    const size_t index = std::stoul(req.matches[1]);
+    if (index >= s.options.plys.size()) return refuse(res, {404, "no such PLY"});
+    const fs::path& file = s.options.plys[index];
+    if (req.has_param("download"))
+      res.set_header("Content-Disposition", "attachment; filename=\"" + file.filename().string() + "\"");
+    send_file(res, file, "application/octet-stream");
+  });
+  // What jobs wrote: their PLY, masks, video and evaluation report (with its sheets and renders).
+  http.Get(R"(/api/jobs/(\d{1,8})/(gaussians\.ply|masks/\d{1,6}\.png|orbit\.mp4|eval/report\.html|eval/(sheets|renders)/[^/]+\.png))",
+           [&s](const httplib::Request& req, httplib::Response& res) {
+             // The pattern admits no "/.." and no absolute path; job_file refuses symlinks out.
+             const fs::path file = s.job_file(req.matches[1], req.matches[2]);
+             if (file.empty()) return refuse(res, {404, "not found"});
+             if (req.has_param("download"))
+               res.set_header("Content-Disposition", "attachment; filename=\"" + file.filename().string() + "\"");
+             send_file(res, file, content_type_of(file));
+           });
+
+  auto start_job = [&s](const std::string& kind) {
+    return [&s, kind](const httplib::Request& req, httplib::Response& res) {
+      if (!s.scene) return refuse(res, {400, "the server was started without --scene: nothing to edit"});
+      if ((kind == "masks" || kind == "edit") && !s.predictor)
+        return refuse(res, {400, "the server was started without a model"});
+      std::lock_guard<std::mutex> lock(s.mutex);
+      if (s.job.state == "running")
+        return refuse(res, {409, fmt::format("busy: job {} ({}) is running", s.job.id, s.job.stage)});
+      const int id = s.next_id;
+      const fs::path dir = s.out / "jobs" / std::to_string(id);
+      JobRequest request;
+      request.kind = kind;
+      std::optional<Refusal> refusal;
+      try {
+        refusal = kind == "video" || kind == "eval" ? s.parse_export(req, request) : s.parse_edit(req, request, dir);
+      } catch (const std::exception& e) {
+        refusal = Refusal{400, e.what()};
+      }
+      if (refusal) {
+        std::error_code ec;
+        fs::remove_all(dir, ec);
+        return refuse(res, *refusal);
+      }
+      ++s.next_id;
+      fs::create_directories(dir);
+      if (s.worker.joinable()) s.worker.join();
+      s.job = Job();
+      s.job.id = id;
+      s.job.kind = kind;
+      s.job.state = "running";
+      s.job.stage = "starting";
+      s.worker = std::thread([&s, request, dir] { s.run_job(request, dir); });
+      reply(res, 202, {{"job", id}});
+    };
+  };
+  for (const char* kind : {"masks", "edit", "video", "eval"}) http.Post(std::string("/api/") + kind, start_job(kind));
+}
+
+WebServer::~WebServer() {
+  stop();
+  wait_for_job();
+}
+
+int WebServer::bind() {
+  State& s = *state_;
+  if (s.options.port == 0) {
+    const int port = s.http.bind_to_any_port(s.options.host);
+    if (port < 0) fail("serve: cannot listen on {}", s.options.host);
+    return port;
+  }
+  if (!s.http.bind_to_port(s.options.host, s.options.port))
+    fail("serve: cannot listen on {}:{} (in use? --port picks another)", s.options.host, s.options.port);
+  return s.options.port;
+}
+
+void WebServer::run() { state_->http.listen_after_bind(); }
+
+void WebServer::stop() { state_->http.stop(); }
+
+void WebServer::wait_for_job() {
+  std::thread worker;
+  {
+    std::lock_guard<std::mutex> lock(state_->mutex);
+    worker = std::move(state_->worker);
+  }
+  if (worker.joinable()) worker.join();
+}
+
+}  // namespace ii

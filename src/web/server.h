@@ -1,0 +1,70 @@
+#pragma once
+// `instainpaint serve`: a local HTTP server for the browser page (web/): it shows splat PLYs
+// and a scene's cameras and views, and runs one-mask edits (mask propagation, the network,
+// refinement) as background jobs, one at a time.
+//
+// Safety: binds to loopback unless told otherwise; serves only the embedded page, the scene's
+// views (by index, never by path), the PLYs it was started with (by index) and the files its
+// jobs wrote under `out`; uploads are size-limited and must be PNG or JPEG of the right size;
+// a request it cannot serve gets a 4xx with a JSON {"error"}; a job that fails reports its
+// error and leaves the server running.
+//
+// HTTP API (all JSON unless noted):
+//   GET  /api/info                 scene views and cameras (pose-normalised frame, OpenGL
+//                                  axes, as infer's PLYs), PLYs, the current job
+//   GET  /api/views/<i>/image      view i as PNG (decoded, undistorted); /mask its object mask
+//   GET  /api/plys/<i>             the i-th PLY given at start (?download=1: as an attachment)
+//   POST /api/masks                multipart view, mask[, mode]: propagate one mask (a job)
+//   POST /api/edit                 multipart view, mask[, mode, reference, refine]: edit (a job)
+//   POST /api/video, /api/eval     ply=<a served PLY's URL>: an orbit video (a job), the
+//                                  SPIn-NeRF evaluation on the scene's test views (a job)
+//   GET  /api/job                  the current or last job: state, stage, progress, result
+//   GET  /api/jobs/<id>/<file>     what job <id> wrote: gaussians.ply, masks/<view index>.png,
+//                                  orbit.mp4, eval/report.html (and its sheets, renders)
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "data/scene.h"
+#include "model/predictor.h"
+
+namespace ii {
+
+struct ServeOptions {
+  std::optional<std::filesystem::path> scene_dir;  // editing needs a scene
+  SceneOptions scene;
+  std::vector<std::filesystem::path> plys;  // shown in the viewer
+  std::filesystem::path out = "serve-out";  // jobs write here (out/jobs/<id>/)
+  std::string host = "127.0.0.1";
+  int port = 8080;  // 0 = any free port
+  int height = 256;  // working height of edits
+  int views = 4;     // context views of edits
+  size_t max_upload_bytes = 32u << 20;
+  std::function<void(int job)> before_job;  // called on the job's thread before it works (tests)
+};
+
+class WebServer {
+ public:
+  // `predictor` (may be null: no editing) must outlive the server.
+  WebServer(ServeOptions options, const Predictor* predictor);
+  ~WebServer();
+  WebServer(const WebServer&) = delete;
+  WebServer& operator=(const WebServer&) = delete;
+
+  // Binds the socket; returns the port (the free one chosen when options.port is 0).
+  int bind();
+  // Serves until stop() (from another thread or a signal handler's thread).
+  void run();
+  void stop();
+  // Waits for a running job to end (tests).
+  void wait_for_job();
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace ii

@@ -1,0 +1,90 @@
+// What the browser tests share: the instainpaint CLI, a running `serve`, headless Debian
+// Chromium (software WebGL) through playwright-core, and console-error collection.
+// Exit code 77 (ctest: skipped) when Chromium or playwright-core is missing.
+import { spawn, execFileSync } from "node:child_process";
+import { existsSync, mkdtempSync } from "node:fs";
+import { createRequire } from "node:module";
+import { tmpdir } from "node:os";
+import { join, resolve } from "node:path";
+
+export const cli = resolve(process.argv[2] ?? "build/instainpaint");
+export const chromiumPath = process.env.CHROMIUM ?? "/usr/bin/chromium";
+const require = createRequire(resolve("web/package.json"));
+
+export function skipUnlessReady() {
+  if (!existsSync(chromiumPath)) {
+    console.log(`skipped: no ${chromiumPath} (make deps installs Debian's chromium)`);
+    process.exit(77);
+  }
+  try {
+    require.resolve("playwright-core");
+  } catch {
+    console.log("skipped: no web/node_modules/playwright-core (make deps runs npm ci in web/)");
+    process.exit(77);
+  }
+}
+
+export const scratch = (tag) => mkdtempSync(join(tmpdir(), `instainpaint-${tag}-`));
+
+export function run(args) {
+  return execFileSync(cli, args, { encoding: "utf8", stdio: ["ignore", "pipe", "pipe"] });
+}
+
+// A small synthetic room with an object and the default model's Gaussians of it (object kept).
+export function roomWithGaussians(dir) {
+  run(["synth", "--out", join(dir, "rooms"), "--scenes", "1", "--seed", "3", "--views", "6", "--test-views", "1",
+    "--width", "96", "--height", "64", "--object", "procedural", "--degrade", "none"]);
+  const scene = join(dir, "rooms", "scene_000");
+  run(["infer", "--scene", scene, "--height", "64", "--keep-object", "--out", join(dir, "infer")]);
+  return { scene, ply: join(dir, "infer", "gaussians.ply") };
+}
+
+// `instainpaint serve` on a free loopback port; resolves with its address once it listens.
+export function serve(args) {
+  const child = spawn(cli, ["serve", "--port", "0", ...args], { stdio: ["ignore", "pipe", "pipe"] });
+  let log = "";
+  child.stderr.on("data", (d) => (log += d));
+  return new Promise((resolveUrl, reject) => {
+    let out = "";
+    child.stdout.on("data", (d) => {
+      out += d;
+      const m = out.match(/open (http:\/\/[^ ]+\/)/);
+      if (m) resolveUrl({ url: m[1], stop: () => child.kill("SIGTERM"), log: () => log });
+    });
+    child.on("exit", (code) => reject(new Error(`serve exited with ${code}: ${log}`)));
+  });
+}
+
+export async function browser() {
+  const { chromium } = require("playwright-core");
+  return chromium.launch({
+    executablePath: chromiumPath,
+    args: ["--headless=new", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox"],
+  });
+}
+
+// Console errors and uncaught exceptions of a page.
+export function collectErrors(page) {
+  const errors = [];
+  page.on("console", (m) => m.type() === "error" && errors.push(`console: ${m.text()}`));
+  page.on("pageerror", (e) => errors.push(`page: ${e.message}`));
+  return errors;
+}
+
+// Has the viewer draw `count` more frames (it draws on demand) and waits for them.
+export async function frames(page, count) {
+  const target = await page.evaluate((n) => {
+    window.instainpaint.invalidate(n);
+    return window.instainpaint.frames + n;
+  }, count);
+  await page.waitForFunction((n) => window.instainpaint.frames >= n, target, { timeout: 120000 });
+}
+
+export function check(condition, message) {
+  if (!condition) {
+    console.error(`FAILED: ${message}`);
+    process.exitCode = 1;
+  } else {
+    console.log(`ok: ${message}`);
+  }
+}

@@ -1,0 +1,293 @@
+// `instainpaint serve`'s server on loopback, driven by an HTTP client: what it serves, what it
+// refuses (paths outside its folders, bad uploads, a second job), that a failing job leaves it
+// running, and a whole one-mask edit.
+#include <gtest/gtest.h>
+
+#include <future>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "io/image.h"
+#include "synth/synth_scene.h"
+#include "synth/synth_writer.h"
+#include "test_support.h"
+#include "web/assets.h"
+#include "web/server.h"
+
+// Last: it includes <resolv.h>, whose `_res` macro breaks Eigen headers included after it.
+#include <httplib.h>
+
+namespace ii {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+// A small room with an object, masks in every view (the edits' scene).
+const fs::path& room() {
+  static const fs::path dir = [] {
+    synth::SynthOptions so;
+    so.views = 5;
+    so.test_views = 1;
+    so.width = 48;
+    so.height = 40;
+    so.object = synth::ObjectSource::procedural;
+    const fs::path d = test::temp_dir("serve-room") / "room";
+    synth::write_synth_scene(synth::generate_scene(so, 5), d, {});
+    return d;
+  }();
+  return dir;
+}
+
+const Predictor& default_model() {
+  static const Predictor predictor("", torch::kCPU, Precision::Float32);
+  return predictor;
+}
+
+// The server on a free loopback port, running in a thread for the test's lifetime.
+struct RunningServer {
+  std::unique_ptr<WebServer> server;
+  std::thread thread;
+  std::unique_ptr<httplib::Client> client;
+  fs::path out;
+
+  explicit RunningServer(ServeOptions o, const Predictor* predictor = &default_model()) {
+    o.port = 0;
+    o.host = "127.0.0.1";
+    if (o.out == "serve-out") o.out = test::temp_dir("serve-out");
+    out = o.out;
+    server = std::make_unique<WebServer>(o, predictor);
+    const int port = server->bind();
+    thread = std::thread([this] { server->run(); });
+    client = std::make_unique<httplib::Client>("127.0.0.1", port);
+    client->set_read_timeout(60, 0);
+  }
+  ~RunningServer() {
+    server->stop();
+    thread.join();
+  }
+  // Waits for the current job to end; returns its state.
+  json finished_job() {
+    server->wait_for_job();
+    return json::parse(client->Get("/api/job")->body);
+  }
+};
+
+ServeOptions room_options() {
+  ServeOptions o;
+  o.scene_dir = room();
+  o.height = 40;
+  return o;
+}
+
+httplib::MultipartFormDataItems edit_form(const std::string& view, const std::string& mask_bytes,
+                                          const std::string& extra_name = "", const std::string& extra = "") {
+  httplib::MultipartFormDataItems items = {{"view", view, "", ""}, {"mask", mask_bytes, "mask.png", "image/png"}};
+  if (!extra_name.empty()) items.push_back({extra_name, extra, "", ""});
+  return items;
+}
+
+std::string view_mask_bytes(const std::string& view) {
+  return test::file_bytes(room() / "images_4" / "label" / (view + ".png"));
+}
+
+TEST(Serve, InfoViewsAndPlys) {
+  ServeOptions o = room_options();
+  const fs::path ply = test::temp_dir("serve-ply") / "a.ply";
+  test::write_bytes(ply, "ply\nformat binary_little_endian 1.0\nelement vertex 0\nend_header\n");
+  o.plys = {ply};
+  RunningServer s(o);
+
+  const auto info = s.client->Get("/api/info");
+  ASSERT_EQ(info->status, 200);
+  const json j = json::parse(info->body);
+  ASSERT_EQ(j["scene"]["views"].size(), 5u);
+  EXPECT_EQ(j["scene"]["views"][0]["name"], "view_000");
+  EXPECT_EQ(j["scene"]["views"][0]["width"], 48);
+  EXPECT_EQ(j["scene"]["views"][0]["c2w"].size(), 16u);
+  EXPECT_EQ(j["scene"]["test_views"], 1);
+  EXPECT_EQ(j["plys"][0]["url"], "/api/plys/0");
+  EXPECT_TRUE(j["editing"]);
+  EXPECT_EQ(j["job"]["state"], "idle");
+
+  const auto image = s.client->Get("/api/views/1/image");
+  ASSERT_EQ(image->status, 200);
+  EXPECT_EQ(image->get_header_value("Content-Type"), "image/png");
+  const fs::path back = s.out / "back.png";
+  test::write_bytes(back, image->body);
+  EXPECT_EQ(probe_image(back).width, 48);
+  EXPECT_EQ(s.client->Get("/api/views/1/mask")->status, 200);
+
+  const auto p = s.client->Get("/api/plys/0?download=1");
+  ASSERT_EQ(p->status, 200);
+  EXPECT_EQ(p->body, test::file_bytes(ply));
+  EXPECT_EQ(p->get_header_value("Content-Disposition"), "attachment; filename=\"a.ply\"");
+
+  // The page (when built with it), or the page that says how to get it.
+  const auto page = s.client->Get("/");
+  ASSERT_EQ(page->status, 200);
+  EXPECT_NE(page->body.find(web_assets().empty() ? "make deps" : "/app.js"), std::string::npos);
+}
+
+TEST(Serve, NothingOutsideItsFoldersIsServed) {
+  RunningServer s(room_options());
+  // A symlink planted in a job's folder, pointing out of it.
+  fs::create_directories(s.out / "jobs" / "77" / "masks");
+  fs::create_symlink("/etc/hostname", s.out / "jobs" / "77" / "gaussians.ply");
+  fs::create_symlink("/etc/hostname", s.out / "jobs" / "77" / "masks" / "0.png");
+  for (const char* path :
+       {"/api/jobs/77/gaussians.ply", "/api/jobs/77/masks/0.png", "/api/jobs/77/../../../etc/passwd",
+        "/api/jobs/1/%2e%2e/%2e%2e/etc/passwd", "/../../etc/passwd", "//etc/passwd", "/api/views/9/image",
+        "/api/views/-1/image", "/api/plys/0", "/api/plys/../../etc/passwd", "/cache/view-0.png", "/api/views/0/../../x",
+        "/etc/passwd", "/app.js/../../etc/passwd"}) {
+    const auto r = s.client->Get(path);
+    ASSERT_TRUE(r) << path;
+    EXPECT_EQ(r->status, 404) << path;
+    EXPECT_TRUE(json::parse(r->body).contains("error")) << path << ": " << r->body;
+  }
+  EXPECT_EQ(s.client->Delete("/api/info")->status / 100, 4);
+}
+
+TEST(Serve, BadUploadsAreRefusedWithTheReason) {
+  ServeOptions o = room_options();
+  o.max_upload_bytes = 64 << 10;
+  RunningServer s(o);
+  const std::string mask = view_mask_bytes("view_001");
+  auto error_of = [](const httplib::Result& r) { return json::parse(r->body)["error"].get<std::string>(); };
+
+  auto r = s.client->Post("/api/masks", "view=view_001", "application/x-www-form-urlencoded");
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r), "send multipart/form-data with view and mask");
+  r = s.client->Post("/api/masks", edit_form("nope", mask));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r), "no view 'nope' in the scene");
+  r = s.client->Post("/api/masks", edit_form("view_001", "#!/bin/sh\nrm -rf /\n"));
+  EXPECT_EQ(r->status, 415);
+  EXPECT_EQ(error_of(r), "mask: not a PNG or JPEG image");
+  r = s.client->Post("/api/masks", edit_form("view_001", test::file_bytes(room() / "reference.png").substr(0, 40)));
+  EXPECT_EQ(r->status, 400);  // a PNG signature with nothing behind it
+  Image big(64, 64, 1);
+  write_png(s.out / "big.png", big);
+  r = s.client->Post("/api/masks", edit_form("view_001", test::file_bytes(s.out / "big.png")));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r), "mask is 64x64, view view_001 is 48x40");
+  r = s.client->Post("/api/masks", edit_form("view_001", mask, "mode", "paint"));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r), "mode must be remove or insert");
+  r = s.client->Post("/api/edit", edit_form("view_001", mask, "refine", "1e9"));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r), "refine must be a number of steps from 0 to 5000");
+  r = s.client->Post("/api/edit", edit_form("view_001", mask, "mode", "insert"));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r), "insert needs a reference: the view's photo with the new object painted in");
+  r = s.client->Post("/api/masks", edit_form("view_001", std::string(80 << 10, 'x')));
+  EXPECT_EQ(r->status, 413);
+  // Nothing ran, nothing was left behind.
+  EXPECT_EQ(json::parse(s.client->Get("/api/job")->body)["state"], "idle");
+  EXPECT_TRUE(fs::is_empty(s.out / "jobs"));
+}
+
+TEST(Serve, OneJobAtATimeAndAFailedJobLeavesTheServerRunning) {
+  ServeOptions o = room_options();
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  o.before_job = [released](int) { released.wait(); };  // holds the first job until checked
+  RunningServer s(o);
+  const std::string mask = view_mask_bytes("view_002");
+
+  // A reference of the wrong size fails inside the job (preparing the network's input).
+  Image small(10, 10, 3, 0.5f);
+  write_png(s.out / "small.png", small);
+  httplib::MultipartFormDataItems form = edit_form("view_002", mask);
+  form.push_back({"reference", test::file_bytes(s.out / "small.png"), "ref.png", "image/png"});
+  auto r = s.client->Post("/api/edit", form);
+  ASSERT_EQ(r->status, 202) << r->body;
+  EXPECT_EQ(json::parse(r->body)["job"], 1);
+  const auto busy = s.client->Post("/api/masks", edit_form("view_002", mask));
+  EXPECT_EQ(busy->status, 409);
+  EXPECT_EQ(json::parse(busy->body)["error"].get<std::string>().rfind("busy: job 1", 0), 0u) << busy->body;
+  release.set_value();
+
+  const json failed = s.finished_job();
+  EXPECT_EQ(failed["state"], "failed");
+  EXPECT_NE(failed["error"].get<std::string>().find("reference image is 10x10"), std::string::npos) << failed;
+  EXPECT_EQ(s.client->Get("/api/info")->status, 200);
+
+  // The next job runs.
+  r = s.client->Post("/api/masks", edit_form("view_002", mask));
+  ASSERT_EQ(r->status, 202) << r->body;
+  const json done = s.finished_job();
+  EXPECT_EQ(done["id"], 2);
+  EXPECT_EQ(done["state"], "done") << done;
+  EXPECT_EQ(done["result"]["masks"].size(), 5u);
+}
+
+TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
+  RunningServer s(room_options());
+  auto r = s.client->Post("/api/edit", edit_form("view_003", view_mask_bytes("view_003"), "refine", "2"));
+  ASSERT_EQ(r->status, 202) << r->body;
+  const json job = s.finished_job();
+  ASSERT_EQ(job["state"], "done") << job;
+  EXPECT_EQ(job["kind"], "edit");
+  EXPECT_EQ(job["result"]["refine"]["steps"], 2);
+  EXPECT_EQ(job["result"]["reference"], "telea");
+  const auto ply = s.client->Get(job["result"]["ply"].get<std::string>());
+  ASSERT_EQ(ply->status, 200);
+  EXPECT_EQ(ply->body.rfind("ply\n", 0), 0u);
+  const auto mask = s.client->Get(job["result"]["masks"]["view_000"].get<std::string>());
+  ASSERT_EQ(mask->status, 200);
+  EXPECT_EQ(mask->get_header_value("Content-Type"), "image/png");
+}
+
+TEST(Serve, OrbitVideoAndEvaluationReportOfAServedPly) {
+  RunningServer s(room_options());
+  ASSERT_EQ(s.client->Post("/api/edit", edit_form("view_001", view_mask_bytes("view_001")))->status, 202);
+  const json edit = s.finished_job();
+  ASSERT_EQ(edit["state"], "done") << edit;
+  const std::string ply = edit["result"]["ply"];
+
+  auto r = s.client->Post("/api/video", httplib::Params{{"ply", ply}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const json video = s.finished_job();
+  ASSERT_EQ(video["state"], "done") << video;
+  EXPECT_EQ(video["result"]["frames"], 48);
+  const auto mp4 = s.client->Get(video["result"]["video"].get<std::string>());
+  ASSERT_EQ(mp4->status, 200);
+  EXPECT_EQ(mp4->get_header_value("Content-Type"), "video/mp4");
+  EXPECT_EQ(mp4->body.substr(4, 4), "ftyp");
+
+  r = s.client->Post("/api/eval", httplib::Params{{"ply", ply}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const json eval = s.finished_job();
+  ASSERT_EQ(eval["state"], "done") << eval;
+  EXPECT_TRUE(eval["result"]["mean"]["masked_psnr"].is_number()) << eval;
+  const auto report = s.client->Get(eval["result"]["report"].get<std::string>());
+  ASSERT_EQ(report->status, 200);
+  EXPECT_NE(report->body.find("sheets/test_000.png"), std::string::npos);
+  EXPECT_EQ(s.client->Get("/api/jobs/" + std::to_string(eval["id"].get<int>()) + "/eval/sheets/test_000.png")->status,
+            200);
+
+  // Only PLYs the server serves.
+  for (const char* bad : {"/etc/passwd", "/api/plys/0", "/api/jobs/99/gaussians.ply", "../gaussians.ply"}) {
+    r = s.client->Post("/api/video", httplib::Params{{"ply", bad}});
+    EXPECT_EQ(r->status, 400) << bad;
+    EXPECT_EQ(json::parse(r->body)["error"],
+              std::string("ply must be the URL of a PLY this server serves, not '") + bad + "'");
+  }
+}
+
+TEST(Serve, WithoutASceneItOnlyShows) {
+  ServeOptions o;
+  o.out = test::temp_dir("serve-no-scene");
+  RunningServer s(o, nullptr);
+  const json info = json::parse(s.client->Get("/api/info")->body);
+  EXPECT_TRUE(info["scene"].is_null());
+  EXPECT_FALSE(info["editing"]);
+  const auto r = s.client->Post("/api/edit", edit_form("view_000", "x"));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(json::parse(r->body)["error"], "the server was started without --scene: nothing to edit");
+}
+
+}  // namespace
+}  // namespace ii

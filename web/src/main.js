@@ -1,0 +1,448 @@
+// The page of `instainpaint serve`: a Gaussian-splat viewer (three.js + Spark) with the scene's
+// cameras, and a one-mask editor that runs the server's edit jobs.
+//
+// URL parameters: ?ply=<i> shows the i-th PLY given to serve first (or ?ply=/api/jobs/<id>/
+// gaussians.ply, an edit's result); ?view=<i>&exact=1 renders from scene view i with its exact
+// intrinsics at its size on white (no controls), for comparisons with `instainpaint render`.
+// window.instainpaint exposes the state that tests and measurements read.
+import * as THREE from "three";
+import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
+import { SparkRenderer, SplatMesh } from "@sparkjsdev/spark";
+
+const $ = (id) => document.getElementById(id);
+const params = new URLSearchParams(location.search);
+const exact = params.get("exact") === "1";
+const started = performance.now();
+
+const api = {
+  info: null,
+  loadedUrl: null, // the PLY on screen
+  frames: 0,
+  fps: 0,
+  firstFrameMs: null, // page start to the first frame with splats
+  ready: null, // resolves when the first PLY is on screen
+  job: null, // the running job's last polled state
+  lastRun: null, // the last Run or Preview: {id, state, error, result, seconds (click to splats on screen)}
+  showPly,
+  jumpToView,
+  invalidate,
+};
+window.instainpaint = api;
+
+// ---- viewer ----------------------------------------------------------------------------
+const viewer = $("viewer");
+const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
+renderer.setPixelRatio(exact ? 1 : window.devicePixelRatio);
+viewer.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0xffffff);
+// As instainpaint's rasterizer (gsplat's classic mode) draws: 0.3 px² added to every
+// projected covariance without opacity compensation, sorted by z-depth.
+scene.add(new SparkRenderer({ renderer, preBlurAmount: 0.3, blurAmount: 0, sortRadial: false, maxStdDev: 3 }));
+const camera = new THREE.PerspectiveCamera(50, 1, 0.01, 1000);
+camera.position.set(0, 0, 3);
+const controls = exact ? null : new OrbitControls(camera, renderer.domElement);
+const frustums = new THREE.Group();
+if (!exact) scene.add(frustums);
+let mesh = null;
+let exactView = null;
+
+function resize() {
+  if (exactView) {
+    renderer.setSize(exactView.width, exactView.height, false);
+    renderer.domElement.style.width = `${exactView.width}px`;
+    renderer.domElement.style.height = `${exactView.height}px`;
+    return;
+  }
+  const w = viewer.clientWidth, h = viewer.clientHeight;
+  renderer.setSize(w, h, false);
+  camera.aspect = w / h;
+  camera.updateProjectionMatrix();
+}
+window.addEventListener("resize", () => {
+  resize();
+  invalidate();
+});
+
+// A scene camera (c2w row-major, OpenGL axes, as the server sends it) as the viewer's pose.
+function poseOf(view) {
+  const m = new THREE.Matrix4().fromArray(view.c2w).transpose();
+  const position = new THREE.Vector3(), quaternion = new THREE.Quaternion();
+  m.decompose(position, quaternion, new THREE.Vector3());
+  return { position, quaternion };
+}
+
+// The pinhole projection of a view's intrinsics (principal point anywhere), OpenGL clip space.
+function projectionOf(view, near = 0.01, far = 1000) {
+  const { width: w, height: h, fx, fy, cx, cy } = view;
+  return new THREE.Matrix4().set(
+    (2 * fx) / w, 0, 1 - (2 * cx) / w, 0,
+    0, (2 * fy) / h, (2 * cy) / h - 1, 0,
+    0, 0, -(far + near) / (far - near), (-2 * far * near) / (far - near),
+    0, 0, -1, 0);
+}
+
+function jumpToView(index) {
+  const view = api.info.scene.views[index];
+  const { position, quaternion } = poseOf(view);
+  camera.position.copy(position);
+  camera.quaternion.copy(quaternion);
+  if (exactView) {
+    camera.projectionMatrix.copy(projectionOf(view));
+    camera.projectionMatrixInverse.copy(camera.projectionMatrix).invert();
+  } else {
+    camera.fov = THREE.MathUtils.radToDeg(2 * Math.atan(view.height / (2 * view.fy)));
+    camera.updateProjectionMatrix();
+    // Orbit about a point in front of the camera, as far as the scene's centre.
+    const forward = new THREE.Vector3(0, 0, -1).applyQuaternion(quaternion);
+    const distance = Math.max(0.2, position.length());
+    controls.target.copy(position).addScaledVector(forward, distance);
+    controls.update();
+  }
+  camera.updateMatrixWorld(true);
+  frustums.children.forEach((f, i) => f.material.color.set(i === index ? 0x2b6cb0 : 0x888888));
+  invalidate();
+}
+
+function addFrustums(views) {
+  const size = 0.08;
+  views.forEach((view) => {
+    const { position, quaternion } = poseOf(view);
+    const x = (size * view.width) / (2 * view.fx), y = (size * view.height) / (2 * view.fy);
+    const corners = [[-x, -y], [x, -y], [x, y], [-x, y]].map(([a, b]) => new THREE.Vector3(a, b, -size));
+    const points = [];
+    corners.forEach((c, i) => points.push(new THREE.Vector3(), c, c, corners[(i + 1) % 4]));
+    const geometry = new THREE.BufferGeometry().setFromPoints(points);
+    const lines = new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({ color: 0x888888 }));
+    lines.position.copy(position);
+    lines.quaternion.copy(quaternion);
+    frustums.add(lines);
+  });
+}
+
+async function showPly(url) {
+  const next = new SplatMesh({ url, fileType: "ply" });
+  await next.initialized;
+  if (mesh) {
+    scene.remove(mesh);
+    mesh.dispose?.();
+  }
+  mesh = next;
+  scene.add(mesh);
+  api.loadedUrl = url;
+  invalidate(30);
+  await new Promise((resolve) => requestAnimationFrame(() => requestAnimationFrame(resolve)));
+  if (api.firstFrameMs === null) api.firstFrameMs = performance.now() - started;
+  $("hud").dataset.ply = url;
+}
+
+// Frames are drawn on demand (a camera move, new splats, a resize), a few in a row so that
+// Spark's sort, which runs in a worker, catches up: an idle page leaves the CPU to the
+// server's jobs (software WebGL draws on the same cores).
+let framesToDraw = 10;
+function invalidate(frames = 10) {
+  framesToDraw = Math.max(framesToDraw, frames);
+}
+controls?.addEventListener("change", () => invalidate());
+
+let fpsFrames = 0, fpsSince = performance.now();
+renderer.setAnimationLoop(() => {
+  controls?.update();
+  if (framesToDraw <= 0) {
+    fpsFrames = 0;
+    fpsSince = performance.now();
+    return;
+  }
+  framesToDraw--;
+  renderer.render(scene, camera);
+  api.frames++;
+  fpsFrames++;
+  const now = performance.now();
+  if (now - fpsSince >= 1000) {
+    api.fps = (1000 * fpsFrames) / (now - fpsSince);
+    fpsFrames = 0;
+    fpsSince = now;
+    if (!exact) $("hud").textContent = `${api.fps.toFixed(1)} fps · ${api.loadedUrl ?? "no splats"}`;
+  }
+});
+
+// ---- splat list, before / after ----------------------------------------------------------
+let beforeUrl = null, afterUrl = null;
+
+function setActive(which) {
+  $("before").classList.toggle("on", which === "before");
+  $("after").classList.toggle("on", which === "after");
+}
+
+function listPlys(plys) {
+  const box = $("plys");
+  box.textContent = plys.length ? "" : "none given (serve --ply FILE)";
+  plys.forEach((p) => {
+    const b = document.createElement("button");
+    b.textContent = p.name;
+    b.onclick = async () => {
+      beforeUrl = p.url;
+      await showPly(p.url);
+      setActive("before");
+    };
+    box.appendChild(b);
+  });
+}
+
+function setDownloads() {
+  const links = [];
+  if (api.loadedUrl) links.push(`<a href="${api.loadedUrl}?download=1">download the PLY on screen</a>`);
+  $("downloads").innerHTML = links.join(" · ");
+}
+
+$("before").onclick = async () => {
+  if (beforeUrl) await showPly(beforeUrl);
+  setActive("before");
+  setDownloads();
+};
+$("after").onclick = async () => {
+  if (afterUrl) await showPly(afterUrl);
+  setActive("after");
+  setDownloads();
+};
+
+// ---- views and the editor ------------------------------------------------------------------
+let selected = -1;
+const paintCanvas = $("paint-canvas");
+const paint = paintCanvas.getContext("2d");
+let erasing = false;
+
+function listViews(views) {
+  const strip = $("strip");
+  strip.textContent = views.length ? "" : "no scene (serve --scene DIR)";
+  views.forEach((view, i) => {
+    const figure = document.createElement("figure");
+    figure.dataset.index = i;
+    figure.title = `${view.name}: jump to this view and edit on it`;
+    const img = document.createElement("img");
+    img.src = view.image;
+    img.loading = "lazy";
+    img.alt = view.name;
+    const overlay = document.createElement("canvas");
+    overlay.className = "overlay";
+    overlay.width = view.width;
+    overlay.height = view.height;
+    img.onload = () => (overlay.style.width = `${img.clientWidth}px`);
+    const caption = document.createElement("figcaption");
+    caption.textContent = view.name;
+    figure.append(img, overlay, caption);
+    figure.onclick = () => selectView(i);
+    strip.appendChild(figure);
+  });
+}
+
+function selectView(i) {
+  selected = i;
+  const view = api.info.scene.views[i];
+  document.querySelectorAll("#strip figure").forEach((f) => f.classList.toggle("selected", Number(f.dataset.index) === i));
+  jumpToView(i);
+  if (!api.info.editing) return;
+  $("edit-panel").hidden = false;
+  $("edit-view").textContent = view.name;
+  $("paint-image").src = view.image;
+  paintCanvas.width = view.width;
+  paintCanvas.height = view.height;
+}
+
+function canvasPoint(event) {
+  const r = paintCanvas.getBoundingClientRect();
+  return [((event.clientX - r.left) * paintCanvas.width) / r.width, ((event.clientY - r.top) * paintCanvas.height) / r.height];
+}
+
+let last = null;
+function stroke(event) {
+  const [x, y] = canvasPoint(event);
+  const radius = (Number($("size").value) * paintCanvas.width) / 400;
+  paint.globalCompositeOperation = erasing ? "destination-out" : "source-over";
+  paint.strokeStyle = paint.fillStyle = "#ff0000";
+  paint.lineWidth = 2 * radius;
+  paint.lineCap = "round";
+  paint.beginPath();
+  if (last) {
+    paint.moveTo(last[0], last[1]);
+    paint.lineTo(x, y);
+    paint.stroke();
+  } else {
+    paint.arc(x, y, radius, 0, 2 * Math.PI);
+    paint.fill();
+  }
+  last = [x, y];
+}
+paintCanvas.addEventListener("pointerdown", (e) => {
+  paintCanvas.setPointerCapture(e.pointerId);
+  last = null;
+  stroke(e);
+});
+paintCanvas.addEventListener("pointermove", (e) => {
+  if (e.buttons & 1) stroke(e);
+});
+paintCanvas.addEventListener("pointerup", () => (last = null));
+$("brush").onclick = () => {
+  erasing = false;
+  $("brush").classList.add("on");
+  $("eraser").classList.remove("on");
+};
+$("eraser").onclick = () => {
+  erasing = true;
+  $("eraser").classList.add("on");
+  $("brush").classList.remove("on");
+};
+$("clear").onclick = () => paint.clearRect(0, 0, paintCanvas.width, paintCanvas.height);
+$("mask-file").onchange = async (e) => {
+  const file = e.target.files[0];
+  if (!file) return;
+  const bitmap = await createImageBitmap(file);
+  const scratch = new OffscreenCanvas(paintCanvas.width, paintCanvas.height).getContext("2d");
+  scratch.drawImage(bitmap, 0, 0, paintCanvas.width, paintCanvas.height);
+  const pixels = scratch.getImageData(0, 0, paintCanvas.width, paintCanvas.height);
+  for (let k = 0; k < pixels.data.length; k += 4) {
+    const on = pixels.data[k] > 127;
+    pixels.data.set(on ? [255, 0, 0, 255] : [0, 0, 0, 0], k);
+  }
+  paint.putImageData(pixels, 0, 0);
+};
+
+// The painted region as a black and white PNG at the view's size.
+async function maskBlob() {
+  const { width, height } = paintCanvas;
+  const painted = paint.getImageData(0, 0, width, height);
+  const out = new OffscreenCanvas(width, height);
+  const ctx = out.getContext("2d");
+  const pixels = ctx.createImageData(width, height);
+  for (let k = 0; k < pixels.data.length; k += 4) {
+    const v = painted.data[k + 3] > 0 ? 255 : 0;
+    pixels.data.set([v, v, v, 255], k);
+  }
+  ctx.putImageData(pixels, 0, 0);
+  return out.convertToBlob({ type: "image/png" });
+}
+
+function status(text, error = false) {
+  $("status").textContent = text;
+  $("status").classList.toggle("error", error);
+}
+
+async function drawMaskOverlays(masks) {
+  const figures = document.querySelectorAll("#strip figure");
+  await Promise.all(
+    api.info.scene.views.map(async (view, i) => {
+      const overlay = figures[i].querySelector("canvas");
+      const ctx = overlay.getContext("2d");
+      ctx.clearRect(0, 0, overlay.width, overlay.height);
+      if (!masks[view.name]) return;
+      const bitmap = await createImageBitmap(await (await fetch(masks[view.name])).blob());
+      ctx.drawImage(bitmap, 0, 0, overlay.width, overlay.height);
+      const pixels = ctx.getImageData(0, 0, overlay.width, overlay.height);
+      for (let k = 0; k < pixels.data.length; k += 4) {
+        const on = pixels.data[k] > 127;
+        pixels.data.set(on ? [255, 0, 0, 140] : [0, 0, 0, 0], k);
+      }
+      ctx.putImageData(pixels, 0, 0);
+    }),
+  );
+}
+
+async function runJob(path) {
+  if (selected < 0) return status("pick a view first", true);
+  const form = new FormData();
+  form.append("view", api.info.scene.views[selected].name);
+  form.append("mask", await maskBlob(), "mask.png");
+  form.append("mode", $("mode").value);
+  form.append("refine", String(Number($("refine").value) || 0));
+  const reference = $("reference-file").files[0];
+  if (reference) form.append("reference", reference, reference.name);
+  const clicked = performance.now();
+  const answer = await fetch(path, { method: "POST", body: form });
+  const body = await answer.json();
+  if (answer.status !== 202) {
+    api.lastRun = { state: "refused", error: body.error };
+    return status(body.error ?? `error ${answer.status}`, true);
+  }
+  $("progress").hidden = false;
+  for (;;) {
+    const job = await (await fetch("/api/job")).json();
+    api.job = job;
+    $("progress").value = job.progress;
+    status(`job ${job.id}: ${job.stage}`);
+    if (job.id === body.job && job.state !== "running") {
+      $("progress").hidden = true;
+      if (job.state === "failed") {
+        api.lastRun = job;
+        return status(`job ${job.id} failed: ${job.error}`, true);
+      }
+      await drawMaskOverlays(job.result.masks ?? {});
+      if (job.result.ply) {
+        afterUrl = job.result.ply;
+        await showPly(afterUrl);
+        setActive("after");
+        setDownloads();
+      }
+      const seconds = (performance.now() - clicked) / 1000;
+      api.lastRun = { ...job, clientSeconds: seconds };
+      return status(`job ${job.id} done: ${job.result.ply ? `${job.result.gaussians} Gaussians, ` : "masks, "}${seconds.toFixed(1)} s from the click`);
+    }
+    await new Promise((r) => setTimeout(r, 250));
+  }
+}
+// Exports of the splats on screen: the orbit video and the evaluation report, as jobs.
+async function runExport(kind) {
+  if (!api.loadedUrl) return status("no splats on screen", true);
+  const answer = await fetch(`/api/${kind}`, { method: "POST", body: new URLSearchParams({ ply: api.loadedUrl }) });
+  const body = await answer.json();
+  if (answer.status !== 202) return status(body.error ?? `error ${answer.status}`, true);
+  for (;;) {
+    const job = await (await fetch("/api/job")).json();
+    status(`job ${job.id}: ${job.stage}`);
+    if (job.id === body.job && job.state !== "running") {
+      api.lastRun = job;
+      if (job.state === "failed") return status(`job ${job.id} failed: ${job.error}`, true);
+      const link = document.createElement("a");
+      link.href = job.result.video ?? job.result.report;
+      link.target = "_blank";
+      link.textContent = kind === "video" ? `orbit video (job ${job.id})` : `eval report (job ${job.id})`;
+      $("exports").append(link, " ");
+      return status(`job ${job.id} done`);
+    }
+    await new Promise((r) => setTimeout(r, 250));
+  }
+}
+$("video").onclick = () => runExport("video");
+$("eval").onclick = () => runExport("eval");
+$("preview").onclick = () => runJob("/api/masks");
+$("run").onclick = () => runJob("/api/edit");
+
+// ---- start -------------------------------------------------------------------------------
+async function start() {
+  const info = await (await fetch("/api/info")).json();
+  api.info = info;
+  const views = info.scene?.views ?? [];
+  const viewIndex = params.has("view") ? Number(params.get("view")) : -1;
+  if (exact && views[viewIndex]) exactView = views[viewIndex];
+  resize();
+  addFrustums(views);
+  listPlys(info.plys);
+  $("video").disabled = !info.scene;
+  $("eval").disabled = !info.scene?.test_views;
+  listViews(views);
+  if (viewIndex >= 0 && views[viewIndex]) jumpToView(viewIndex);
+  const asked = params.get("ply") ?? "0";
+  const first = /^\/api\/jobs\/\d+\/gaussians\.ply$/.test(asked) ? { name: asked, url: asked } : info.plys[Number(asked)];
+  if (first) {
+    beforeUrl = first.url;
+    await showPly(first.url);
+    setActive("before");
+    setDownloads();
+  }
+  $("hud").textContent = first ? first.name : "no splats: serve --ply FILE, or run an edit";
+  if (exact) $("hud").hidden = true;
+}
+api.ready = start().catch((e) => {
+  status(String(e), true);
+  $("hud").textContent = `error: ${e}`;
+  throw e;
+});
