@@ -17,7 +17,6 @@ try {
   await page.evaluate(() => window.instainpaint.ready);
   await page.locator('#strip figure[data-index="2"]').click();
   await page.waitForFunction(() => document.getElementById("paint-image").complete);
-  await h.frames(page, 30);
 
   // The object's box in view 2, from the scene's own mask, in the painting's screen pixels.
   const box = await page.evaluate(async () => {
@@ -68,7 +67,7 @@ try {
     exact.on("pageerror", (e) => errors.push(`page: ${e.message}`));
     await exact.goto(`${server.url}?view=2&exact=1&ply=${encodeURIComponent(ply)}`, { timeout: 120000 });
     await exact.evaluate(() => window.instainpaint.ready);
-    await h.frames(exact, 30);
+    await h.frames(exact, 10);
     const shot = join(dir, `${tag}.png`);
     writeFileSync(shot, await exact.locator("canvas").first().screenshot());
     await exact.close();

@@ -1,8 +1,19 @@
 // The viewer in headless Chromium: it loads a splat PLY, the canvas is not blank, and a frame
 // from a scene camera matches `instainpaint render` of the same PLY from that camera.
-import { readFileSync, writeFileSync } from "node:fs";
-import { join } from "node:path";
+import { existsSync, writeFileSync } from "node:fs";
+import { join, resolve } from "node:path";
 import * as h from "./harness.mjs";
+
+// The share of the viewer's pixels that are not the white background (runs in the page).
+function drawnFraction() {
+  const c = document.querySelector("#viewer canvas");
+  const ctx = Object.assign(document.createElement("canvas"), { width: c.width, height: c.height }).getContext("2d");
+  ctx.drawImage(c, 0, 0);
+  const d = ctx.getImageData(0, 0, c.width, c.height).data;
+  let drawn = 0;
+  for (let k = 0; k < d.length; k += 4) if (d[k] < 250 || d[k + 1] < 250 || d[k + 2] < 250) drawn++;
+  return drawn / (d.length / 4);
+}
 
 h.skipUnlessReady();
 const dir = h.scratch("view");
@@ -16,7 +27,7 @@ try {
   // From scene view 1, at its size, with its intrinsics.
   await page.goto(`${server.url}?view=1&exact=1`);
   await page.evaluate(() => window.instainpaint.ready);
-  await h.frames(page, 30);  // Spark sorts in a worker: let it settle
+  await h.frames(page, 10);  // Spark sorts in a worker: let it settle
   const shot = join(dir, "page-view_001.png");
   writeFileSync(shot, await page.locator("canvas").first().screenshot());
   h.run(["render", "--ply", ply, "--scene", scene, "--normalize", "--views", "view_001", "--no-video", "--out",
@@ -28,16 +39,25 @@ try {
   // ours per tile by depth), in 8-bit blending on the GPU and in cut-offs: 42 dB measured.
   h.check(psnr >= 35, `the page's frame matches instainpaint render (PSNR ${psnr.toFixed(2)} >= 35 dB)`);
 
-  const coverage = await page.evaluate(() => {
-    const c = document.querySelector("canvas");
-    const ctx = Object.assign(document.createElement("canvas"), { width: c.width, height: c.height }).getContext("2d");
-    ctx.drawImage(c, 0, 0);
-    const d = ctx.getImageData(0, 0, c.width, c.height).data;
-    let drawn = 0;
-    for (let k = 0; k < d.length; k += 4) if (d[k] < 250 || d[k + 1] < 250 || d[k + 2] < 250) drawn++;
-    return drawn / (d.length / 4);
-  });
+  const coverage = await page.evaluate(drawnFraction);
   h.check(coverage > 0.5, `the canvas is not blank (${(100 * coverage).toFixed(0)} % of pixels drawn)`);
+
+  // A shared real capture in SuperSplat's compressed PLY, served without a scene: framed and drawn.
+  const guitar = resolve("../shared/data/splats/guitar.compressed.ply");
+  if (existsSync(guitar)) {
+    const other = await h.serve(["--ply", guitar, "--out", join(dir, "serve-guitar")]);
+    const gpage = await browser.newPage({ viewport: { width: 640, height: 480 } });
+    const gerrors = h.collectErrors(gpage);
+    await gpage.goto(other.url);
+    await gpage.evaluate(() => window.instainpaint.ready);
+    await h.frames(gpage, 10);
+    writeFileSync(join(dir, "page-guitar.png"), await gpage.locator("#viewer canvas").screenshot());
+    const drawn = await gpage.evaluate(drawnFraction);
+    h.check(drawn > 0.05, `the shared compressed PLY is drawn (${(100 * drawn).toFixed(0)} % of pixels)`);
+    errors.push(...gerrors);
+    await gpage.close();
+    other.stop();
+  }
 
   // The interactive viewer: first frame, frames per second (software GL: a floor), bundle size.
   const viewer = await browser.newPage({ viewport: { width: 900, height: 600 } });
