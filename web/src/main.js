@@ -322,16 +322,19 @@ $("clear").onclick = () => paint.clearRect(0, 0, paintCanvas.width, paintCanvas.
 $("mask-file").onchange = async (e) => {
   const file = e.target.files[0];
   if (!file) return;
-  const bitmap = await createImageBitmap(file);
-  const scratch = new OffscreenCanvas(paintCanvas.width, paintCanvas.height).getContext("2d");
-  scratch.drawImage(bitmap, 0, 0, paintCanvas.width, paintCanvas.height);
-  const pixels = scratch.getImageData(0, 0, paintCanvas.width, paintCanvas.height);
-  for (let k = 0; k < pixels.data.length; k += 4) {
-    const on = pixels.data[k] > 127;
-    pixels.data.set(on ? [255, 0, 0, 255] : [0, 0, 0, 0], k);
-  }
-  paint.putImageData(pixels, 0, 0);
+  drawMaskInRed(paint, await createImageBitmap(file), 255);
 };
+
+// A black and white mask image drawn over a canvas as red (white = region), with `alpha`.
+function drawMaskInRed(ctx, bitmap, alpha) {
+  const { width, height } = ctx.canvas;
+  ctx.clearRect(0, 0, width, height);
+  ctx.drawImage(bitmap, 0, 0, width, height);
+  const pixels = ctx.getImageData(0, 0, width, height);
+  for (let k = 0; k < pixels.data.length; k += 4)
+    pixels.data.set(pixels.data[k] > 127 ? [255, 0, 0, alpha] : [0, 0, 0, 0], k);
+  ctx.putImageData(pixels, 0, 0);
+}
 
 // The painted region as a black and white PNG at the view's size.
 async function maskBlob() {
@@ -357,20 +360,40 @@ async function drawMaskOverlays(masks) {
   const figures = document.querySelectorAll("#strip figure");
   await Promise.all(
     api.info.scene.views.map(async (view, i) => {
-      const overlay = figures[i].querySelector("canvas");
-      const ctx = overlay.getContext("2d");
-      ctx.clearRect(0, 0, overlay.width, overlay.height);
-      if (!masks[view.name]) return;
-      const bitmap = await createImageBitmap(await (await fetch(masks[view.name])).blob());
-      ctx.drawImage(bitmap, 0, 0, overlay.width, overlay.height);
-      const pixels = ctx.getImageData(0, 0, overlay.width, overlay.height);
-      for (let k = 0; k < pixels.data.length; k += 4) {
-        const on = pixels.data[k] > 127;
-        pixels.data.set(on ? [255, 0, 0, 140] : [0, 0, 0, 0], k);
-      }
-      ctx.putImageData(pixels, 0, 0);
+      const ctx = figures[i].querySelector("canvas").getContext("2d");
+      ctx.clearRect(0, 0, ctx.canvas.width, ctx.canvas.height);
+      if (masks[view.name]) drawMaskInRed(ctx, await createImageBitmap(await (await fetch(masks[view.name])).blob()), 140);
     }),
   );
+}
+
+// Starts a job (POST `path` with `body`) and polls it to its end; the job's state, or null
+// when the server refused it (the reason is shown).
+async function startAndWait(path, body) {
+  const answer = await fetch(path, { method: "POST", body });
+  const started = await answer.json();
+  if (answer.status !== 202) {
+    api.lastRun = { state: "refused", error: started.error };
+    status(started.error ?? `error ${answer.status}`, true);
+    return null;
+  }
+  $("progress").hidden = false;
+  for (;;) {
+    const job = await (await fetch("/api/job")).json();
+    api.job = job;
+    $("progress").value = job.progress;
+    status(`job ${job.id}: ${job.stage}`);
+    if (job.id === started.job && job.state !== "running") {
+      $("progress").hidden = true;
+      if (job.state === "failed") {
+        api.lastRun = job;
+        status(`job ${job.id} failed: ${job.error}`, true);
+        return null;
+      }
+      return job;
+    }
+    await new Promise((r) => setTimeout(r, 250));
+  }
 }
 
 async function runJob(path) {
@@ -383,64 +406,37 @@ async function runJob(path) {
   const reference = $("reference-file").files[0];
   if (reference) form.append("reference", reference, reference.name);
   const clicked = performance.now();
-  const answer = await fetch(path, { method: "POST", body: form });
-  const body = await answer.json();
-  if (answer.status !== 202) {
-    api.lastRun = { state: "refused", error: body.error };
-    return status(body.error ?? `error ${answer.status}`, true);
+  const job = await startAndWait(path, form);
+  if (!job) return;
+  const jobSeen = performance.now();
+  await drawMaskOverlays(job.result.masks ?? {});
+  const masksDrawn = performance.now();
+  if (job.result.ply) {
+    afterUrl = job.result.ply;
+    await showPly(afterUrl);
+    setActive("after");
+    setDownloads();
   }
-  $("progress").hidden = false;
-  for (;;) {
-    const job = await (await fetch("/api/job")).json();
-    api.job = job;
-    $("progress").value = job.progress;
-    status(`job ${job.id}: ${job.stage}`);
-    if (job.id === body.job && job.state !== "running") {
-      $("progress").hidden = true;
-      if (job.state === "failed") {
-        api.lastRun = job;
-        return status(`job ${job.id} failed: ${job.error}`, true);
-      }
-      const jobSeen = performance.now();
-      await drawMaskOverlays(job.result.masks ?? {});
-      const masksDrawn = performance.now();
-      if (job.result.ply) {
-        afterUrl = job.result.ply;
-        await showPly(afterUrl);
-        setActive("after");
-        setDownloads();
-      }
-      const seconds = (performance.now() - clicked) / 1000;
-      // Where the time from the click went (ms): until the job was seen done, drawing the
-      // masks over the views, loading and drawing the new splats.
-      const parts = { job: jobSeen - clicked, masks: masksDrawn - jobSeen, splats: performance.now() - masksDrawn };
-      api.lastRun = { ...job, clientSeconds: seconds, parts };
-      return status(`job ${job.id} done: ${job.result.ply ? `${job.result.gaussians} Gaussians, ` : "masks, "}${seconds.toFixed(1)} s from the click`);
-    }
-    await new Promise((r) => setTimeout(r, 250));
-  }
+  const seconds = (performance.now() - clicked) / 1000;
+  // Where the time from the click went (ms): until the job was seen done, drawing the masks
+  // over the views, loading and drawing the new splats.
+  const parts = { job: jobSeen - clicked, masks: masksDrawn - jobSeen, splats: performance.now() - masksDrawn };
+  api.lastRun = { ...job, clientSeconds: seconds, parts };
+  status(`job ${job.id} done: ${job.result.ply ? `${job.result.gaussians} Gaussians, ` : "masks, "}${seconds.toFixed(1)} s from the click`);
 }
+
 // Exports of the splats on screen: the orbit video and the evaluation report, as jobs.
 async function runExport(kind) {
   if (!api.loadedUrl) return status("no splats on screen", true);
-  const answer = await fetch(`/api/${kind}`, { method: "POST", body: new URLSearchParams({ ply: api.loadedUrl }) });
-  const body = await answer.json();
-  if (answer.status !== 202) return status(body.error ?? `error ${answer.status}`, true);
-  for (;;) {
-    const job = await (await fetch("/api/job")).json();
-    status(`job ${job.id}: ${job.stage}`);
-    if (job.id === body.job && job.state !== "running") {
-      api.lastRun = job;
-      if (job.state === "failed") return status(`job ${job.id} failed: ${job.error}`, true);
-      const link = document.createElement("a");
-      link.href = job.result.video ?? job.result.report;
-      link.target = "_blank";
-      link.textContent = kind === "video" ? `orbit video (job ${job.id})` : `eval report (job ${job.id})`;
-      $("exports").append(link, " ");
-      return status(`job ${job.id} done`);
-    }
-    await new Promise((r) => setTimeout(r, 250));
-  }
+  const job = await startAndWait(`/api/${kind}`, new URLSearchParams({ ply: api.loadedUrl }));
+  if (!job) return;
+  api.lastRun = job;
+  const link = document.createElement("a");
+  link.href = job.result.video ?? job.result.report;
+  link.target = "_blank";
+  link.textContent = kind === "video" ? `orbit video (job ${job.id})` : `eval report (job ${job.id})`;
+  $("exports").append(link, " ");
+  status(`job ${job.id} done`);
 }
 $("video").onclick = () => runExport("video");
 $("eval").onclick = () => runExport("eval");

@@ -57,6 +57,12 @@ try {
   }).length);
   h.check(overlays >= 5, `the propagated masks are shown over the views (${overlays} of 6)`);
 
+  // Export: the orbit video of the splats on screen, linked when done.
+  await page.locator("#video").click();
+  await page.waitForFunction(() => document.querySelector("#exports a"), null, { timeout: 300000 });
+  const video = await page.evaluate(() => document.querySelector("#exports a").getAttribute("href"));
+  const mp4 = await fetch(new URL(video, server.url));
+  h.check(mp4.status === 200 && mp4.headers.get("content-type") === "video/mp4", `the orbit video is served (${video})`);
   await page.close();
 
   // View 2 exactly, before (the PLY with the object) and after (the edit's): inside the
