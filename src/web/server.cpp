@@ -54,8 +54,10 @@ const char* image_type(std::string_view bytes) {
   return nullptr;
 }
 
-// Streams a file (PLYs may be hundreds of MB).
-void send_file(httplib::Response& res, const fs::path& path, const std::string& type) {
+// Streams a file (PLYs may be hundreds of MB); ?download=1 makes it an attachment.
+void send_file(const httplib::Request& req, httplib::Response& res, const fs::path& path, const std::string& type) {
+  if (req.has_param("download"))
+    res.set_header("Content-Disposition", "attachment; filename=\"" + path.filename().string() + "\"");
   std::error_code ec;
   const auto size = fs::file_size(path, ec);
   if (ec) return refuse(res, {404, "not found"});
@@ -76,7 +78,7 @@ void send_file(httplib::Response& res, const fs::path& path, const std::string& 
 // The last job's state, as GET /api/job returns it.
 struct Job {
   int id = 0;
-  std::string kind;             // "masks" or "edit"
+  std::string kind;             // "masks", "edit", "video" or "eval"
   std::string state = "idle";   // "running", "done", "failed"
   std::string stage;
   double progress = 0;          // 0..1
@@ -96,7 +98,8 @@ struct JobRequest {
   // masks, edit:
   int view = -1;
   EditMode mode = EditMode::Remove;
-  fs::path mask, reference;  // uploaded files in the job's folder
+  Image region;                    // the uploaded mask, checked against the view
+  std::optional<Image> reference;  // the uploaded inpainted reference
   int refine = 0;
   // video, eval: the PLY, one the server serves
   fs::path ply;
@@ -239,29 +242,33 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
     edit.refine = static_cast<int>(steps);
   }
 
-  // Uploaded images: PNG or JPEG, written into the job's folder under fixed names.
-  auto save_image = [&](const char* field, fs::path& to) -> std::optional<Refusal> {
+  // Uploaded images: PNG or JPEG, kept in the job's folder under fixed names and decoded now
+  // (a broken file is the request's fault, not the job's); errors name the field, not the file.
+  auto read_upload = [&](const char* field, const std::function<Image(const fs::path&)>& decode,
+                         Image& into) -> std::optional<Refusal> {
     const std::string& bytes = req.get_file_value(field).content;
     const char* type = image_type(bytes);
     if (!type) return Refusal{415, fmt::format("{}: not a PNG or JPEG image", field)};
     fs::create_directories(dir);
-    to = dir / (std::string(field) + "." + type);
-    write_file_atomic(to, bytes);
-    try {  // decoded whole now: a broken file is the request's fault, not the job's
-      const Image image = std::string(field) == "mask" ? read_mask(to) : read_image_rgb(to);
-      if (std::string(field) == "mask" && (image.width != view.camera.K.width || image.height != view.camera.K.height))
-        return Refusal{400, fmt::format("mask is {}x{}, view {} is {}x{}", image.width, image.height, view.name,
-                                        view.camera.K.width, view.camera.K.height)};
+    const fs::path file = dir / (std::string(field) + "." + type);
+    write_file_atomic(file, bytes);
+    try {
+      into = decode(file);
     } catch (const std::exception& e) {
-      return Refusal{400, fmt::format("{}: {}", field, e.what())};
+      std::string what = e.what();
+      if (what.rfind(file.string() + ": ", 0) == 0) what.erase(0, file.string().size() + 2);
+      return Refusal{400, fmt::format("{}: {}", field, what)};
     }
     return std::nullopt;
   };
   if (!req.has_file("mask")) return Refusal{400, "no mask given (a PNG of the view's size, white = region)"};
-  if (auto r = save_image("mask", edit.mask)) return r;
-  if (run_network && req.has_file("reference") && !req.get_file_value("reference").content.empty())
-    if (auto r = save_image("reference", edit.reference)) return r;
-  if (run_network && edit.mode == EditMode::Insert && edit.reference.empty())
+  if (auto r = read_upload("mask", [&](const fs::path& f) { return read_region_mask(f, view); }, edit.region))
+    return r;
+  if (run_network && req.has_file("reference") && !req.get_file_value("reference").content.empty()) {
+    edit.reference.emplace();
+    if (auto r = read_upload("reference", read_image_rgb, *edit.reference)) return r;
+  }
+  if (run_network && edit.mode == EditMode::Insert && !edit.reference)
     return Refusal{400, "insert needs a reference: the view's photo with the new object painted in"};
   return std::nullopt;
 }
@@ -274,7 +281,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.num_views = options.views;
   OneMask request;
   request.view = view.name;
-  request.region = read_region_mask(edit.mask, view);
+  request.region = edit.region;
   request.propagation.mode = edit.mode;
   stage("propagating the mask to every view", 0.05);
   const SceneMasks masks = masks_from_one(
@@ -290,7 +297,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   if (edit.kind == "masks") return result;
 
   masks.apply_to(input, request);
-  if (!edit.reference.empty()) input.reference = edit.reference;
+  input.reference_image = edit.reference;
   stage("running the network", 0.3);
   const Prediction p = predictor->predict(*scene, input);
   GaussianSet gaussians = p.gaussians();
@@ -463,15 +470,12 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
     if (!s.scene || index >= s.scene->views.size()) return refuse(res, {404, "no such view"});
     const fs::path file = s.cached_view_file(static_cast<int>(index), req.matches[2] == "mask");
     if (file.empty()) return refuse(res, {404, "this view has no mask"});
-    send_file(res, file, "image/png");
+    send_file(req, res, file, "image/png");
   });
   http.Get(R"(/api/plys/(\d{1,6}))", [&s](const httplib::Request& req, httplib::Response& res) {
     const size_t index = std::stoul(req.matches[1]);
     if (index >= s.options.plys.size()) return refuse(res, {404, "no such PLY"});
-    const fs::path& file = s.options.plys[index];
-    if (req.has_param("download"))
-      res.set_header("Content-Disposition", "attachment; filename=\"" + file.filename().string() + "\"");
-    send_file(res, file, "application/octet-stream");
+    send_file(req, res, s.options.plys[index], "application/octet-stream");
   });
   // What jobs wrote: their PLY, masks, video and evaluation report (with its sheets and renders).
   http.Get(R"(/api/jobs/(\d{1,8})/(gaussians\.ply|masks/\d{1,6}\.png|orbit\.mp4|eval/report\.html|eval/(sheets|renders)/[^/]+\.png))",
@@ -479,9 +483,7 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
              // The pattern admits no "/.." and no absolute path; job_file refuses symlinks out.
              const fs::path file = s.job_file(req.matches[1], req.matches[2]);
              if (file.empty()) return refuse(res, {404, "not found"});
-             if (req.has_param("download"))
-               res.set_header("Content-Disposition", "attachment; filename=\"" + file.filename().string() + "\"");
-             send_file(res, file, content_type_of(file));
+             send_file(req, res, file, content_type_of(file));
            });
 
   auto start_job = [&s](const std::string& kind) {

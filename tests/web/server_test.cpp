@@ -171,7 +171,11 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
   write_png(s.out / "big.png", big);
   r = s.client->Post("/api/masks", edit_form("view_001", test::file_bytes(s.out / "big.png")));
   EXPECT_EQ(r->status, 400);
-  EXPECT_EQ(error_of(r), "mask is 64x64, view view_001 is 48x40");
+  EXPECT_EQ(error_of(r), "mask: the mask is 64x64 but view view_001 is 48x40");
+  write_png(s.out / "empty.png", Image(48, 40, 1));
+  r = s.client->Post("/api/masks", edit_form("view_001", test::file_bytes(s.out / "empty.png")));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r), "mask: the mask is empty: mark the region in white");
   r = s.client->Post("/api/masks", edit_form("view_001", mask, "mode", "paint"));
   EXPECT_EQ(r->status, 400);
   EXPECT_EQ(error_of(r), "mode must be remove or insert");
