@@ -2,14 +2,18 @@
 // baseline implementation measured in the same run: on a GPU the official code's way of
 // computing (eager, weights cast on every call as autocast does, the heads one by one), on
 // the CPU a straightforward float32 one (attention with the full score matrix).
+// `bench --attention`: one global attention call in each of its forms.
 #include <fmt/core.h>
 
+#include <functional>
 #include <optional>
 
 #include "cli/commands.h"
 #include "cli/runtime.h"
 #include "common/error.h"
 #include "common/stopwatch.h"
+#include "common/torch_compat.h"
+#include "model/attention.h"
 #include "model/cuda_graph.h"
 #include "model/device.h"
 #include "model/network.h"
@@ -26,6 +30,8 @@ struct BenchArgs {
   std::string baseline = "auto";
   bool cuda_graph = true;
   double baseline_max_gb = 6.0;
+  bool attention = false;
+  int64_t tokens = 16384, heads = 16, head_dim = 64;
   RuntimeOptions runtime;
 };
 
@@ -99,12 +105,56 @@ ExecutionOptions official_equivalent() {
 
 ExecutionOptions textbook() {
   ExecutionOptions o = official_equivalent();
-  o.naive_attention = true;
+  o.attention = AttentionForm::Full;
   return o;
+}
+
+// One attention call (q, k, v strided as the network makes them) in each form that runs here.
+void run_attention(const BenchArgs& a, const Runtime& rt) {
+  const int repeat = a.repeat > 0 ? a.repeat : 3;
+  const auto dtype = rt.precision == Precision::BFloat16 ? torch::kBFloat16 : torch::kFloat32;
+  torch::manual_seed(0);
+  const torch::Tensor qkv =
+      torch::randn({1, a.tokens, 3, a.heads, a.head_dim}).to(rt.device, dtype).permute({2, 0, 3, 1, 4});
+  const torch::Tensor q = qkv[0], k = qkv[1], v = qkv[2];
+  const double flops = 4.0 * a.heads * static_cast<double>(a.tokens) * a.tokens * a.head_dim;
+  fmt::print("attention benchmark on {}: {}, {} tokens, {} heads of {} ({:.1f} GFLOP per call), best of {} after a "
+             "warm-up\n",
+             rt.device.is_cuda() ? rt.device.str() : fmt::format("cpu, {} threads", torch::get_num_threads()),
+             precision_name(rt.precision), a.tokens, a.heads, a.head_dim, flops / 1e9, repeat);
+  torch::InferenceMode guard;
+  std::optional<double> chunked_ms;
+  auto row = [&](const std::string& form, const std::function<torch::Tensor()>& call) {
+    const double ms = best_ms(rt.device, repeat, call);
+    if (!chunked_ms) chunked_ms = ms;
+    fmt::print("{:<44} {:>10.1f} {:>9.1f} {:>9.2f}x\n", form, ms, flops / ms / 1e6, *chunked_ms / ms);
+    std::fflush(stdout);
+  };
+  auto skipped = [](const std::string& form, const std::string& why) { fmt::print("{:<44} {}\n", form, why); };
+  fmt::print("{:<44} {:>10} {:>9} {:>10}\n", "form", "ms", "GFLOP/s", "vs chunked");
+  row("chunked (LibTorch calls; the reference twin)", [&] { return chunked_attention(q, k, v); });
+  if (rt.device.is_cpu()) {
+    if (const auto isa = fused_cpu_attention_isa(q, k, v))
+      row(fmt::format("fused CPU kernel ({})", cpu_isa_name(*isa)), [&] { return fused_cpu_attention(q, k, v, *isa); });
+    else
+      skipped("fused CPU kernel", fmt::format("does not apply here (instruction set {})",
+                                              cpu_isa_name(cpu_features().isa)));
+  }
+  if (compat::has_fused_sdpa)
+    row("LibTorch scaled_dot_product_attention", [&] { return compat::fused_sdpa(q, k, v); });
+  else
+    skipped("LibTorch scaled_dot_product_attention", "not in LibTorch " TORCH_VERSION);
+  const double full_gb = 2.0 * a.heads * static_cast<double>(a.tokens) * a.tokens * 4 / 1e9;
+  if (full_gb > a.baseline_max_gb)
+    skipped("full score matrix", fmt::format("skipped (needs {:.0f} GB, --baseline-max-gb {:.0f})", full_gb,
+                                             a.baseline_max_gb));
+  else
+    row("full score matrix", [&] { return naive_attention(q, k, v); });
 }
 
 void run(const BenchArgs& a) {
   const Runtime rt = apply_runtime_options(a.runtime);
+  if (a.attention) return run_attention(a, rt);
   const bool gpu = rt.device.is_cuda();
   const int repeat = a.repeat > 0 ? a.repeat : (gpu ? 20 : 1);
   const std::string baseline = a.baseline == "auto" ? (gpu ? "official" : "textbook") : a.baseline;
@@ -201,9 +251,20 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--baseline-max-gb", args->baseline_max_gb,
                   "Largest attention score matrix the textbook baseline may allocate")
       ->capture_default_str();
+  cmd->add_flag("--attention", args->attention,
+                "Time one global attention call instead of the network: the chunked form, the fused CPU kernel, "
+                "LibTorch's fused kernel (LibTorch 2.x), the full score matrix");
+  cmd->add_option("--tokens", args->tokens, "With --attention: tokens (queries = keys)")
+      ->capture_default_str()
+      ->check(CLI::Range(int64_t{1}, int64_t{1} << 20));
+  cmd->add_option("--heads", args->heads, "With --attention: heads")->capture_default_str()->check(CLI::Range(1, 256));
+  cmd->add_option("--head-dim", args->head_dim, "With --attention: dimension of a head")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
   add_runtime_options(cmd, args->runtime);
   cmd->footer(
       "Examples: instainpaint bench --presets release --sizes 256\n"
+      "          instainpaint bench --attention --tokens 16384   (release model's attention at 4 x 512²)\n"
       "          instainpaint bench --device cuda --presets release --sizes 512,904x512   (issue 9's configurations)");
   cmd->callback([args] { run(*args); });
 }

@@ -3,7 +3,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include <ATen/Parallel.h>
+
+#include "common/error.h"
+#include "common/parallel.h"
 #include "common/torch_compat.h"
+#include "model/cpu/attention_kernels.h"
 
 namespace ii {
 
@@ -35,8 +40,86 @@ torch::Tensor naive_attention(const torch::Tensor& q, const torch::Tensor& k, co
   return torch::matmul(torch::softmax(torch::matmul(q, k.transpose(-2, -1)) * scale, -1), v);
 }
 
-torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
-  if (compat::has_fused_sdpa && q.is_cuda()) return compat::fused_sdpa(q, k, v);
+namespace {
+
+void parallel_tasks(int64_t count, void (*task)(void*, int64_t), void* context) {
+  parallel_dynamic(count, at::get_num_threads(), [&](int64_t i) { task(context, i); });
+}
+
+// Why the kernel of `isa` cannot run these inputs here, or empty.
+std::string fused_cpu_refusal(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v, CpuIsa isa) {
+  if (!cpu_features().has(isa)) return fmt::format("this CPU has no {}", cpu_isa_name(isa));
+  if (!q.device().is_cpu() || !k.device().is_cpu() || !v.device().is_cpu()) return "the inputs are not on the CPU";
+  if (q.dim() != 4 || k.dim() != 4 || v.dim() != 4) return "q, k and v must be (B, heads, N, head_dim)";
+  if (k.sizes() != v.sizes() || q.size(0) != k.size(0) || q.size(1) != k.size(1) || q.size(3) != k.size(3))
+    return "q, k and v shapes do not match";
+  if (q.size(3) > cpu_attention::kMaxHeadDim)
+    return fmt::format("head_dim {} is over {}", q.size(3), cpu_attention::kMaxHeadDim);
+  if (q.scalar_type() != k.scalar_type() || q.scalar_type() != v.scalar_type()) return "q, k and v dtypes differ";
+  const auto dtype = q.scalar_type();
+  if (isa == CpuIsa::Avx512Bf16 ? dtype != torch::kBFloat16 : dtype != torch::kFloat32 || isa < CpuIsa::Avx2)
+    return fmt::format("no {} kernel for {}", cpu_isa_name(isa), c10::toString(dtype));
+  if (torch::GradMode::is_enabled() && (q.requires_grad() || k.requires_grad() || v.requires_grad()))
+    return "gradients are wanted (the kernel has no backward pass)";
+  return {};
+}
+
+}  // namespace
+
+std::optional<CpuIsa> fused_cpu_attention_isa(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
+  const CpuIsa best = cpu_features().isa;
+  const CpuIsa isa = q.scalar_type() == torch::kBFloat16 ? CpuIsa::Avx512Bf16
+                     : best >= CpuIsa::Avx512           ? CpuIsa::Avx512
+                                                        : CpuIsa::Avx2;
+  if (!fused_cpu_refusal(q, k, v, isa).empty()) return std::nullopt;
+  return isa;
+}
+
+torch::Tensor fused_cpu_attention(const torch::Tensor& q_in, const torch::Tensor& k_in, const torch::Tensor& v_in,
+                                  CpuIsa isa) {
+  if (const std::string why = fused_cpu_refusal(q_in, k_in, v_in, isa); !why.empty())
+    fail("fused CPU attention ({}): {}", cpu_isa_name(isa), why);
+  // The kernels read rows of head_dim contiguous elements at any other strides (the network's
+  // q, k, v are strided views of one qkv product).
+  auto rows = [](const torch::Tensor& t) { return t.stride(3) == 1 ? t : t.contiguous(); };
+  const torch::Tensor q = rows(q_in), k = rows(k_in), v = rows(v_in);
+  const int64_t B = q.size(0), H = q.size(1), N = q.size(2), d = q.size(3);
+  torch::Tensor out = torch::empty({B, N, H, d}, q.options());
+  if (out.numel() == 0) return out.permute({0, 2, 1, 3});
+
+  cpu_attention::Problem p;
+  p.batch = B;
+  p.heads = H;
+  p.queries = N;
+  p.keys = k.size(2);
+  p.head_dim = d;
+  p.q = q.data_ptr();
+  p.k = k.data_ptr();
+  p.v = v.data_ptr();
+  p.out = out.data_ptr();
+  for (int i = 0; i < 3; ++i) {
+    p.q_strides[i] = q.stride(i);
+    p.k_strides[i] = k.stride(i);
+    p.v_strides[i] = v.stride(i);
+  }
+  p.out_strides[0] = out.stride(0);
+  p.out_strides[1] = out.stride(2);  // out is (B, N, H, d): heads are its dimension 2
+  p.out_strides[2] = out.stride(1);
+  p.scale = static_cast<float>(1.0 / std::sqrt(static_cast<double>(d)));
+  switch (isa) {
+    case CpuIsa::Avx512Bf16: cpu_attention::attention_avx512_bf16(p, parallel_tasks); break;
+    case CpuIsa::Avx512: cpu_attention::attention_avx512_fp32(p, parallel_tasks); break;
+    default: cpu_attention::attention_avx2_fp32(p, parallel_tasks); break;
+  }
+  return out.permute({0, 2, 1, 3});
+}
+
+torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v, AttentionForm form) {
+  if (form == AttentionForm::Full) return naive_attention(q, k, v);
+  if (form == AttentionForm::Fastest) {
+    if (compat::has_fused_sdpa && q.is_cuda()) return compat::fused_sdpa(q, k, v);
+    if (const auto isa = fused_cpu_attention_isa(q, k, v)) return fused_cpu_attention(q, k, v, *isa);
+  }
   return chunked_attention(q, k, v);
 }
 

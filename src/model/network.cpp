@@ -15,14 +15,7 @@ const char* precision_name(Precision p) { return p == Precision::BFloat16 ? "bf1
 
 Precision default_cpu_precision() {
   // Without native bf16 dot products, bf16 matrix products are emulated and slower than fp32.
-  static const bool native = [] {
-    std::ifstream in("/proc/cpuinfo");
-    std::string word;
-    while (in >> word)
-      if (word == "avx512_bf16" || word == "amx_bf16") return true;
-    return false;
-  }();
-  return native ? Precision::BFloat16 : Precision::Float32;
+  return cpu_features().native_bf16() ? Precision::BFloat16 : Precision::Float32;
 }
 
 torch::Tensor& Network::add(const std::string& name, torch::Tensor value) {
@@ -187,7 +180,7 @@ namespace {
 // compute dtype (fp32 or bf16); the residual stream stays fp32.
 torch::Tensor transformer_block(const torch::Tensor& x, const torch::Tensor& qkv_w, const torch::Tensor& proj_w,
                                 const torch::Tensor& fc1_w, const torch::Tensor& fc2_w, int64_t heads,
-                                double ln_eps, bool naive) {
+                                double ln_eps, AttentionForm form) {
   const int64_t B = x.size(0), N = x.size(1), D = x.size(2), hd = D / heads;
   auto linear = [](const torch::Tensor& in, const torch::Tensor& w) {
     return torch::matmul(in.to(w.scalar_type()), w.t());
@@ -195,7 +188,7 @@ torch::Tensor transformer_block(const torch::Tensor& x, const torch::Tensor& qkv
   const torch::Tensor qkv = linear(torch::layer_norm(x, {D}, {}, {}, ln_eps), qkv_w)
                                 .reshape({B, N, 3, heads, hd})
                                 .permute({2, 0, 3, 1, 4});  // (3, B, heads, N, hd)
-  const torch::Tensor a = (naive ? naive_attention : attention)(qkv[0], qkv[1], qkv[2]).permute({0, 2, 1, 3}).reshape({B, N, D});
+  const torch::Tensor a = attention(qkv[0], qkv[1], qkv[2], form).permute({0, 2, 1, 3}).reshape({B, N, D});
   const torch::Tensor y = x + linear(a, proj_w).to(torch::kFloat32);
   const torch::Tensor hidden = torch::gelu(linear(torch::layer_norm(y, {D}, {}, {}, ln_eps), fc1_w));
   return y + linear(hidden, fc2_w).to(torch::kFloat32);
@@ -205,19 +198,20 @@ torch::Tensor transformer_block(const torch::Tensor& x, const torch::Tensor& qkv
 // (activation checkpointing): memory per block drops from all activations to one (B, N, D).
 struct RecomputedBlock : torch::autograd::Function<RecomputedBlock> {
   static torch::Tensor run(const torch::Tensor& x, const std::vector<torch::Tensor>& w, int64_t heads, double ln_eps,
-                           bool naive, bool bf16) {
+                           int64_t form, bool bf16) {
     auto cast = [&](const torch::Tensor& t) { return bf16 ? t.to(torch::kBFloat16) : t; };
-    return transformer_block(x, cast(w[0]), cast(w[1]), cast(w[2]), cast(w[3]), heads, ln_eps, naive);
+    return transformer_block(x, cast(w[0]), cast(w[1]), cast(w[2]), cast(w[3]), heads, ln_eps,
+                             static_cast<AttentionForm>(form));
   }
   static torch::Tensor forward(torch::autograd::AutogradContext* ctx, const torch::Tensor& x, const torch::Tensor& qkv,
                                const torch::Tensor& proj, const torch::Tensor& fc1, const torch::Tensor& fc2,
-                               int64_t heads, double ln_eps, bool naive, bool bf16) {
+                               int64_t heads, double ln_eps, int64_t form, bool bf16) {
     ctx->save_for_backward({x, qkv, proj, fc1, fc2});
     ctx->saved_data["heads"] = heads;
     ctx->saved_data["ln_eps"] = ln_eps;
-    ctx->saved_data["naive"] = naive;
+    ctx->saved_data["form"] = form;
     ctx->saved_data["bf16"] = bf16;
-    return run(x, {qkv, proj, fc1, fc2}, heads, ln_eps, naive, bf16);
+    return run(x, {qkv, proj, fc1, fc2}, heads, ln_eps, form, bf16);
   }
   static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
                                                  torch::autograd::variable_list grad_output) {
@@ -227,7 +221,7 @@ struct RecomputedBlock : torch::autograd::Function<RecomputedBlock> {
     {
       torch::AutoGradMode enable_grad(true);
       y = run(inputs[0], {inputs[1], inputs[2], inputs[3], inputs[4]}, ctx->saved_data["heads"].toInt(),
-              ctx->saved_data["ln_eps"].toDouble(), ctx->saved_data["naive"].toBool(), ctx->saved_data["bf16"].toBool());
+              ctx->saved_data["ln_eps"].toDouble(), ctx->saved_data["form"].toInt(), ctx->saved_data["bf16"].toBool());
     }
     torch::autograd::variable_list g = torch::autograd::grad({y}, inputs, {grad_output[0]});
     return {g[0], g[1], g[2], g[3], g[4], {}, {}, {}, {}};
@@ -267,11 +261,12 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   for (const Block& blk : blocks_) {
     if (recompute)
       x = RecomputedBlock::apply(x, blk.qkv, blk.proj, blk.fc1, blk.fc2, static_cast<int64_t>(config_.heads),
-                                 config_.ln_eps, execution_.naive_attention, precision == Precision::BFloat16);
+                                 config_.ln_eps, static_cast<int64_t>(execution_.attention),
+                                 precision == Precision::BFloat16);
     else
       x = transformer_block(x, weight_for(blk.qkv, precision), weight_for(blk.proj, precision),
                             weight_for(blk.fc1, precision), weight_for(blk.fc2, precision), config_.heads,
-                            config_.ln_eps, execution_.naive_attention);
+                            config_.ln_eps, execution_.attention);
   }
   out.transformer_tokens = x;
 

@@ -12,6 +12,7 @@
 #include "common/torch.h"
 
 #include "gaussians/gaussians.h"
+#include "model/attention.h"
 #include "model/config.h"
 
 namespace ii {
@@ -30,7 +31,7 @@ Precision default_cpu_precision();
 // How forward() computes; every choice gives the same values up to rounding. The defaults are
 // the fast path; the others reproduce slower implementations for benchmarks.
 struct ExecutionOptions {
-  bool naive_attention = false;  // textbook attention with the full score matrix
+  AttentionForm attention = AttentionForm::Fastest;
   bool fused_heads = true;       // the five heads' first Linears as one matrix product
   bool cached_weights = true;    // bf16 weights converted once, not on every call as autocast does
 };

@@ -98,7 +98,7 @@ TEST(Network, ExecutionOptionsKeepTheValues) {
   official.fused_heads = false;
   official.cached_weights = false;
   ExecutionOptions textbook = official;
-  textbook.naive_attention = true;
+  textbook.attention = AttentionForm::Full;
   ExecutionOptions uncached;
   uncached.cached_weights = false;
   for (Precision p : {Precision::Float32, Precision::BFloat16}) {
@@ -109,7 +109,7 @@ TEST(Network, ExecutionOptionsKeepTheValues) {
     const double tolerance = p == Precision::Float32 ? 1e-5 : 2e-2;
     for (const ExecutionOptions& e : {official, textbook}) {
       const GaussianMaps other = forward(e, p);
-      EXPECT_LT(max_abs(ref.rgb, other.rgb), tolerance) << precision_name(p) << " naive " << e.naive_attention;
+      EXPECT_LT(max_abs(ref.rgb, other.rgb), tolerance) << precision_name(p) << " full attention " << (e.attention == AttentionForm::Full);
       EXPECT_LT(max_abs(ref.depth, other.depth), tolerance * config.depth_far) << precision_name(p);
       EXPECT_LT(max_abs(ref.rotation, other.rotation), tolerance) << precision_name(p);
     }

@@ -1,6 +1,5 @@
 #include <gtest/gtest.h>
 
-#include "model/attention.h"
 #include "model/checkpoint.h"
 #include "model/network.h"
 #include "test_support.h"
@@ -22,24 +21,6 @@ TEST(Unpatchify, FollowsOfficialLayout) {
             for (int c = 0; c < C; ++c)
               EXPECT_EQ(y[0][v][c][a * p + py][b * p + px].item<float>(),
                         x[0][v * h * w + a * w + b][(py * p + px) * C + c].item<float>());
-}
-
-TEST(Attention, ChunkedEqualsTextbook) {
-  torch::manual_seed(0);
-  const auto q = torch::randn({2, 3, 50, 8}), k = torch::randn({2, 3, 50, 8}), v = torch::randn({2, 3, 50, 8});
-  const auto ref = naive_attention(q, k, v);
-  // A tiny chunk budget forces many chunks (one query row each).
-  EXPECT_LT((chunked_attention(q, k, v, 1) - ref).abs().max().item<float>(), 1e-5);
-  EXPECT_LT((attention(q, k, v) - ref).abs().max().item<float>(), 1e-5);
-}
-
-TEST(Attention, ChunkedHasGradients) {
-  const auto q = torch::randn({1, 2, 9, 4}, torch::requires_grad()), k = torch::randn({1, 2, 9, 4}),
-             v = torch::randn({1, 2, 9, 4});
-  chunked_attention(q, k, v, 64).sum().backward();
-  const auto q2 = q.detach().clone().requires_grad_(true);
-  naive_attention(q2, k, v).sum().backward();
-  EXPECT_LT((q.grad() - q2.grad()).abs().max().item<float>(), 1e-5);
 }
 
 TEST(ModelConfig, PresetSizes) {

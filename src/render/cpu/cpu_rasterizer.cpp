@@ -2,9 +2,7 @@
 
 #include <ATen/Parallel.h>
 
-#include <exception>
-#include <mutex>
-#include <thread>
+#include "common/parallel.h"
 
 #include <algorithm>
 #include <atomic>
@@ -28,63 +26,15 @@ static_assert(sizeof(PixelBox) == 4 * sizeof(int32_t), "PixelBox must pack into 
 
 namespace {
 
-thread_local bool t_in_worker = false;
-
-// Runs fn(t) for t in [0, threads) at once, t = 0 on the calling thread; rethrows the first
-// exception after all have finished. Plain std::threads: LibTorch 1.13's at::parallel_for
-// is an OpenMP pragma in its header, which runs serially in code built without -fopenmp.
-void run_threads(int threads, const std::function<void(int)>& fn) {
-  if (threads <= 1) {
-    fn(0);
-    return;
-  }
-  std::exception_ptr error;
-  std::mutex mutex;
-  auto guarded = [&](int t) {
-    const bool outer = t_in_worker;
-    t_in_worker = true;
-    try {
-      fn(t);
-    } catch (...) {
-      const std::lock_guard<std::mutex> lock(mutex);
-      if (!error) error = std::current_exception();
-    }
-    t_in_worker = outer;
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(guarded, t);
-  guarded(0);
-  for (std::thread& th : pool) th.join();
-  if (error) std::rethrow_exception(error);
-}
-
-// LibTorch's intra-op thread count; 1 inside a worker (no nested oversubscription).
-int thread_budget(int64_t tasks) {
-  if (t_in_worker || tasks <= 1) return 1;
-  return static_cast<int>(std::max<int64_t>(1, std::min<int64_t>(at::get_num_threads(), tasks)));
-}
-
-}  // namespace
-
+// The rasterizer's work is split over LibTorch's intra-op thread count (tiles, which differ a
+// lot in cost, one by one).
 void parallel_range(int64_t n, int64_t grain, const std::function<void(int64_t, int64_t)>& fn) {
-  if (n <= 0) return;
-  const int threads = thread_budget((n + grain - 1) / std::max<int64_t>(grain, 1));
-  const int64_t chunk = (n + threads - 1) / threads;
-  run_threads(threads, [&](int t) {
-    const int64_t b = t * chunk, e = std::min(n, b + chunk);
-    if (b < e) fn(b, e);
-  });
+  ii::parallel_range(n, grain, at::get_num_threads(), fn);
 }
 
 void parallel_dynamic(int64_t n, const std::function<void(int64_t)>& fn) {
-  if (n <= 0) return;
-  std::atomic<int64_t> next{0};
-  run_threads(thread_budget(n), [&](int) {
-    for (int64_t i = next++; i < n; i = next++) fn(i);
-  });
+  ii::parallel_dynamic(n, at::get_num_threads(), fn);
 }
-
-namespace {
 
 constexpr int kTilePixels = kTileSize * kTileSize;
 

@@ -3,8 +3,6 @@
 // its analytic backward, for float or double tensors. Internal to src/render.
 #include "common/torch.h"
 
-#include <functional>
-
 #include "render/splat_math.h"
 
 namespace ii::render_detail {
@@ -41,12 +39,5 @@ RasterOutputs cpu_forward(const splat::CameraParams& cam, const RasterInputs& in
 RasterGrads cpu_backward(const splat::CameraParams& cam, const RasterInputs& in, const RasterState& state,
                          const RasterOutputs& out, const torch::Tensor& grad_rgb, const torch::Tensor& grad_alpha,
                          const torch::Tensor& grad_depth);
-
-// Work split over at::get_num_threads() threads. fn must make its result independent of
-// which thread runs it (the renderer's output does not depend on the thread count).
-// parallel_range: contiguous chunks of at least `grain` items, fn(begin, end).
-void parallel_range(int64_t n, int64_t grain, const std::function<void(int64_t, int64_t)>& fn);
-// parallel_dynamic: fn(i) for each i, handed out one by one (tiles differ a lot in cost).
-void parallel_dynamic(int64_t n, const std::function<void(int64_t)>& fn);
 
 }  // namespace ii::render_detail

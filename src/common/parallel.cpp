@@ -1,0 +1,69 @@
+#include "common/parallel.h"
+
+#include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace ii {
+
+namespace {
+
+thread_local bool t_in_worker = false;
+
+// Runs fn(t) for t in [0, threads) at once, t = 0 on the calling thread; rethrows the first
+// exception after all have finished.
+void run_threads(int threads, const std::function<void(int)>& fn) {
+  if (threads <= 1) {
+    fn(0);
+    return;
+  }
+  std::exception_ptr error;
+  std::mutex mutex;
+  auto guarded = [&](int t) {
+    const bool outer = t_in_worker;
+    t_in_worker = true;
+    try {
+      fn(t);
+    } catch (...) {
+      const std::lock_guard<std::mutex> lock(mutex);
+      if (!error) error = std::current_exception();
+    }
+    t_in_worker = outer;
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(guarded, t);
+  guarded(0);
+  for (std::thread& th : pool) th.join();
+  if (error) std::rethrow_exception(error);
+}
+
+// 1 inside a worker, and never more threads than tasks.
+int thread_budget(int threads, int64_t tasks) {
+  if (t_in_worker || tasks <= 1) return 1;
+  return static_cast<int>(std::max<int64_t>(1, std::min<int64_t>(threads, tasks)));
+}
+
+}  // namespace
+
+void parallel_range(int64_t n, int64_t grain, int threads, const std::function<void(int64_t, int64_t)>& fn) {
+  if (n <= 0) return;
+  threads = thread_budget(threads, (n + grain - 1) / std::max<int64_t>(grain, 1));
+  const int64_t chunk = (n + threads - 1) / threads;
+  run_threads(threads, [&](int t) {
+    const int64_t b = t * chunk, e = std::min(n, b + chunk);
+    if (b < e) fn(b, e);
+  });
+}
+
+void parallel_dynamic(int64_t n, int threads, const std::function<void(int64_t)>& fn) {
+  if (n <= 0) return;
+  std::atomic<int64_t> next{0};
+  run_threads(thread_budget(threads, n), [&](int) {
+    for (int64_t i = next++; i < n; i = next++) fn(i);
+  });
+}
+
+}  // namespace ii

@@ -1,0 +1,385 @@
+#pragma once
+// The flash-attention loop that the instruction-set files (attention_avx512.cpp,
+// attention_avx2.cpp) instantiate, written against a traits class `Isa`:
+//   W           float lanes of a vector F
+//   kPair       input elements per dot-product step: 2 for bf16 (vdpbf16ps multiplies pairs),
+//               1 for float; a vector X of inputs holds W such pairs
+//   In          input element storage (uint16_t bf16 bits, or float)
+//   load_in / broadcast_in / madd / store_in / to_in   inputs and the dot-product step
+//   zero set1 load store add mul max fmsub hmax hsum exp2   float vector arithmetic
+//   kScoreRows x kScoreVectors     register tile of the q·kᵀ microkernel (queries x W keys)
+//   kValueRows x kValueVectors     register tile of the p·v microkernel (queries x W dims)
+//   kKeyBlock   keys per block (their k and v stay in cache while a tile of queries passes)
+//   kTileRows   query rows per task
+//   kExpDegree  degree of the 2^f polynomial (4: 4e-5 relative error, enough for bf16
+//               probabilities; 6: 1.2e-7, float)
+//
+// For each task (batch, head, tile of queries) and each key block: scores for kScoreRows
+// queries at a time into a small float buffer, the online softmax (running maximum and sum;
+// the output rescaled when the maximum grows), probabilities stored in the input type, then
+// output += probabilities · v. Scores never leave the cache. k and v are first packed per
+// (batch, head) into the layouts the microkernels read with aligned vector loads, zero-padded
+// to whole key groups and vectors; padded keys get a score of -inf.
+//
+// Everything is in an anonymous namespace: every including file gets its own copy, compiled
+// for its instruction set.
+#include <immintrin.h>
+
+#include <cstdint>
+#include <cstdlib>
+
+#include "model/cpu/attention_kernels.h"
+
+namespace ii::cpu_attention {
+namespace {
+
+constexpr int64_t round_up(int64_t x, int64_t to) { return (x + to - 1) / to * to; }
+inline int64_t smaller(int64_t a, int64_t b) { return a < b ? a : b; }
+inline float larger(float a, float b) { return a > b ? a : b; }
+
+// 2^f for f in [-0.5, 0.5]: Taylor coefficients of exp(f ln 2), Horner form.
+template <class Isa, int Degree>
+inline typename Isa::F exp2_fraction(typename Isa::F f) {
+  constexpr float c[] = {1.0f, 0.693147181f, 0.240226507f, 0.0555041087f, 0.00961812911f, 0.00133335581f,
+                         0.000154035304f};
+  static_assert(Degree >= 2 && Degree <= 6, "2^f polynomial degree");
+  typename Isa::F p = Isa::set1(c[Degree]);
+#pragma GCC unroll 8
+  for (int i = Degree - 1; i >= 0; --i) p = Isa::fmadd(p, f, Isa::set1(c[i]));
+  return p;
+}
+
+// ---- float vectors -----------------------------------------------------------------------
+#if defined(__AVX512F__)
+struct Avx512Float {
+  static constexpr int W = 16;
+  using F = __m512;
+  static F zero() { return _mm512_setzero_ps(); }
+  static F set1(float x) { return _mm512_set1_ps(x); }
+  static F load(const float* p) { return _mm512_loadu_ps(p); }
+  static void store(float* p, F v) { _mm512_storeu_ps(p, v); }
+  static F add(F a, F b) { return _mm512_add_ps(a, b); }
+  static F mul(F a, F b) { return _mm512_mul_ps(a, b); }
+  static F max(F a, F b) { return _mm512_max_ps(a, b); }
+  static F fmadd(F a, F b, F c) { return _mm512_fmadd_ps(a, b, c); }
+  static F fmsub(F a, F b, F c) { return _mm512_fmsub_ps(a, b, c); }
+  static float hmax(F v) { return _mm512_reduce_max_ps(v); }
+  static float hsum(F v) { return _mm512_reduce_add_ps(v); }
+  // 2^t, t clamped at -100 (2^-100 is nothing beside the row maximum's 1).
+  template <int Degree>
+  static F exp2(F t) {
+    t = _mm512_max_ps(t, set1(-100.0f));
+    const F n = _mm512_roundscale_ps(t, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+    return _mm512_scalef_ps(exp2_fraction<Avx512Float, Degree>(_mm512_sub_ps(t, n)), n);
+  }
+};
+
+struct Avx512Fp32 : Avx512Float {
+  static constexpr int kPair = 1, kExpDegree = 6;
+  static constexpr int kScoreRows = 12, kScoreVectors = 2, kValueRows = 6, kValueVectors = 4;
+  static constexpr int64_t kKeyBlock = 256, kTileRows = 48;
+  using In = float;
+  using X = __m512;
+  static X load_in(const In* p) { return _mm512_loadu_ps(p); }
+  static X broadcast_in(const In* p) { return _mm512_set1_ps(*p); }
+  static F madd(F acc, X a, X b) { return _mm512_fmadd_ps(a, b, acc); }
+  static void store_in(In* p, F v) { _mm512_storeu_ps(p, v); }
+  static In to_in(float x) { return x; }
+};
+#endif
+
+#if defined(__AVX512BF16__)
+struct Avx512Bf16 : Avx512Float {
+  static constexpr int kPair = 2, kExpDegree = 4;
+  static constexpr int kScoreRows = 12, kScoreVectors = 2, kValueRows = 6, kValueVectors = 4;
+  static constexpr int64_t kKeyBlock = 256, kTileRows = 48;
+  using In = uint16_t;  // bf16 bits
+  using X = __m512i;    // 16 pairs
+  static X load_in(const In* p) { return _mm512_loadu_si512(p); }
+  static X broadcast_in(const In* p) {
+    int32_t pair;
+    __builtin_memcpy(&pair, p, sizeof(pair));
+    return _mm512_set1_epi32(pair);
+  }
+  static F madd(F acc, X a, X b) { return _mm512_dpbf16_ps(acc, (__m512bh)a, (__m512bh)b); }
+  static void store_in(In* p, F v) { _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), (__m256i)_mm512_cvtneps_pbh(v)); }
+  // Round to nearest even, as LibTorch converts.
+  static In to_in(float x) {
+    uint32_t bits;
+    __builtin_memcpy(&bits, &x, sizeof(bits));
+    bits += 0x7fffu + ((bits >> 16) & 1u);
+    return static_cast<In>(bits >> 16);
+  }
+};
+#endif
+
+#if defined(__AVX2__) && defined(__FMA__)
+struct Avx2Float {
+  static constexpr int W = 8;
+  using F = __m256;
+  static F zero() { return _mm256_setzero_ps(); }
+  static F set1(float x) { return _mm256_set1_ps(x); }
+  static F load(const float* p) { return _mm256_loadu_ps(p); }
+  static void store(float* p, F v) { _mm256_storeu_ps(p, v); }
+  static F add(F a, F b) { return _mm256_add_ps(a, b); }
+  static F mul(F a, F b) { return _mm256_mul_ps(a, b); }
+  static F max(F a, F b) { return _mm256_max_ps(a, b); }
+  static F fmadd(F a, F b, F c) { return _mm256_fmadd_ps(a, b, c); }
+  static F fmsub(F a, F b, F c) { return _mm256_fmsub_ps(a, b, c); }
+  static float hmax(F v) {
+    __m128 m = _mm_max_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+    m = _mm_max_ps(m, _mm_movehl_ps(m, m));
+    return _mm_cvtss_f32(_mm_max_ss(m, _mm_movehdup_ps(m)));
+  }
+  static float hsum(F v) {
+    __m128 s = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+    s = _mm_add_ps(s, _mm_movehl_ps(s, s));
+    return _mm_cvtss_f32(_mm_add_ss(s, _mm_movehdup_ps(s)));
+  }
+  // 2^t, t clamped at -100; 2^n is added to the exponent bits (no scalef before AVX-512).
+  template <int Degree>
+  static F exp2(F t) {
+    t = _mm256_max_ps(t, set1(-100.0f));
+    const F n = _mm256_round_ps(t, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+    const F p = exp2_fraction<Avx2Float, Degree>(_mm256_sub_ps(t, n));
+    return _mm256_castsi256_ps(
+        _mm256_add_epi32(_mm256_castps_si256(p), _mm256_slli_epi32(_mm256_cvtps_epi32(n), 23)));
+  }
+};
+
+struct Avx2Fp32 : Avx2Float {
+  static constexpr int kPair = 1, kExpDegree = 6;
+  // 16 registers: 12 score accumulators + 2 k vectors + 1 broadcast; 8 value accumulators
+  // + 4 v vectors + 1 broadcast (3 x 4 accumulators spill one of them, halving the speed).
+  static constexpr int kScoreRows = 6, kScoreVectors = 2, kValueRows = 2, kValueVectors = 4;
+  static constexpr int64_t kKeyBlock = 128, kTileRows = 48;
+  using In = float;
+  using X = __m256;
+  static X load_in(const In* p) { return _mm256_loadu_ps(p); }
+  static X broadcast_in(const In* p) { return _mm256_broadcast_ss(p); }
+  static F madd(F acc, X a, X b) { return _mm256_fmadd_ps(a, b, acc); }
+  static void store_in(In* p, F v) { _mm256_storeu_ps(p, v); }
+  static In to_in(float x) { return x; }
+};
+#endif
+
+// ---- the loop ------------------------------------------------------------------------------
+template <class Isa>
+class Attention {
+ public:
+  using In = typename Isa::In;
+  using F = typename Isa::F;
+  using X = typename Isa::X;
+  static constexpr int W = Isa::W, P = Isa::kPair;
+  static constexpr int SR = Isa::kScoreRows, SV = Isa::kScoreVectors;
+  static constexpr int VR = Isa::kValueRows, VV = Isa::kValueVectors;
+  static constexpr int64_t kGroup = int64_t{W} * SV;  // keys per score microkernel call
+  static constexpr int64_t kBlock = Isa::kKeyBlock;
+  static constexpr int64_t kTile = Isa::kTileRows;
+  static constexpr int64_t kMaxDp = round_up(kMaxHeadDim, P);
+  static constexpr int64_t kMaxDv = round_up(kMaxHeadDim, W);
+  static_assert(kBlock % kGroup == 0 && kTile % SR == 0 && SR % VR == 0, "tile shapes");
+
+  explicit Attention(const Problem& problem)
+      : pr_(problem),
+        steps_((problem.head_dim + P - 1) / P),
+        dp_(steps_ * P),
+        dv_(round_up(problem.head_dim, W)),
+        keys_padded_(round_up(problem.keys, kGroup)),
+        tiles_((problem.queries + kTile - 1) / kTile),
+        scale_log2e_(problem.scale * 1.44269504088896341f) {
+    const int64_t slices = pr_.batch * pr_.heads;
+    packed_k_ = allocate(slices * keys_padded_ * dp_);
+    packed_v_ = allocate(slices * keys_padded_ * dv_);
+  }
+  ~Attention() {
+    std::free(packed_k_);
+    std::free(packed_v_);
+  }
+  Attention(const Attention&) = delete;
+  Attention& operator=(const Attention&) = delete;
+
+  void run(ParallelFor parallel) {
+    if (!packed_k_ || !packed_v_) return;  // the caller checked sizes; nothing to do on failure
+    const int64_t slices = pr_.batch * pr_.heads;
+    parallel(slices, [](void* self, int64_t slice) { static_cast<Attention*>(self)->pack(slice); }, this);
+    parallel(slices * tiles_, [](void* self, int64_t task) { static_cast<Attention*>(self)->run_tile(task); },
+             this);
+  }
+
+ private:
+  static In* allocate(int64_t elements) {
+    const size_t bytes = static_cast<size_t>(round_up(elements * static_cast<int64_t>(sizeof(In)), 64));
+    return static_cast<In*>(std::aligned_alloc(64, bytes > 0 ? bytes : 64));
+  }
+
+  template <class T>
+  static T* at(T* base, const int64_t* strides, int64_t b, int64_t h) {
+    return base + b * strides[0] + h * strides[1];
+  }
+
+  // k into panels of W keys, [panel][step][key][pair]: the score microkernel loads one step of
+  // W keys as one vector. v into [key pair][dim][pair]: the value microkernel loads W dims of
+  // two consecutive keys as one vector.
+  void pack(int64_t slice) {
+    const int64_t b = slice / pr_.heads, h = slice % pr_.heads, d = pr_.head_dim;
+    const In* k = at(static_cast<const In*>(pr_.k), pr_.k_strides, b, h);
+    const In* v = at(static_cast<const In*>(pr_.v), pr_.v_strides, b, h);
+    In* pk = packed_k_ + slice * keys_padded_ * dp_;
+    In* pv = packed_v_ + slice * keys_padded_ * dv_;
+    for (int64_t n = 0; n < keys_padded_; ++n) {
+      const bool key = n < pr_.keys;
+      const In* krow = k + n * pr_.k_strides[2];
+      In* panel = pk + (n / W) * dp_ * W + (n % W) * P;
+      for (int64_t s = 0; s < steps_; ++s)
+        for (int e = 0; e < P; ++e) {
+          const int64_t x = s * P + e;
+          panel[s * W * P + e] = key && x < d ? krow[x] : In(0);
+        }
+      const In* vrow = v + n * pr_.v_strides[2];
+      In* pair = pv + (n / P) * dv_ * P + n % P;
+      for (int64_t x = 0; x < dv_; ++x) pair[x * P] = key && x < d ? vrow[x] : In(0);
+    }
+  }
+
+  // scores[r][j] = q[r] · k[j] for kScoreRows queries and one group of kGroup keys.
+  void score_group(const In* q, const In* panels, float* scores) const {
+    F acc[SR][SV];
+#pragma GCC unroll 16
+    for (int r = 0; r < SR; ++r)
+#pragma GCC unroll 4
+      for (int c = 0; c < SV; ++c) acc[r][c] = Isa::zero();
+    const int64_t panel_size = dp_ * W;
+    for (int64_t s = 0; s < steps_; ++s) {
+      X kv[SV];
+#pragma GCC unroll 4
+      for (int c = 0; c < SV; ++c) kv[c] = Isa::load_in(panels + c * panel_size + s * W * P);
+#pragma GCC unroll 16
+      for (int r = 0; r < SR; ++r) {
+        const X qv = Isa::broadcast_in(q + r * dp_ + s * P);
+#pragma GCC unroll 4
+        for (int c = 0; c < SV; ++c) acc[r][c] = Isa::madd(acc[r][c], qv, kv[c]);
+      }
+    }
+#pragma GCC unroll 16
+    for (int r = 0; r < SR; ++r)
+#pragma GCC unroll 4
+      for (int c = 0; c < SV; ++c) Isa::store(scores + r * kBlock + c * W, acc[r][c]);
+  }
+
+  // out[r][0, NV*W) = out[r] * alpha[r] + Σ_t probs[r][t] v[t] for kValueRows queries.
+  template <int NV>
+  void value_chunk(const In* probs, const In* v, int64_t pairs, float* out, const float* alpha) const {
+    F acc[VR][NV];
+#pragma GCC unroll 8
+    for (int r = 0; r < VR; ++r) {
+      const F a = Isa::set1(alpha[r]);
+#pragma GCC unroll 4
+      for (int c = 0; c < NV; ++c) acc[r][c] = Isa::mul(Isa::load(out + r * dv_ + c * W), a);
+    }
+    const int64_t v_step = dv_ * P;
+    for (int64_t t = 0; t < pairs; ++t, v += v_step, probs += P) {
+      X vv[NV];
+#pragma GCC unroll 4
+      for (int c = 0; c < NV; ++c) vv[c] = Isa::load_in(v + c * W * P);
+#pragma GCC unroll 8
+      for (int r = 0; r < VR; ++r) {
+        const X pr = Isa::broadcast_in(probs + r * kBlock);
+#pragma GCC unroll 4
+        for (int c = 0; c < NV; ++c) acc[r][c] = Isa::madd(acc[r][c], pr, vv[c]);
+      }
+    }
+#pragma GCC unroll 8
+    for (int r = 0; r < VR; ++r)
+#pragma GCC unroll 4
+      for (int c = 0; c < NV; ++c) Isa::store(out + r * dv_ + c * W, acc[r][c]);
+  }
+
+  void value_rows(const In* probs, const In* v, int64_t pairs, float* out, const float* alpha) const {
+    for (int64_t x = 0; x < dv_; x += VV * W) {
+      const int64_t vectors = smaller(VV, (dv_ - x) / W);
+      const In* vx = v + x * P;
+      float* ox = out + x;
+      if (vectors == VV) value_chunk<VV>(probs, vx, pairs, ox, alpha);
+      else if (vectors == 3) value_chunk<(VV > 3 ? 3 : VV)>(probs, vx, pairs, ox, alpha);
+      else if (vectors == 2) value_chunk<(VV > 2 ? 2 : VV)>(probs, vx, pairs, ox, alpha);
+      else value_chunk<1>(probs, vx, pairs, ox, alpha);
+    }
+  }
+
+  // Online softmax of one row of scores (`valid` real keys of `columns`): updates the running
+  // maximum (in log2 units of the scaled scores) and sum, writes the probabilities in the
+  // input type and returns the factor that rescales the row's earlier output.
+  float softmax_row(float* scores, int64_t valid, int64_t columns, In* probs, float& max, float& sum) const {
+    for (int64_t j = valid; j < columns; ++j) scores[j] = -__builtin_inff();
+    F vmax = Isa::set1(-__builtin_inff());
+    for (int64_t j = 0; j < columns; j += W) vmax = Isa::max(vmax, Isa::load(scores + j));
+    const float new_max = larger(max, Isa::hmax(vmax) * scale_log2e_);
+    const float alpha = __builtin_exp2f(max - new_max);
+    const F c = Isa::set1(scale_log2e_), m = Isa::set1(new_max);
+    F vsum = Isa::zero();
+    for (int64_t j = 0; j < columns; j += W) {
+      const F p = Isa::template exp2<Isa::kExpDegree>(Isa::fmsub(Isa::load(scores + j), c, m));
+      vsum = Isa::add(vsum, p);
+      Isa::store_in(probs + j, p);
+    }
+    sum = sum * alpha + Isa::hsum(vsum);
+    max = new_max;
+    return alpha;
+  }
+
+  void run_tile(int64_t task) {
+    const int64_t slice = task / tiles_, tile = task % tiles_;
+    const int64_t b = slice / pr_.heads, h = slice % pr_.heads, d = pr_.head_dim;
+    const int64_t first = tile * kTile, rows = smaller(kTile, pr_.queries - first);
+    const int64_t rows_padded = round_up(rows, SR);
+
+    alignas(64) In q[kTile * kMaxDp];
+    alignas(64) float out[kTile * kMaxDv];
+    alignas(64) float scores[SR * kBlock];
+    alignas(64) In probs[SR * kBlock];
+    float max[kTile], sum[kTile], alpha[SR];
+
+    const In* qsrc = at(static_cast<const In*>(pr_.q), pr_.q_strides, b, h) + first * pr_.q_strides[2];
+    for (int64_t r = 0; r < rows_padded; ++r) {
+      for (int64_t x = 0; x < dp_; ++x) q[r * dp_ + x] = r < rows && x < d ? qsrc[r * pr_.q_strides[2] + x] : In(0);
+      for (int64_t x = 0; x < dv_; ++x) out[r * dv_ + x] = 0.0f;
+      max[r] = -__builtin_inff();
+      sum[r] = 0.0f;
+    }
+
+    const In* pk = packed_k_ + slice * keys_padded_ * dp_;
+    const In* pv = packed_v_ + slice * keys_padded_ * dv_;
+    for (int64_t k0 = 0; k0 < pr_.keys; k0 += kBlock) {
+      const int64_t valid = smaller(kBlock, pr_.keys - k0), columns = round_up(valid, kGroup);
+      for (int64_t g = 0; g < rows_padded; g += SR) {
+        for (int64_t j = 0; j < columns; j += kGroup) score_group(q + g * dp_, pk + (k0 + j) * dp_, scores + j);
+        for (int r = 0; r < SR; ++r)
+          alpha[r] = softmax_row(scores + r * kBlock, valid, columns, probs + r * kBlock, max[g + r], sum[g + r]);
+        for (int r = 0; r < SR; r += VR)
+          value_rows(probs + r * kBlock, pv + k0 * dv_, columns / P, out + (g + r) * dv_, alpha + r);
+      }
+    }
+
+    In* dst = at(static_cast<In*>(pr_.out), pr_.out_strides, b, h) + first * pr_.out_strides[2];
+    for (int64_t r = 0; r < rows; ++r) {
+      const float inv = 1.0f / sum[r];
+      for (int64_t x = 0; x < d; ++x) dst[r * pr_.out_strides[2] + x] = Isa::to_in(out[r * dv_ + x] * inv);
+    }
+  }
+
+  const Problem& pr_;
+  const int64_t steps_, dp_, dv_, keys_padded_, tiles_;
+  const float scale_log2e_;
+  In* packed_k_ = nullptr;
+  In* packed_v_ = nullptr;
+};
+
+template <class Isa>
+void run_attention(const Problem& problem, ParallelFor parallel) {
+  Attention<Isa> attention(problem);
+  attention.run(parallel);
+}
+
+}  // namespace
+}  // namespace ii::cpu_attention
