@@ -5,6 +5,7 @@
 // `bench --attention`: one global attention call in each of its forms.
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <functional>
 #include <optional>
 
@@ -31,6 +32,7 @@ struct BenchArgs {
   bool cuda_graph = true;
   double baseline_max_gb = 6.0;
   bool attention = false;
+  bool profile = false;
   int64_t tokens = 16384, heads = 16, head_dim = 64;
   RuntimeOptions runtime;
 };
@@ -109,6 +111,15 @@ ExecutionOptions textbook() {
   return o;
 }
 
+// Each stage's share of one call of the fast path, largest first.
+void print_profile(const StageProfile& profile) {
+  auto stages = profile.ms;
+  std::sort(stages.begin(), stages.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+  const double total = profile.total();
+  for (const auto& [stage, ms] : stages)
+    fmt::print("    {:<22} {:>10.1f} ms {:>5.1f} %\n", stage, ms, 100.0 * ms / total);
+}
+
 // One attention call (q, k, v strided as the network makes them) in each form that runs here.
 void run_attention(const BenchArgs& a, const Runtime& rt) {
   const int repeat = a.repeat > 0 ? a.repeat : 3;
@@ -155,6 +166,8 @@ void run_attention(const BenchArgs& a, const Runtime& rt) {
 void run(const BenchArgs& a) {
   const Runtime rt = apply_runtime_options(a.runtime);
   if (a.attention) return run_attention(a, rt);
+  if (a.profile && rt.device.is_cuda())
+    fail("--profile measures the CPU (on a GPU, stages do not wait for each other: use nsys or ncu)");
   const bool gpu = rt.device.is_cuda();
   const int repeat = a.repeat > 0 ? a.repeat : (gpu ? 20 : 1);
   const std::string baseline = a.baseline == "auto" ? (gpu ? "official" : "textbook") : a.baseline;
@@ -188,6 +201,12 @@ void run(const BenchArgs& a) {
       net.set_execution(ExecutionOptions());
       const double ms = time_forward(net, in, rt.precision, rt.device, repeat);
       const double peak = peak_memory_gb(rt.device);
+      StageProfile stages;
+      if (a.profile) {  // one more call, after the timed ones
+        net.set_profile(&stages);
+        time_forward(net, in, rt.precision, rt.device, 1);
+        net.set_profile(nullptr);
+      }
 
       std::string base = fmt::format("{:>11} {:>8} {:>7}", "-", "", "-");
       std::optional<double> base_ms;
@@ -214,6 +233,7 @@ void run(const BenchArgs& a) {
       }
       fmt::print("{:<8} {:>9} {:>7} {:>9.1f} {:>9.1f} {:>8.2f} | {}{}\n", preset,
                  fmt::format("{}x{}", size.width, size.height), tokens, ms, flops / ms / 1e6, peak, base, graph);
+      if (a.profile) print_profile(stages);
       std::fflush(stdout);
     }
   }
@@ -251,6 +271,9 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--baseline-max-gb", args->baseline_max_gb,
                   "Largest attention score matrix the textbook baseline may allocate")
       ->capture_default_str();
+  cmd->add_flag("--profile", args->profile,
+                "On the CPU: after each row, the time per stage (layer norms, each linear, attention, GELU, "
+                "residual adds, heads) of one more call of the fast path, summed over blocks");
   cmd->add_flag("--attention", args->attention,
                 "Time one global attention call instead of the network: the chunked form, the fused CPU kernel, "
                 "LibTorch's fused kernel (LibTorch 2.x), the full score matrix");

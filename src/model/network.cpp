@@ -1,12 +1,12 @@
 #include "model/network.h"
 
 #include <cmath>
-#include <fstream>
 #include <set>
 
 #include <fmt/ranges.h>
 
 #include "common/error.h"
+#include "common/stopwatch.h"
 #include "model/attention.h"
 
 namespace ii {
@@ -17,6 +17,39 @@ Precision default_cpu_precision() {
   // Without native bf16 dot products, bf16 matrix products are emulated and slower than fp32.
   return cpu_features().native_bf16() ? Precision::BFloat16 : Precision::Float32;
 }
+
+void StageProfile::add(const std::string& stage, double milliseconds) {
+  for (auto& [name, total] : ms)
+    if (name == stage) {
+      total += milliseconds;
+      return;
+    }
+  ms.emplace_back(stage, milliseconds);
+}
+
+double StageProfile::total() const {
+  double sum = 0;
+  for (const auto& entry : ms) sum += entry.second;
+  return sum;
+}
+
+namespace {
+
+// Marks the end of a stage: the time since the previous mark goes to the profile, if any.
+class StageClock {
+ public:
+  explicit StageClock(StageProfile* profile) : profile_(profile) {}
+  void operator()(const char* stage) {
+    if (profile_) profile_->add(stage, watch_.lap());
+  }
+  void skip() { watch_.lap(); }  // time measured elsewhere
+
+ private:
+  StageProfile* profile_;
+  Stopwatch watch_;
+};
+
+}  // namespace
 
 torch::Tensor& Network::add(const std::string& name, torch::Tensor value) {
   params_.emplace_back(name, std::move(value));
@@ -180,18 +213,33 @@ namespace {
 // compute dtype (fp32 or bf16); the residual stream stays fp32.
 torch::Tensor transformer_block(const torch::Tensor& x, const torch::Tensor& qkv_w, const torch::Tensor& proj_w,
                                 const torch::Tensor& fc1_w, const torch::Tensor& fc2_w, int64_t heads,
-                                double ln_eps, AttentionForm form) {
+                                double ln_eps, AttentionForm form, StageProfile* profile = nullptr) {
   const int64_t B = x.size(0), N = x.size(1), D = x.size(2), hd = D / heads;
-  auto linear = [](const torch::Tensor& in, const torch::Tensor& w) {
-    return torch::matmul(in.to(w.scalar_type()), w.t());
-  };
-  const torch::Tensor qkv = linear(torch::layer_norm(x, {D}, {}, {}, ln_eps), qkv_w)
+  const auto dtype = qkv_w.scalar_type();
+  StageClock mark(profile);
+  const torch::Tensor xn = torch::layer_norm(x, {D}, {}, {}, ln_eps).to(dtype);
+  mark("layer norm");
+  const torch::Tensor qkv = torch::matmul(xn, qkv_w.t())
                                 .reshape({B, N, 3, heads, hd})
                                 .permute({2, 0, 3, 1, 4});  // (3, B, heads, N, hd)
+  mark("linear qkv");
   const torch::Tensor a = attention(qkv[0], qkv[1], qkv[2], form).permute({0, 2, 1, 3}).reshape({B, N, D});
-  const torch::Tensor y = x + linear(a, proj_w).to(torch::kFloat32);
-  const torch::Tensor hidden = torch::gelu(linear(torch::layer_norm(y, {D}, {}, {}, ln_eps), fc1_w));
-  return y + linear(hidden, fc2_w).to(torch::kFloat32);
+  mark("attention");
+  const torch::Tensor projected = torch::matmul(a, proj_w.t());
+  mark("linear proj");
+  const torch::Tensor y = x + projected.to(torch::kFloat32);
+  mark("residual add");
+  const torch::Tensor yn = torch::layer_norm(y, {D}, {}, {}, ln_eps).to(dtype);
+  mark("layer norm");
+  const torch::Tensor hidden = torch::matmul(yn, fc1_w.t());
+  mark("linear fc1");
+  const torch::Tensor activated = torch::gelu(hidden);
+  mark("gelu");
+  const torch::Tensor out = torch::matmul(activated, fc2_w.t());
+  mark("linear fc2");
+  torch::Tensor result = y + out.to(torch::kFloat32);
+  mark("residual add");
+  return result;
 }
 
 // A block that keeps only its inputs for the backward pass and runs itself again there
@@ -243,6 +291,7 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
     fail("input size {}x{} is not a multiple of the patch size {}", W, H, p);
   const int64_t h = H / p, w = W / p, hw = h * w;
   const auto dtype = precision == Precision::BFloat16 ? torch::kBFloat16 : torch::kFloat32;
+  StageClock mark(profile_);
 
   // Patch embedding: a stride-p convolution is a matrix product over flattened patches.
   auto patches = [&](const torch::Tensor& t, int64_t channels) {
@@ -257,6 +306,7 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   out.encoder_tokens = torch::layer_norm(tokens.to(torch::kFloat32), {D}, {}, {}, config_.encoder_ln_eps);
 
   torch::Tensor x = out.encoder_tokens.reshape({B, V * hw, D});
+  mark("patch embedding");
   const bool recompute = checkpoint_blocks_ && torch::GradMode::is_enabled();
   for (const Block& blk : blocks_) {
     if (recompute)
@@ -266,9 +316,10 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
     else
       x = transformer_block(x, weight_for(blk.qkv, precision), weight_for(blk.proj, precision),
                             weight_for(blk.fc1, precision), weight_for(blk.fc2, precision), config_.heads,
-                            config_.ln_eps, execution_.attention);
+                            config_.ln_eps, execution_.attention, profile_);
   }
   out.transformer_tokens = x;
+  mark.skip();  // the blocks mark their own stages
 
   const torch::Tensor normed = torch::layer_norm(x, {D}, {}, {}, config_.ln_eps);
   // The five heads read the same tokens: their first Linears run as one matrix product.
@@ -285,6 +336,7 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
     raw.push_back(unpatchify(y.to(torch::kFloat32), static_cast<int>(V), static_cast<int>(h), static_cast<int>(w), p,
                              GaussianHeads::channels[k]));
   }
+  mark("gaussian heads");
 
   GaussianMaps& g = out.gaussians;
   const torch::Tensor s = torch::sigmoid(raw[0] + config_.depth_bias);
@@ -298,6 +350,7 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   const torch::Tensor o = rays_o.permute({0, 1, 4, 2, 3});
   const torch::Tensor du = rays_d_un.permute({0, 1, 4, 2, 3});
   g.xyz = o + g.depth * du;
+  mark("gaussian activations");
   return out;
 }
 

@@ -36,6 +36,14 @@ struct ExecutionOptions {
   bool cached_weights = true;    // bf16 weights converted once, not on every call as autocast does
 };
 
+// Wall time of forward()'s stages, each summed over the blocks, in first-seen order. Measured
+// on the CPU, where every operation has finished when it returns.
+struct StageProfile {
+  std::vector<std::pair<std::string, double>> ms;
+  void add(const std::string& stage, double milliseconds);
+  double total() const;
+};
+
 class Network {
  public:
   // Randomly initialised, or with uninitialised memory when `initialise` is false (for
@@ -68,6 +76,8 @@ class Network {
   void set_activation_checkpointing(bool on) { checkpoint_blocks_ = on; }
   void set_requires_grad(bool requires_grad);
   void set_execution(const ExecutionOptions& options) { execution_ = options; }
+  // forward() adds its stages' times to `profile` (none: nullptr); it must outlive the calls.
+  void set_profile(StageProfile* profile) { profile_ = profile; }
 
  private:
   struct Block {
@@ -91,6 +101,7 @@ class Network {
   std::vector<Head> heads_;  // depth, rgb, opacity, scale, rotation
   ExecutionOptions execution_;
   bool checkpoint_blocks_ = false;
+  StageProfile* profile_ = nullptr;
   mutable std::map<const void*, torch::Tensor> bf16_cache_;  // keyed by the fp32 storage
   mutable torch::Tensor fused_head_input_;                     // inference only; undefined = not built
 };
