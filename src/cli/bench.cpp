@@ -102,6 +102,7 @@ ExecutionOptions official_equivalent() {
   ExecutionOptions o;
   o.fused_heads = false;
   o.cached_weights = false;
+  o.fused_norms = false;
   return o;
 }
 
@@ -117,7 +118,7 @@ void print_profile(const StageProfile& profile) {
   std::sort(stages.begin(), stages.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
   const double total = profile.total();
   for (const auto& [stage, ms] : stages)
-    fmt::print("    {:<22} {:>10.1f} ms {:>5.1f} %\n", stage, ms, 100.0 * ms / total);
+    fmt::print("    {:<26} {:>10.1f} ms {:>5.1f} %\n", stage, ms, 100.0 * ms / total);
 }
 
 // One attention call (q, k, v strided as the network makes them) in each form that runs here.

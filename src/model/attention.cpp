@@ -3,12 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include <ATen/Parallel.h>
-
 #include "common/error.h"
-#include "common/parallel.h"
 #include "common/torch_compat.h"
-#include "model/cpu/attention_kernels.h"
+#include "model/cpu/dispatch.h"
 
 namespace ii {
 
@@ -42,10 +39,6 @@ torch::Tensor naive_attention(const torch::Tensor& q, const torch::Tensor& k, co
 
 namespace {
 
-void parallel_tasks(int64_t count, void (*task)(void*, int64_t), void* context) {
-  parallel_dynamic(count, at::get_num_threads(), [&](int64_t i) { task(context, i); });
-}
-
 // Why the kernel of `isa` cannot run these inputs here, or empty.
 std::string fused_cpu_refusal(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v, CpuIsa isa) {
   if (!cpu_features().has(isa)) return fmt::format("this CPU has no {}", cpu_isa_name(isa));
@@ -53,8 +46,8 @@ std::string fused_cpu_refusal(const torch::Tensor& q, const torch::Tensor& k, co
   if (q.dim() != 4 || k.dim() != 4 || v.dim() != 4) return "q, k and v must be (B, heads, N, head_dim)";
   if (k.sizes() != v.sizes() || q.size(0) != k.size(0) || q.size(1) != k.size(1) || q.size(3) != k.size(3))
     return "q, k and v shapes do not match";
-  if (q.size(3) > cpu_attention::kMaxHeadDim)
-    return fmt::format("head_dim {} is over {}", q.size(3), cpu_attention::kMaxHeadDim);
+  if (q.size(3) > cpu_kernels::kMaxHeadDim)
+    return fmt::format("head_dim {} is over {}", q.size(3), cpu_kernels::kMaxHeadDim);
   if (q.scalar_type() != k.scalar_type() || q.scalar_type() != v.scalar_type()) return "q, k and v dtypes differ";
   const auto dtype = q.scalar_type();
   if (isa == CpuIsa::Avx512Bf16 ? dtype != torch::kBFloat16 : dtype != torch::kFloat32 || isa < CpuIsa::Avx2)
@@ -67,11 +60,8 @@ std::string fused_cpu_refusal(const torch::Tensor& q, const torch::Tensor& k, co
 }  // namespace
 
 std::optional<CpuIsa> fused_cpu_attention_isa(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
-  const CpuIsa best = cpu_features().isa;
-  const CpuIsa isa = q.scalar_type() == torch::kBFloat16 ? CpuIsa::Avx512Bf16
-                     : best >= CpuIsa::Avx512           ? CpuIsa::Avx512
-                                                        : CpuIsa::Avx2;
-  if (!fused_cpu_refusal(q, k, v, isa).empty()) return std::nullopt;
+  const std::optional<CpuIsa> isa = cpu_kernels::kernel_isa(q.scalar_type());
+  if (!isa || !fused_cpu_refusal(q, k, v, *isa).empty()) return std::nullopt;
   return isa;
 }
 
@@ -87,7 +77,7 @@ torch::Tensor fused_cpu_attention(const torch::Tensor& q_in, const torch::Tensor
   torch::Tensor out = torch::empty({B, N, H, d}, q.options());
   if (out.numel() == 0) return out.permute({0, 2, 1, 3});
 
-  cpu_attention::Problem p;
+  cpu_kernels::AttentionProblem p;
   p.batch = B;
   p.heads = H;
   p.queries = N;
@@ -107,9 +97,9 @@ torch::Tensor fused_cpu_attention(const torch::Tensor& q_in, const torch::Tensor
   p.out_strides[2] = out.stride(1);
   p.scale = static_cast<float>(1.0 / std::sqrt(static_cast<double>(d)));
   switch (isa) {
-    case CpuIsa::Avx512Bf16: cpu_attention::attention_avx512_bf16(p, parallel_tasks); break;
-    case CpuIsa::Avx512: cpu_attention::attention_avx512_fp32(p, parallel_tasks); break;
-    default: cpu_attention::attention_avx2_fp32(p, parallel_tasks); break;
+    case CpuIsa::Avx512Bf16: cpu_kernels::attention_avx512_bf16(p, cpu_kernels::parallel_tasks); break;
+    case CpuIsa::Avx512: cpu_kernels::attention_avx512_fp32(p, cpu_kernels::parallel_tasks); break;
+    default: cpu_kernels::attention_avx2_fp32(p, cpu_kernels::parallel_tasks); break;
   }
   return out.permute({0, 2, 1, 3});
 }

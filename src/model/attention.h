@@ -25,7 +25,7 @@ torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const to
 // The fused CPU kernel (flash-attention form: scores kept in cache, online softmax, bf16 dot
 // products with AVX-512 BF16, float FMA with AVX-512 or AVX2; model/cpu/). Which instruction
 // set attention() uses for these inputs on this CPU, or none: not on the CPU, a dtype other
-// than float32/bf16 (bf16 needs AVX-512 BF16), head_dim over 256, or gradients wanted (the
+// than float32/bf16 (bf16 needs AVX-512 BF16), head_dim over 128, or gradients wanted (the
 // kernel has no backward pass; training uses the chunked form).
 std::optional<CpuIsa> fused_cpu_attention_isa(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v);
 // The fused kernel of one instruction set (tests and benchmarks compare them); throws Error

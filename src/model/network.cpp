@@ -8,6 +8,7 @@
 #include "common/error.h"
 #include "common/stopwatch.h"
 #include "model/attention.h"
+#include "model/layer_norm.h"
 
 namespace ii {
 
@@ -209,17 +210,18 @@ torch::Tensor unpatchify(const torch::Tensor& x, int views, int h, int w, int pa
 
 namespace {
 
-// One pre-norm transformer block (spec §1.2 step 6). The Linear weights are already in the
-// compute dtype (fp32 or bf16); the residual stream stays fp32.
-torch::Tensor transformer_block(const torch::Tensor& x, const torch::Tensor& qkv_w, const torch::Tensor& proj_w,
-                                const torch::Tensor& fc1_w, const torch::Tensor& fc2_w, int64_t heads,
-                                double ln_eps, AttentionForm form, StageProfile* profile = nullptr) {
+// One pre-norm transformer block (spec §1.2 step 6). `in`: the residual stream (float) and
+// its layer norm in the compute dtype, the dtype of the Linear weights. Returns the block's
+// output and, with `norm_output`, its layer norm (the next block's or the heads' input), each
+// residual add fused with the layer norm that follows it (`fused_norms`, model/layer_norm.h).
+AddNorm transformer_block(const AddNorm& in, const torch::Tensor& qkv_w, const torch::Tensor& proj_w,
+                          const torch::Tensor& fc1_w, const torch::Tensor& fc2_w, int64_t heads, double ln_eps,
+                          AttentionForm form, bool fused_norms, bool norm_output, StageProfile* profile = nullptr) {
+  const torch::Tensor& x = in.sum;
   const int64_t B = x.size(0), N = x.size(1), D = x.size(2), hd = D / heads;
   const auto dtype = qkv_w.scalar_type();
   StageClock mark(profile);
-  const torch::Tensor xn = torch::layer_norm(x, {D}, {}, {}, ln_eps).to(dtype);
-  mark("layer norm");
-  const torch::Tensor qkv = torch::matmul(xn, qkv_w.t())
+  const torch::Tensor qkv = torch::matmul(in.normed, qkv_w.t())
                                 .reshape({B, N, 3, heads, hd})
                                 .permute({2, 0, 3, 1, 4});  // (3, B, heads, N, hd)
   mark("linear qkv");
@@ -227,18 +229,17 @@ torch::Tensor transformer_block(const torch::Tensor& x, const torch::Tensor& qkv
   mark("attention");
   const torch::Tensor projected = torch::matmul(a, proj_w.t());
   mark("linear proj");
-  const torch::Tensor y = x + projected.to(torch::kFloat32);
-  mark("residual add");
-  const torch::Tensor yn = torch::layer_norm(y, {D}, {}, {}, ln_eps).to(dtype);
-  mark("layer norm");
-  const torch::Tensor hidden = torch::matmul(yn, fc1_w.t());
+  const AddNorm mid = add_layer_norm(x, projected, ln_eps, dtype, fused_norms);
+  mark("residual add + layer norm");
+  const torch::Tensor hidden = torch::matmul(mid.normed, fc1_w.t());
   mark("linear fc1");
   const torch::Tensor activated = torch::gelu(hidden);
   mark("gelu");
   const torch::Tensor out = torch::matmul(activated, fc2_w.t());
   mark("linear fc2");
-  torch::Tensor result = y + out.to(torch::kFloat32);
-  mark("residual add");
+  AddNorm result = norm_output ? add_layer_norm(mid.sum, out, ln_eps, dtype, fused_norms)
+                               : AddNorm{mid.sum + out.to(torch::kFloat32), {}};
+  mark("residual add + layer norm");
   return result;
 }
 
@@ -248,8 +249,10 @@ struct RecomputedBlock : torch::autograd::Function<RecomputedBlock> {
   static torch::Tensor run(const torch::Tensor& x, const std::vector<torch::Tensor>& w, int64_t heads, double ln_eps,
                            int64_t form, bool bf16) {
     auto cast = [&](const torch::Tensor& t) { return bf16 ? t.to(torch::kBFloat16) : t; };
-    return transformer_block(x, cast(w[0]), cast(w[1]), cast(w[2]), cast(w[3]), heads, ln_eps,
-                             static_cast<AttentionForm>(form));
+    const auto dtype = bf16 ? torch::kBFloat16 : torch::kFloat32;
+    return transformer_block(add_layer_norm(x, {}, ln_eps, dtype), cast(w[0]), cast(w[1]), cast(w[2]), cast(w[3]),
+                             heads, ln_eps, static_cast<AttentionForm>(form), true, false)
+        .sum;
   }
   static torch::Tensor forward(torch::autograd::AutogradContext* ctx, const torch::Tensor& x, const torch::Tensor& qkv,
                                const torch::Tensor& proj, const torch::Tensor& fc1, const torch::Tensor& fc2,
@@ -307,21 +310,26 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
 
   torch::Tensor x = out.encoder_tokens.reshape({B, V * hw, D});
   mark("patch embedding");
-  const bool recompute = checkpoint_blocks_ && torch::GradMode::is_enabled();
-  for (const Block& blk : blocks_) {
-    if (recompute)
+  torch::Tensor normed;  // layer_norm(x) after the blocks, the heads' input
+  if (checkpoint_blocks_ && torch::GradMode::is_enabled()) {
+    for (const Block& blk : blocks_)
       x = RecomputedBlock::apply(x, blk.qkv, blk.proj, blk.fc1, blk.fc2, static_cast<int64_t>(config_.heads),
                                  config_.ln_eps, static_cast<int64_t>(execution_.attention),
                                  precision == Precision::BFloat16);
-    else
-      x = transformer_block(x, weight_for(blk.qkv, precision), weight_for(blk.proj, precision),
-                            weight_for(blk.fc1, precision), weight_for(blk.fc2, precision), config_.heads,
-                            config_.ln_eps, execution_.attention, profile_);
+    normed = add_layer_norm(x, {}, config_.ln_eps, dtype).normed;
+  } else {
+    AddNorm state = add_layer_norm(x, {}, config_.ln_eps, dtype, execution_.fused_norms);
+    mark("residual add + layer norm");
+    for (const Block& blk : blocks_)
+      state = transformer_block(state, weight_for(blk.qkv, precision), weight_for(blk.proj, precision),
+                                weight_for(blk.fc1, precision), weight_for(blk.fc2, precision), config_.heads,
+                                config_.ln_eps, execution_.attention, execution_.fused_norms, true, profile_);
+    x = state.sum;
+    normed = state.normed;
   }
   out.transformer_tokens = x;
   mark.skip();  // the blocks mark their own stages
 
-  const torch::Tensor normed = torch::layer_norm(x, {D}, {}, {}, config_.ln_eps);
   // The five heads read the same tokens: their first Linears run as one matrix product.
   const torch::Tensor first = execution_.fused_heads ? linear(normed, fused_head_input_weight(), precision)
                                                      : torch::Tensor();

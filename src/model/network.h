@@ -34,6 +34,7 @@ struct ExecutionOptions {
   AttentionForm attention = AttentionForm::Fastest;
   bool fused_heads = true;       // the five heads' first Linears as one matrix product
   bool cached_weights = true;    // bf16 weights converted once, not on every call as autocast does
+  bool fused_norms = true;       // residual add + layer norm in one pass (CPU, model/layer_norm.h)
 };
 
 // Wall time of forward()'s stages, each summed over the blocks, in first-seen order. Measured

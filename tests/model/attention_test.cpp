@@ -50,7 +50,7 @@ TEST(Attention, ChunkedHasGradients) {
 }
 
 // Float32: within 1e-5 of the chunked twin, for token counts that are not multiples of the
-// kernels' blocks (1, odd, across key blocks of 128/256 and query tiles of 48), head
+// kernels' blocks (1, odd, across key blocks of 256/512 and query tiles of 96), head
 // dimensions 8 to 128 (the presets have 8, 48 and 64), batches, and strided inputs.
 TEST(FusedCpuAttention, Float32MatchesChunkedTwin) {
   if (float_kernels_here().empty()) GTEST_SKIP() << "this CPU has no AVX2";
@@ -120,8 +120,8 @@ TEST(FusedCpuAttention, FastestFormUsesItWithoutGradients) {
   const torch::Tensor merged = attention(x, x, x).permute({0, 2, 1, 3});
   EXPECT_TRUE(merged.is_contiguous());
   EXPECT_FALSE(fused_cpu_attention_isa(x.to(torch::kFloat64), x.to(torch::kFloat64), x.to(torch::kFloat64)));
-  EXPECT_FALSE(fused_cpu_attention_isa(torch::randn({1, 1, 4, 300}), torch::randn({1, 1, 4, 300}),
-                                       torch::randn({1, 1, 4, 300})));
+  EXPECT_FALSE(fused_cpu_attention_isa(torch::randn({1, 1, 4, 200}), torch::randn({1, 1, 4, 200}),
+                                       torch::randn({1, 1, 4, 200})));
 }
 
 TEST(FusedCpuAttention, RefusesWhatItCannotRun) {
@@ -133,10 +133,10 @@ TEST(FusedCpuAttention, RefusesWhatItCannotRun) {
             }),
             "fused CPU attention (avx2): no avx2 kernel for Double");
   EXPECT_EQ(test::error_message([&] {
-              const auto y = torch::randn({1, 1, 4, 300});
+              const auto y = torch::randn({1, 1, 4, 200});
               fused_cpu_attention(y, y, y, CpuIsa::Avx2);
             }),
-            "fused CPU attention (avx2): head_dim 300 is over 256");
+            "fused CPU attention (avx2): head_dim 200 is over 128");
   EXPECT_EQ(test::error_message([&] {
               const auto g = x.clone().requires_grad_(true);
               fused_cpu_attention(g, x, x, CpuIsa::Avx2);
