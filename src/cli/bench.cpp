@@ -112,11 +112,27 @@ ExecutionOptions textbook() {
   return o;
 }
 
-// Each stage's share of one call of the fast path, largest first.
-void print_profile(const StageProfile& profile) {
+// The fast path as it was before the fused CPU kernels: attention by the chunked LibTorch
+// calls, residual add and layer norm as separate operations.
+ExecutionOptions unfused() {
+  ExecutionOptions o;
+  o.attention = AttentionForm::Chunked;
+  o.fused_norms = false;
+  return o;
+}
+
+ExecutionOptions baseline_execution(const std::string& baseline) {
+  if (baseline == "official") return official_equivalent();
+  if (baseline == "unfused") return unfused();
+  return textbook();
+}
+
+// Each stage's share of one call, largest first.
+void print_profile(const std::string& what, const StageProfile& profile) {
   auto stages = profile.ms;
   std::sort(stages.begin(), stages.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
   const double total = profile.total();
+  fmt::print("  {} stages, {:.1f} ms:\n", what, total);
   for (const auto& [stage, ms] : stages)
     fmt::print("    {:<26} {:>10.1f} ms {:>5.1f} %\n", stage, ms, 100.0 * ms / total);
 }
@@ -202,12 +218,16 @@ void run(const BenchArgs& a) {
       net.set_execution(ExecutionOptions());
       const double ms = time_forward(net, in, rt.precision, rt.device, repeat);
       const double peak = peak_memory_gb(rt.device);
-      StageProfile stages;
-      if (a.profile) {  // one more call, after the timed ones
+      // One more call, after the timed ones, with its stages timed.
+      auto profile = [&](Precision p) {
+        StageProfile stages;
         net.set_profile(&stages);
-        time_forward(net, in, rt.precision, rt.device, 1);
+        time_forward(net, in, p, rt.device, 1);
         net.set_profile(nullptr);
-      }
+        return stages;
+      };
+      std::vector<std::pair<std::string, StageProfile>> profiles;
+      if (a.profile) profiles.emplace_back("fast path", profile(rt.precision));
 
       std::string base = fmt::format("{:>11} {:>8} {:>7}", "-", "", "-");
       std::optional<double> base_ms;
@@ -217,9 +237,10 @@ void run(const BenchArgs& a) {
         base = fmt::format("{:>11} {:>8} {:>7}", "skipped", fmt::format("{:.0f}", naive_gb), "-");
       } else if (baseline != "none") {
         reset_peak_memory(rt.device);
-        net.set_execution(baseline == "official" ? official_equivalent() : textbook());
-        const Precision p = baseline == "official" ? rt.precision : Precision::Float32;
+        net.set_execution(baseline_execution(baseline));
+        const Precision p = baseline == "textbook" ? Precision::Float32 : rt.precision;
         base_ms = time_forward(net, in, p, rt.device, repeat);
+        if (a.profile) profiles.emplace_back("baseline", profile(p));
         net.set_execution(ExecutionOptions());
         base = fmt::format("{:>11.1f} {:>8.2f} {:>6.2f}x", *base_ms, peak_memory_gb(rt.device), *base_ms / ms);
       }
@@ -234,13 +255,16 @@ void run(const BenchArgs& a) {
       }
       fmt::print("{:<8} {:>9} {:>7} {:>9.1f} {:>9.1f} {:>8.2f} | {}{}\n", preset,
                  fmt::format("{}x{}", size.width, size.height), tokens, ms, flops / ms / 1e6, peak, base, graph);
-      if (a.profile) print_profile(stages);
+      for (const auto& [what, stages] : profiles) print_profile(what, stages);
       std::fflush(stdout);
     }
   }
   if (baseline == "official")
     fmt::print("baseline: the official code's way of computing (eager, weights converted on every call as autocast "
                "does, the five heads one by one, the same attention kernels)\n");
+  else if (baseline == "unfused")
+    fmt::print("baseline: the fast path with the chunked attention (LibTorch calls) and the residual add and layer "
+               "norm apart, as before the fused CPU kernels\n");
   else if (baseline == "textbook")
     fmt::print("baseline: float32, unfused, attention with the full score matrix "
                "(skipped when that matrix needs more than {:.0f} GB; its size is shown)\n",
@@ -265,8 +289,9 @@ void add_bench_command(CLI::App& app) {
       ->check(CLI::Range(0, 10000));
   cmd->add_option("--baseline", args->baseline,
                   "What the fast path is compared with: official (the official code's way of computing), textbook "
-                  "(float32, full attention score matrix), none; auto = official on a GPU, textbook on a CPU")
-      ->check(CLI::IsMember({"auto", "official", "textbook", "none"}))
+                  "(float32, full attention score matrix), unfused (chunked attention, residual add and layer norm "
+                  "apart: before the fused CPU kernels), none; auto = official on a GPU, textbook on a CPU")
+      ->check(CLI::IsMember({"auto", "official", "textbook", "unfused", "none"}))
       ->capture_default_str();
   cmd->add_flag("!--no-cuda-graph", args->cuda_graph, "On a GPU, skip the CUDA graph column");
   cmd->add_option("--baseline-max-gb", args->baseline_max_gb,
@@ -274,7 +299,7 @@ void add_bench_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--profile", args->profile,
                 "On the CPU: after each row, the time per stage (layer norms, each linear, attention, GELU, "
-                "residual adds, heads) of one more call of the fast path, summed over blocks");
+                "residual adds, heads) of one more call of the fast path and of the baseline, summed over blocks");
   cmd->add_flag("--attention", args->attention,
                 "Time one global attention call instead of the network: the chunked form, the fused CPU kernel, "
                 "LibTorch's fused kernel (LibTorch 2.x), the full score matrix");
@@ -289,6 +314,7 @@ void add_bench_command(CLI::App& app) {
   cmd->footer(
       "Examples: instainpaint bench --presets release --sizes 256\n"
       "          instainpaint bench --attention --tokens 16384   (release model's attention at 4 x 512²)\n"
+      "          instainpaint bench --presets release --sizes 256 --baseline unfused --profile\n"
       "          instainpaint bench --device cuda --presets release --sizes 512,904x512   (issue 9's configurations)");
   cmd->callback([args] { run(*args); });
 }
