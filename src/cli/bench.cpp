@@ -155,11 +155,11 @@ void run_attention(const BenchArgs& a, const Runtime& rt) {
   auto row = [&](const std::string& form, const std::function<torch::Tensor()>& call) {
     const double ms = best_ms(rt.device, repeat, call);
     if (!chunked_ms) chunked_ms = ms;
-    fmt::print("{:<44} {:>10.1f} {:>9.1f} {:>9.2f}x\n", form, ms, flops / ms / 1e6, *chunked_ms / ms);
+    fmt::print("{:<44} {:>10.1f} {:>9.1f} {:>10.2f}x\n", form, ms, flops / ms / 1e6, *chunked_ms / ms);
     std::fflush(stdout);
   };
   auto skipped = [](const std::string& form, const std::string& why) { fmt::print("{:<44} {}\n", form, why); };
-  fmt::print("{:<44} {:>10} {:>9} {:>10}\n", "form", "ms", "GFLOP/s", "vs chunked");
+  fmt::print("{:<44} {:>10} {:>9} {:>11}\n", "form", "ms", "GFLOP/s", "vs chunked");
   row("chunked (LibTorch calls; the reference twin)", [&] { return chunked_attention(q, k, v); });
   if (rt.device.is_cpu()) {
     if (const auto isa = fused_cpu_attention_isa(q, k, v))

@@ -96,11 +96,12 @@ torch::Tensor fused_cpu_attention(const torch::Tensor& q_in, const torch::Tensor
   p.out_strides[1] = out.stride(2);  // out is (B, N, H, d): heads are its dimension 2
   p.out_strides[2] = out.stride(1);
   p.scale = static_cast<float>(1.0 / std::sqrt(static_cast<double>(d)));
-  switch (isa) {
-    case CpuIsa::Avx512Bf16: cpu_kernels::attention_avx512_bf16(p, cpu_kernels::parallel_tasks); break;
-    case CpuIsa::Avx512: cpu_kernels::attention_avx512_fp32(p, cpu_kernels::parallel_tasks); break;
-    default: cpu_kernels::attention_avx2_fp32(p, cpu_kernels::parallel_tasks); break;
-  }
+  const bool done = isa == CpuIsa::Avx512Bf16 ? cpu_kernels::attention_avx512_bf16(p, cpu_kernels::parallel_tasks)
+                    : isa == CpuIsa::Avx512   ? cpu_kernels::attention_avx512_fp32(p, cpu_kernels::parallel_tasks)
+                                              : cpu_kernels::attention_avx2_fp32(p, cpu_kernels::parallel_tasks);
+  if (!done)
+    fail("fused CPU attention: out of memory for the packed keys and values of {} x {} heads of {} tokens", B, H,
+         p.keys);
   return out.permute({0, 2, 1, 3});
 }
 

@@ -250,8 +250,12 @@ struct RecomputedBlock : torch::autograd::Function<RecomputedBlock> {
                            int64_t form, bool bf16) {
     auto cast = [&](const torch::Tensor& t) { return bf16 ? t.to(torch::kBFloat16) : t; };
     const auto dtype = bf16 ? torch::kBFloat16 : torch::kFloat32;
-    return transformer_block(add_layer_norm(x, {}, ln_eps, dtype), cast(w[0]), cast(w[1]), cast(w[2]), cast(w[3]),
-                             heads, ln_eps, static_cast<AttentionForm>(form), true, false)
+    // The forward pass (no grad mode) and the recomputation (grad mode) must compute the same:
+    // on the CPU both use the LibTorch forms, as the fused CPU kernels have no backward pass.
+    AttentionForm attention_form = static_cast<AttentionForm>(form);
+    if (attention_form == AttentionForm::Fastest && !x.is_cuda()) attention_form = AttentionForm::Chunked;
+    return transformer_block(add_layer_norm(x, {}, ln_eps, dtype, false), cast(w[0]), cast(w[1]), cast(w[2]),
+                             cast(w[3]), heads, ln_eps, attention_form, false, false)
         .sum;
   }
   static torch::Tensor forward(torch::autograd::AutogradContext* ctx, const torch::Tensor& x, const torch::Tensor& qkv,

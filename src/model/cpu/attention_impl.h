@@ -6,7 +6,7 @@
 // queries at a time into a small float buffer, the online softmax (running maximum and sum;
 // the output rescaled when the maximum grows), probabilities stored in the input type, then
 // output += probabilities · v. Scores never leave the cache. k and v are first packed per
-// (batch, head) into the layouts the microkernels read with aligned vector loads, zero-padded
+// (batch, head) into the layouts the microkernels read as whole vectors, zero-padded
 // to whole key groups and vectors; padded keys get a score of -inf.
 //
 #include <cstdint>
@@ -53,12 +53,13 @@ class Attention {
   Attention(const Attention&) = delete;
   Attention& operator=(const Attention&) = delete;
 
-  void run(ParallelFor parallel) {
-    if (!packed_k_ || !packed_v_) return;  // the caller checked sizes; nothing to do on failure
+  bool run(ParallelFor parallel) {
+    if (!packed_k_ || !packed_v_) return false;
     const int64_t slices = pr_.batch * pr_.heads;
     parallel(slices, [](void* self, int64_t slice) { static_cast<Attention*>(self)->pack(slice); }, this);
     parallel(slices * tiles_, [](void* self, int64_t task) { static_cast<Attention*>(self)->run_tile(task); },
              this);
+    return true;
   }
 
  private:
@@ -83,14 +84,14 @@ class Attention {
     In* pv = packed_v_ + slice * keys_padded_ * dv_;
     for (int64_t n = 0; n < keys_padded_; ++n) {
       const bool key = n < pr_.keys;
-      const In* krow = k + n * pr_.k_strides[2];
+      const In* krow = key ? k + n * pr_.k_strides[2] : nullptr;
       In* panel = pk + (n / W) * dp_ * W + (n % W) * P;
       for (int64_t s = 0; s < steps_; ++s)
         for (int e = 0; e < P; ++e) {
           const int64_t x = s * P + e;
           panel[s * W * P + e] = key && x < d ? krow[x] : In(0);
         }
-      const In* vrow = v + n * pr_.v_strides[2];
+      const In* vrow = key ? v + n * pr_.v_strides[2] : nullptr;
       In* pair = pv + (n / P) * dv_ * P + n % P;
       for (int64_t x = 0; x < dv_; ++x) pair[x * P] = key && x < d ? vrow[x] : In(0);
     }
@@ -188,6 +189,8 @@ class Attention {
     const int64_t first = tile * kTile, rows = smaller(kTile, pr_.queries - first);
     const int64_t rows_padded = round_up(rows, SR);
 
+    // On the stack (about 110 KB for bf16, 150 KB for float): every thread here is a std::thread
+    // or the caller's, with megabytes of stack.
     alignas(64) In q[kTile * kMaxDp];
     alignas(64) float out[kTile * kMaxDv];
     alignas(64) float scores[SR * kBlock];
@@ -230,9 +233,9 @@ class Attention {
 };
 
 template <class Isa>
-void run_attention(const AttentionProblem& problem, ParallelFor parallel) {
+bool run_attention(const AttentionProblem& problem, ParallelFor parallel) {
   Attention<Isa> attention(problem);
-  attention.run(parallel);
+  return attention.run(parallel);
 }
 
 }  // namespace

@@ -31,10 +31,11 @@ using ParallelFor = void (*)(int64_t count, void (*task)(void* context, int64_t 
 constexpr int64_t kMaxHeadDim = 128;
 
 // bf16 inputs and output, bf16 dot products (vdpbf16ps), float softmax and accumulation.
-void attention_avx512_bf16(const AttentionProblem& problem, ParallelFor parallel);
+// Each returns false, computing nothing, when its packed copy of k and v cannot be allocated.
+bool attention_avx512_bf16(const AttentionProblem& problem, ParallelFor parallel);
 // float inputs and output.
-void attention_avx512_fp32(const AttentionProblem& problem, ParallelFor parallel);
-void attention_avx2_fp32(const AttentionProblem& problem, ParallelFor parallel);
+bool attention_avx512_fp32(const AttentionProblem& problem, ParallelFor parallel);
+bool attention_avx2_fp32(const AttentionProblem& problem, ParallelFor parallel);
 
 // sum = x + residual and normed = layer_norm(sum) without affine parameters, for `rows`
 // contiguous rows of `dim` elements. x and sum are float; residual and normed have the

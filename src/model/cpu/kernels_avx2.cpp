@@ -4,7 +4,9 @@
 
 namespace ii::cpu_kernels {
 
-void attention_avx2_fp32(const AttentionProblem& problem, ParallelFor parallel) { run_attention<Avx2Fp32>(problem, parallel); }
+bool attention_avx2_fp32(const AttentionProblem& problem, ParallelFor parallel) {
+  return run_attention<Avx2Fp32>(problem, parallel);
+}
 
 void add_layer_norm_avx2_fp32(const AddNormProblem& problem, ParallelFor parallel) {
   run_add_layer_norm<Avx2Fp32>(problem, parallel);

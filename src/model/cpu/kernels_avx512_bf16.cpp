@@ -4,7 +4,9 @@
 
 namespace ii::cpu_kernels {
 
-void attention_avx512_bf16(const AttentionProblem& problem, ParallelFor parallel) { run_attention<Avx512Bf16>(problem, parallel); }
+bool attention_avx512_bf16(const AttentionProblem& problem, ParallelFor parallel) {
+  return run_attention<Avx512Bf16>(problem, parallel);
+}
 
 void add_layer_norm_avx512_bf16(const AddNormProblem& problem, ParallelFor parallel) {
   run_add_layer_norm<Avx512Bf16>(problem, parallel);
