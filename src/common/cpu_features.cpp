@@ -2,6 +2,10 @@
 
 #include <cstdlib>
 
+#if defined(__x86_64__) || defined(__i386__)
+#include <cpuid.h>
+#endif
+
 #include "common/error.h"
 
 namespace ii {
@@ -18,7 +22,9 @@ CpuFeatures detect() {
       __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq"))
     f.isa = CpuIsa::Avx512;
   if (f.isa == CpuIsa::Avx512 && __builtin_cpu_supports("avx512bf16")) f.isa = CpuIsa::Avx512Bf16;
-  f.amx_bf16 = __builtin_cpu_supports("amx-bf16");
+  // AMX-BF16 is CPUID leaf 7 EDX bit 22 (clang 14's __builtin_cpu_supports has no name for it).
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  if (__get_cpuid_count(7, 0, &eax, &ebx, &ecx, &edx)) f.amx_bf16 = (edx >> 22) & 1u;
 #endif
   if (const char* cap = std::getenv("INSTAINPAINT_MAX_CPU_ISA"); cap && *cap) {
     const CpuIsa limit = parse_cpu_isa(cap, "INSTAINPAINT_MAX_CPU_ISA");
