@@ -3,7 +3,7 @@
 // residual add + layer norm, one set per instruction set. Each set lives in its own
 // translation unit (kernels_<set>.cpp) compiled with that set's -m flags, so this interface
 // is plain C++: pointers, strides and a function pointer for the thread pool. Those files
-// include nothing but this project's kernel headers and <immintrin.h>: an inline function of
+// include nothing but the kernel headers, <immintrin.h> and C headers: an inline function of
 // a shared header compiled there with AVX-512 could be the copy the linker keeps for every
 // other caller (an illegal instruction on an AVX2 CPU).
 #include <cstdint>
