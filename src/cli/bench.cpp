@@ -137,6 +137,11 @@ void print_profile(const std::string& what, const StageProfile& profile) {
     fmt::print("    {:<26} {:>10.1f} ms {:>5.1f} %\n", stage, ms, 100.0 * ms / total);
 }
 
+// The textbook attention's score matrix: heads x N x N floats, plus the softmax copy, in GB.
+double full_attention_gb(int64_t heads, int64_t tokens) {
+  return 2.0 * heads * static_cast<double>(tokens) * tokens * 4 / 1e9;
+}
+
 // One attention call (q, k, v strided as the network makes them) in each form that runs here.
 void run_attention(const BenchArgs& a, const Runtime& rt) {
   const int repeat = a.repeat > 0 ? a.repeat : 3;
@@ -151,16 +156,17 @@ void run_attention(const BenchArgs& a, const Runtime& rt) {
              rt.device.is_cuda() ? rt.device.str() : fmt::format("cpu, {} threads", torch::get_num_threads()),
              precision_name(rt.precision), a.tokens, a.heads, a.head_dim, flops / 1e9, repeat);
   torch::InferenceMode guard;
-  std::optional<double> chunked_ms;
-  auto row = [&](const std::string& form, const std::function<torch::Tensor()>& call) {
-    const double ms = best_ms(rt.device, repeat, call);
-    if (!chunked_ms) chunked_ms = ms;
-    fmt::print("{:<44} {:>10.1f} {:>9.1f} {:>10.2f}x\n", form, ms, flops / ms / 1e6, *chunked_ms / ms);
+  fmt::print("{:<44} {:>10} {:>9} {:>11}\n", "form", "ms", "GFLOP/s", "vs chunked");
+  const double chunked_ms = best_ms(rt.device, repeat, [&] { return chunked_attention(q, k, v); });
+  auto print_row = [&](const std::string& form, double ms) {
+    fmt::print("{:<44} {:>10.1f} {:>9.1f} {:>10.2f}x\n", form, ms, flops / ms / 1e6, chunked_ms / ms);
     std::fflush(stdout);
   };
+  auto row = [&](const std::string& form, const std::function<torch::Tensor()>& call) {
+    print_row(form, best_ms(rt.device, repeat, call));
+  };
   auto skipped = [](const std::string& form, const std::string& why) { fmt::print("{:<44} {}\n", form, why); };
-  fmt::print("{:<44} {:>10} {:>9} {:>11}\n", "form", "ms", "GFLOP/s", "vs chunked");
-  row("chunked (LibTorch calls; the reference twin)", [&] { return chunked_attention(q, k, v); });
+  print_row("chunked (LibTorch calls; the reference twin)", chunked_ms);
   if (rt.device.is_cpu()) {
     if (const auto isa = fused_cpu_attention_isa(q, k, v))
       row(fmt::format("fused CPU kernel ({})", cpu_isa_name(*isa)), [&] { return fused_cpu_attention(q, k, v, *isa); });
@@ -172,7 +178,7 @@ void run_attention(const BenchArgs& a, const Runtime& rt) {
     row("LibTorch scaled_dot_product_attention", [&] { return compat::fused_sdpa(q, k, v); });
   else
     skipped("LibTorch scaled_dot_product_attention", "not in LibTorch " TORCH_VERSION);
-  const double full_gb = 2.0 * a.heads * static_cast<double>(a.tokens) * a.tokens * 4 / 1e9;
+  const double full_gb = full_attention_gb(a.heads, a.tokens);
   if (full_gb > a.baseline_max_gb)
     skipped("full score matrix", fmt::format("skipped (needs {:.0f} GB, --baseline-max-gb {:.0f})", full_gb,
                                              a.baseline_max_gb));
@@ -231,8 +237,7 @@ void run(const BenchArgs& a) {
 
       std::string base = fmt::format("{:>11} {:>8} {:>7}", "-", "", "-");
       std::optional<double> base_ms;
-      // The textbook attention's score matrix: heads x N x N floats, plus the softmax copy.
-      const double naive_gb = 2.0 * config.heads * tokens * tokens * 4 / 1e9;
+      const double naive_gb = full_attention_gb(config.heads, tokens);
       if (baseline == "textbook" && naive_gb > a.baseline_max_gb) {
         base = fmt::format("{:>11} {:>8} {:>7}", "skipped", fmt::format("{:.0f}", naive_gb), "-");
       } else if (baseline != "none") {

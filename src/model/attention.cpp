@@ -49,9 +49,8 @@ std::string fused_cpu_refusal(const torch::Tensor& q, const torch::Tensor& k, co
   if (q.size(3) > cpu_kernels::kMaxHeadDim)
     return fmt::format("head_dim {} is over {}", q.size(3), cpu_kernels::kMaxHeadDim);
   if (q.scalar_type() != k.scalar_type() || q.scalar_type() != v.scalar_type()) return "q, k and v dtypes differ";
-  const auto dtype = q.scalar_type();
-  if (isa == CpuIsa::Avx512Bf16 ? dtype != torch::kBFloat16 : dtype != torch::kFloat32 || isa < CpuIsa::Avx2)
-    return fmt::format("no {} kernel for {}", cpu_isa_name(isa), c10::toString(dtype));
+  if (!cpu_kernels::kernel_takes(isa, q.scalar_type()))
+    return fmt::format("no {} kernel for {}", cpu_isa_name(isa), c10::toString(q.scalar_type()));
   if (torch::GradMode::is_enabled() && (q.requires_grad() || k.requires_grad() || v.requires_grad()))
     return "gradients are wanted (the kernel has no backward pass)";
   return {};

@@ -17,12 +17,17 @@ inline void parallel_tasks(int64_t count, void (*task)(void*, int64_t), void* co
   parallel_dynamic(count, at::get_num_threads(), [&](int64_t i) { task(context, i); });
 }
 
-// The kernel set for inputs of `dtype` on this CPU: bf16 needs AVX-512 BF16; float takes
-// AVX-512 or AVX2. None for other dtypes or an older CPU.
+// Whether the kernel set `isa` takes inputs of `dtype`: bf16 only AVX-512 BF16's, float
+// AVX-512's and AVX2's.
+inline bool kernel_takes(CpuIsa isa, torch::ScalarType dtype) {
+  return isa == CpuIsa::Avx512Bf16 ? dtype == torch::kBFloat16 : dtype == torch::kFloat32 && isa >= CpuIsa::Avx2;
+}
+
+// The kernel set for inputs of `dtype` on this CPU, or none (other dtypes, an older CPU).
 inline std::optional<CpuIsa> kernel_isa(torch::ScalarType dtype) {
   const CpuFeatures& cpu = cpu_features();
-  if (dtype == torch::kBFloat16 && cpu.has(CpuIsa::Avx512Bf16)) return CpuIsa::Avx512Bf16;
-  if (dtype == torch::kFloat32 && cpu.has(CpuIsa::Avx2)) return cpu.has(CpuIsa::Avx512) ? CpuIsa::Avx512 : CpuIsa::Avx2;
+  for (CpuIsa isa : {CpuIsa::Avx512Bf16, CpuIsa::Avx512, CpuIsa::Avx2})
+    if (cpu.has(isa) && kernel_takes(isa, dtype)) return isa;
   return std::nullopt;
 }
 
