@@ -1,14 +1,17 @@
 # The two commands of the README. Both install missing Debian packages first.
 #   make demo   build, then run the main job and write demo-out/
 #   make test   build everything and run every test (plus the sanitizer build of the parsers)
+#   make test-gpu-build   the same against PyPI's LibTorch 2.x with the CUDA code compiled
+#               (scripts/gpu/build.sh; tests that need a GPU skip themselves without one)
 JOBS ?= $(shell nproc)
 BUILD ?= build
 SAN_BUILD ?= build-asan
+GPU_BUILD ?= build-gpu
 SHARED ?= ../shared
 
 FUZZ_SECONDS ?= 60
 
-.PHONY: all deps build demo test test-main san-build test-asan fuzz bench clean
+.PHONY: all deps build demo test test-main san-build test-asan test-gpu-build fuzz bench clean
 
 all: build
 
@@ -37,6 +40,11 @@ san-build: deps
 test-asan: san-build
 	@cd $(SAN_BUILD) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 ctest --output-on-failure -j $(JOBS)
 
+# PyPI's torch + NVIDIA's CUDA compiler in the project-local .venv-gpu (pinned in
+# scripts/gpu/requirements.txt), the CUDA code compiled, every test run.
+test-gpu-build: deps
+	@JOBS=$(JOBS) bash scripts/gpu/build.sh --build $(GPU_BUILD) --test
+
 # Every parser's fuzz target for FUZZ_SECONDS each (scripts/fuzz.sh --help).
 fuzz: san-build
 	@bash scripts/fuzz.sh --build $(SAN_BUILD) --seconds $(FUZZ_SECONDS)
@@ -45,4 +53,4 @@ bench: build
 	@$(BUILD)/instainpaint bench
 
 clean:
-	rm -rf $(BUILD) $(SAN_BUILD) demo-out fuzz-findings
+	rm -rf $(BUILD) $(SAN_BUILD) $(GPU_BUILD) demo-out fuzz-findings

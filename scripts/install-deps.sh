@@ -6,6 +6,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake ninja-build ccache
   clang                         # the sanitizer build and its libFuzzer targets
+  libclang-rt-14-dev            # clang's sanitizer and libFuzzer runtimes (clang only recommends it)
   libtorch-dev
   libopenblas0-pthread          # without it LibTorch falls back to reference BLAS (~60x slower)
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
@@ -20,6 +21,8 @@ PACKAGES=(
 # Node.js and npm bundle the page (web/); a machine that has them (e.g. from NodeSource) keeps its own.
 command -v node > /dev/null || PACKAGES+=(nodejs)
 command -v npm > /dev/null || PACKAGES+=(npm)
+# `make test-gpu-build` makes a virtual environment; Debian's python3 needs python3-venv for that.
+python3 -c 'import ensurepip, venv' 2> /dev/null || PACKAGES+=(python3-venv)
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Run ON a lent GPU machine, in the repository root, with .device/ carried (made here by
-# scripts/device/prepare.sh). One command does the whole GPU check of issue 9, so that a
-# session spends its device time once:
+# scripts/device/prepare.sh). One command does the whole GPU check, so that a session spends
+# its device time once:
 #   1. unpacks the carried Debian packages into a private prefix (nothing can be installed);
-#   2. builds against the LibTorch of the machine's PyTorch (CUDA) with the CUDA rasterizer;
+#   2. builds with scripts/gpu/build.sh, the recipe of `make test-gpu-build`, against the
+#      LibTorch of the machine's own PyTorch (CUDA) and for its GPU (sm_90);
 #   3. runs the whole test suite, the GPU tests included (agreement with the float32 CPU path);
 #   4. times the network: release model, 4 x 512² and 4 x 512 x 904, fast path, CUDA graph and
 #      the official code's way of computing in the same run;
@@ -25,7 +26,6 @@ step() { printf '\n== %s (%s)\n' "$*" "$(date +%T)"; }
 step "machine"
 nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader || true
 python3 -c 'import torch; print("torch", torch.__version__, "cuda", torch.version.cuda)'
-TORCH_PREFIX=$(python3 -c 'import torch; print(torch.utils.cmake_prefix_path)')
 nproc
 
 step "dependencies from .device/debs"
@@ -42,16 +42,18 @@ LIBS="$DEPS/usr/lib/x86_64-linux-gnu"
 # Debian's OpenCV loads BLAS/LAPACK through alternatives that dpkg-deb -x does not set up.
 export LD_LIBRARY_PATH="$LIBS:$LIBS/openblas-pthread:$DEPS/lib/x86_64-linux-gnu${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 
-step "configure and build ($BUILD)"
-NVCC=$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)
-cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH="$TORCH_PREFIX;$DEPS/usr" \
-  -DCMAKE_CUDA_COMPILER="$NVCC" -DCMAKE_CUDA_ARCHITECTURES=90 | grep -Ev "^-- (Looking|Performing|Check)"
-if ! cmake --build "$BUILD" -j "$(nproc)" > "$OUT/build.log" 2>&1; then
+# The build finds the unpacked packages through CMake's and pkg-config's search paths.
+export CMAKE_PREFIX_PATH="$DEPS/usr${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
+export PKG_CONFIG=$DEPS/usr/bin/pkgconf
+export PKG_CONFIG_LIBDIR="$LIBS/pkgconfig:$DEPS/usr/share/pkgconfig" PKG_CONFIG_SYSROOT_DIR=$DEPS
+
+step "configure and build ($BUILD): the recipe of make test-gpu-build, with this machine's PyTorch"
+if ! JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build "$BUILD" --cuda-arch 9.0 > "$OUT/build.log" 2>&1; then
   tail -60 "$OUT/build.log"
   echo "build failed (whole log: build.log)"
   exit 1
 fi
-grep -E "warning:" "$OUT/build.log" | head -20 || true
+grep -E "^gpu/build|^-- |warning:" "$OUT/build.log" | head -30 || true
 BIN=$BUILD/instainpaint
 
 if [[ " $STEPS " == *" tests "* ]]; then

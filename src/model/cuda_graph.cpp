@@ -24,11 +24,12 @@ struct GraphedForward::Captured {
 bool GraphedForward::available() { return II_HAS_CUDA_TORCH && torch::cuda::is_available(); }
 
 GraphedForward::GraphedForward(const Network& network, const torch::Tensor& images, const torch::Tensor& plucker,
-                               const torch::Tensor& rays_o, const torch::Tensor& rays_d_un, Precision precision)
-    : captured_(std::make_unique<Captured>()) {
+                               const torch::Tensor& rays_o, const torch::Tensor& rays_d_un, Precision precision) {
 #if II_HAS_CUDA_TORCH
   if (!images.is_cuda())
     fail("CUDA graph: the inputs are on {}, capture needs them on a CUDA device", images.device().str());
+  // Only now: LibTorch 2.x's CUDAGraph starts CUDA when constructed, which fails without a driver.
+  captured_ = std::make_unique<Captured>();
   torch::InferenceMode inference;
   const c10::cuda::CUDAGuard device_guard(images.device());
   Captured& c = *captured_;

@@ -84,8 +84,12 @@ inline double psnr(const torch::Tensor& a, const torch::Tensor& b) {
   return mse <= 0 ? 1000.0 : 10.0 * std::log10(1.0 / mse);
 }
 
+// The largest absolute value; 0 for an empty tensor (LibTorch 2.x refuses max() of nothing,
+// which a scene without Gaussians gives).
+inline double max_abs(const torch::Tensor& a) { return a.numel() == 0 ? 0.0 : a.abs().max().item<double>(); }
+
 inline double max_abs_diff(const torch::Tensor& a, const torch::Tensor& b) {
-  return (a.to(torch::kFloat64) - b.to(torch::kFloat64)).abs().max().item<double>();
+  return max_abs(a.to(torch::kFloat64) - b.to(torch::kFloat64));
 }
 
 }  // namespace ii::test
