@@ -7,6 +7,22 @@
 # spdlog's headers do not compile with fmt 12, and code that did would mix two fmts. Links to
 # the system's fmt and spdlog headers, searched before LibTorch's folder, keep every file on
 # the fmt of the libraries it links. (Debian's own LibTorch bundles no fmt: nothing changes.)
+# LibTorch's CMake files look for its libraries with find_library, where the system's folders
+# come before the hint of its own: with Debian's libtorch-dev installed, a PyPI LibTorch got
+# Debian's libc10.so on its link line unless its own prefix comes first in CMAKE_PREFIX_PATH
+# (scripts/gpu/build.sh does that). Refuse a mixed configuration rather than build one.
+if(EXISTS ${TORCH_INSTALL_PREFIX}/lib/libc10.so)  # a self-contained LibTorch (PyPI, zip)
+  get_filename_component(own_lib_dir ${TORCH_INSTALL_PREFIX}/lib REALPATH)
+  foreach(var TORCH_LIBRARY c10_LIBRARY)
+    get_filename_component(found_dir "${${var}}" DIRECTORY)
+    get_filename_component(found_dir "${found_dir}" REALPATH)
+    if(NOT found_dir STREQUAL own_lib_dir)
+      message(FATAL_ERROR "LibTorch from ${TORCH_INSTALL_PREFIX}, but ${var} is ${${var}} (another "
+        "LibTorch installation): put ${TORCH_INSTALL_PREFIX} first in CMAKE_PREFIX_PATH")
+    endif()
+  endforeach()
+endif()
+
 set(II_TORCH_BUNDLES_FMT OFF)
 foreach(dir ${TORCH_INCLUDE_DIRS})
   if(EXISTS ${dir}/fmt/core.h)
@@ -23,7 +39,10 @@ if(II_TORCH_BUNDLES_FMT)
     file(MAKE_DIRECTORY ${II_SYSTEM_FIRST})
     file(CREATE_LINK ${II_${name}_HEADERS}/${name} ${II_SYSTEM_FIRST}/${name} SYMBOLIC)
   endforeach()
-  include_directories(BEFORE SYSTEM ${II_SYSTEM_FIRST})
+  # On LibTorch's own target, so that only files that use LibTorch see it: the torch-free ones
+  # compile exactly as in the Debian build (and share its compiler cache).
+  get_target_property(torch_includes torch INTERFACE_INCLUDE_DIRECTORIES)
+  set_target_properties(torch PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${II_SYSTEM_FIRST};${torch_includes}")
   message(STATUS "LibTorch bundles fmt headers: the system's fmt and spdlog come first (${II_SYSTEM_FIRST})")
 endif()
 

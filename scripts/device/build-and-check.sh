@@ -56,6 +56,9 @@ fi
 grep -E "^gpu/build|^-- |warning:" "$OUT/build.log" | head -30 || true
 BIN=$BUILD/instainpaint
 
+step "libraries the binary loads from this machine's own system (expected: glibc, libstdc++, libgcc)"
+ldd "$BIN" | grep -v -E "$DEPS|site-packages|linux-vdso|ld-linux" || true
+
 if [[ " $STEPS " == *" tests "* ]]; then
   step "tests (GPU tests included)"
   export INSTAINPAINT_SHARED=$PWD/.device/shared

@@ -21,7 +21,8 @@ PACKAGES=(
   libopencv-features2d-dev libopencv-features2d406 libopencv-flann-dev libopencv-flann406
   libgtest-dev libgmock-dev libbenchmark-dev libbenchmark1debian
   libcpp-httplib-dev libcpp-httplib0.11 libbrotli1 libssl3
-  pkgconf pkgconf-bin libpkgconf3  # the build finds cpp-httplib through pkg-config
+  pkgconf pkgconf-bin libpkgconf3  # the build finds cpp-httplib through pkg-config,
+  libssl-dev zlib1g-dev libbrotli-dev  # whose .pc file requires theirs
   # what Debian's OpenCV 4.6 loads
   libtbb12 libopenblas0-pthread libgfortran5 libquadmath0 libglx0 libglvnd0
   libx11-6 libxcb1 libxau6 libxdmcp6 libbsd0 libmd0

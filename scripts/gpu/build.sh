@@ -53,16 +53,17 @@ if [ -z "$python" ]; then
   fi
   python=$venv/bin/python
 fi
-read -r torch_version torch_cuda torch_prefix site < <("$python" -W ignore -c '
+read -r torch_version torch_cuda torch_root < <("$python" -W ignore -c '
 import os, torch
-print(torch.__version__, torch.version.cuda, torch.utils.cmake_prefix_path,
-      os.path.dirname(os.path.dirname(torch.__file__)))')
-say "LibTorch $torch_version (CUDA $torch_cuda) from $torch_prefix"
+print(torch.__version__, torch.version.cuda, os.path.dirname(torch.__file__))')
+site=$(dirname "$torch_root")
+say "LibTorch $torch_version (CUDA $torch_cuda) from $torch_root"
 [ "$torch_cuda" != None ] || { say "this torch has no CUDA: nothing for the CUDA code to build against"; exit 1; }
 
 # ---- 2. the CUDA compiler: NVIDIA's PyPI packages beside torch, else the machine's ---------
 cuda_root=""
-for candidate in "$site/nvidia/cu${torch_cuda%%.*}" "$(dirname "$(dirname "$(command -v nvcc || echo /x/x)")")" /usr/local/cuda; do
+path_nvcc=$(command -v nvcc || true)
+for candidate in "$site/nvidia/cu${torch_cuda%%.*}" "${path_nvcc:+$(dirname "$(dirname "$path_nvcc")")}" /usr/local/cuda; do
   if [ -x "$candidate/bin/nvcc" ]; then cuda_root=$candidate; break; fi
 done
 [ -n "$cuda_root" ] || { say "no nvcc (pip install 'cuda-toolkit[nvcc,crt,cccl,nvvm,cudart]==$torch_cuda.*' beside torch)"; exit 1; }
@@ -77,11 +78,12 @@ fi
 # profile and CMake look in lib64/), only versioned names (libcudart.so.13; CMake looks for
 # libcudart.so), cuDNN, NCCL, cuSPARSELt in folders of their own, and no driver library. A
 # toolkit-shaped view of links in the build folder gives nvcc, CMake and LibTorch's CMake
-# configuration what they expect, plus a stub libcuda.so (soname libcuda.so.1, no symbols) for
+# configuration what they expect, plus a stub libcuda.so (soname libcuda.so.1, no driver functions) for
 # the link of CUDA::cuda_driver: nothing of ours calls the driver directly and --as-needed keeps
 # it out of the binaries, so they start on a machine without a driver.
+mkdir -p "$build"
 if [ ! -d "$cuda_root/lib64" ]; then
-  view=$repo/$build/cuda-toolkit
+  view=$(cd "$build" && pwd)/cuda-toolkit
   rm -rf "$view"
   mkdir -p "$view/bin" "$view/include" "$view/lib64/stubs"
   ln -s "$cuda_root"/bin/* "$view/bin/"     # nvcc finds its profile and tools beside argv[0]
@@ -100,12 +102,17 @@ if [ ! -d "$cuda_root/lib64" ]; then
 fi
 
 # ---- 3. configure and build ----------------------------------------------------------------
+# torch's own folder as the first prefix: its CMake files (share/cmake/Torch) and its libraries
+# (lib/) are found before any other LibTorch, Debian's included (cmake/torch_compat.cmake).
 launcher=()
 if command -v ccache > /dev/null; then launcher=(-DCMAKE_CUDA_COMPILER_LAUNCHER=ccache); fi
 say "configuring $build (CUDA architectures $archs)"
-mkdir -p "$build"
+if [ -f "$build/CMakeCache.txt" ] && ! grep -qx "Torch_DIR:PATH=$torch_root/share/cmake/Torch" "$build/CMakeCache.txt"; then
+  say "$build was configured for another LibTorch: configuring it afresh"
+  rm -f "$build/CMakeCache.txt"
+fi
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
-  -DCMAKE_PREFIX_PATH="$torch_prefix" \
+  -DCMAKE_PREFIX_PATH="$torch_root" \
   -DCMAKE_CUDA_COMPILER="$cuda_root/bin/nvcc" -DCUDAToolkit_ROOT="$cuda_root" -DCUDA_TOOLKIT_ROOT_DIR="$cuda_root" \
   -DTORCH_CUDA_ARCH_LIST="$archs" -DINSTAINPAINT_REQUIRE_CUDA=ON \
   -DCMAKE_EXE_LINKER_FLAGS="-Wl,--as-needed" \
