@@ -1,12 +1,6 @@
 # The build side of the differences between LibTorch builds (src/common/torch_compat.h holds
 # the C++ side). Included right after find_package(Torch), before any target exists.
 #
-# PyPI's LibTorch 2.x ships the headers of the third-party libraries it was built with, fmt 12
-# among them, in its include folder. That folder is searched before the system's, so <fmt/...>
-# would be fmt 12 while the program links Debian's fmt 9 and the spdlog built against it:
-# spdlog's headers do not compile with fmt 12, and code that did would mix two fmts. Links to
-# the system's fmt and spdlog headers, searched before LibTorch's folder, keep every file on
-# the fmt of the libraries it links. (Debian's own LibTorch bundles no fmt: nothing changes.)
 # LibTorch's CMake files look for its libraries with find_library, where the system's folders
 # come before the hint of its own: with Debian's libtorch-dev installed, a PyPI LibTorch got
 # Debian's libc10.so on its link line unless its own prefix comes first in CMAKE_PREFIX_PATH
@@ -23,6 +17,12 @@ if(EXISTS ${TORCH_INSTALL_PREFIX}/lib/libc10.so)  # a self-contained LibTorch (P
   endforeach()
 endif()
 
+# PyPI's LibTorch 2.x ships the headers of the third-party libraries it was built with, fmt 12
+# among them, in its include folder. That folder is searched before the system's, so <fmt/...>
+# would be fmt 12 while the program links Debian's fmt 9 and the spdlog built against it:
+# spdlog's headers do not compile with fmt 12, and code that did would mix two fmts. Links to
+# the system's fmt and spdlog headers, searched before LibTorch's folder, keep every file on
+# the fmt of the libraries it links. (Debian's own LibTorch bundles no fmt: nothing changes.)
 set(II_TORCH_BUNDLES_FMT OFF)
 foreach(dir ${TORCH_INCLUDE_DIRS})
   if(EXISTS ${dir}/fmt/core.h)
