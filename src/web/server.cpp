@@ -244,6 +244,10 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
 
   // Uploaded images: PNG or JPEG, kept in the job's folder under fixed names and decoded now
   // (a broken file is the request's fault, not the job's); errors name the field, not the file.
+  // The header is read first: a few kilobytes of PNG can claim gigabytes of pixels, so nothing
+  // larger than 4 times the view is decoded.
+  const int view_width = view.camera.K.width, view_height = view.camera.K.height;
+  const int64_t max_pixels = 4 * static_cast<int64_t>(view_width) * view_height;
   auto read_upload = [&](const char* field, const std::function<Image(const fs::path&)>& decode,
                          Image& into) -> std::optional<Refusal> {
     const std::string& bytes = req.get_file_value(field).content;
@@ -253,6 +257,11 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
     const fs::path file = dir / (std::string(field) + "." + type);
     write_file_atomic(file, bytes);
     try {
+      const ImageInfo info = probe_image(file);
+      if (static_cast<int64_t>(info.width) * info.height > max_pixels)
+        return Refusal{400, fmt::format("{}: {}x{} pixels, more than this server decodes for view {} ({}x{}: at "
+                                        "most 4 times its pixels)",
+                                        field, info.width, info.height, view.name, view_width, view_height)};
       into = decode(file);
     } catch (const std::exception& e) {
       std::string what = e.what();

@@ -185,6 +185,13 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
   r = s.client->Post("/api/edit", edit_form("view_001", mask, "mode", "insert"));
   EXPECT_EQ(r->status, 400);
   EXPECT_EQ(error_of(r), "insert needs a reference: the view's photo with the new object painted in");
+  // A reference far larger than the view is refused from its header, before decoding.
+  write_png(s.out / "huge.png", Image(400, 400, 3));
+  r = s.client->Post("/api/edit", edit_form("view_001", mask, "reference", test::file_bytes(s.out / "huge.png")));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r),
+            "reference: 400x400 pixels, more than this server decodes for view view_001 (48x40: at most 4 times its "
+            "pixels)");
   r = s.client->Post("/api/masks", edit_form("view_001", std::string(80 << 10, 'x')));
   EXPECT_EQ(r->status, 413);
   // Nothing ran, nothing was left behind.
