@@ -48,6 +48,33 @@ void reply(httplib::Response& res, int status, const json& body) {
 
 void refuse(httplib::Response& res, const Refusal& r) { reply(res, r.status, {{"error", r.message}}); }
 
+// The host name of a Host header or of an origin's authority ("[::1]:8080" -> "[::1]").
+std::string host_name(std::string_view authority) {
+  if (!authority.empty() && authority.front() == '[') return std::string(authority.substr(0, authority.find(']') + 1));
+  return std::string(authority.substr(0, authority.find(':')));
+}
+
+// Any website open in the user's browser can send requests to a server on loopback, and with
+// DNS rebinding read the answers. Served are only requests addressed to this server by one of
+// its names (Host: loopback names and --host), and requests that change anything only from
+// the server's own page (a browser's Origin equals the Host it sent to).
+std::optional<Refusal> foreign_request(const httplib::Request& req, const std::string& bound_host) {
+  const std::string host = req.get_header_value("Host");
+  const std::string name = host_name(host);
+  if (name != "localhost" && name != "127.0.0.1" && name != "[::1]" && name != bound_host &&
+      name != "[" + bound_host + "]")
+    return Refusal{403, fmt::format("Host '{}' is not a name of this server (open it as http://127.0.0.1:<port>/ "
+                                    "or by the --host it was started with)",
+                                    host)};
+  if (req.method != "GET" && req.method != "HEAD" && req.has_header("Origin")) {
+    const std::string origin = req.get_header_value("Origin");
+    const std::string_view scheme = "http://";
+    if (origin.rfind(scheme, 0) != 0 || origin.substr(scheme.size()) != host)
+      return Refusal{403, fmt::format("a request from another website ({}) may not change anything here", origin)};
+  }
+  return std::nullopt;
+}
+
 const char* image_type(std::string_view bytes) {
   if (bytes.size() >= 8 && bytes.substr(0, 8) == std::string_view("\x89PNG\r\n\x1a\n", 8)) return "png";
   if (bytes.size() >= 3 && bytes.substr(0, 3) == std::string_view("\xFF\xD8\xFF", 3)) return "jpg";
@@ -435,6 +462,13 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
     }
     spdlog::error("request failed: {}", what);
     reply(res, 500, {{"error", what}});
+  });
+  http.set_pre_routing_handler([&s](const httplib::Request& req, httplib::Response& res) {
+    if (auto r = foreign_request(req, s.options.host)) {
+      refuse(res, *r);
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    return httplib::Server::HandlerResponse::Unhandled;
   });
   http.set_error_handler([](const httplib::Request&, httplib::Response& res) {
     if (res.body.empty())

@@ -50,6 +50,7 @@ struct RunningServer {
   std::unique_ptr<WebServer> server;
   std::thread thread;
   std::unique_ptr<httplib::Client> client;
+  int port = 0;
   fs::path out;
 
   explicit RunningServer(ServeOptions o, const Predictor* predictor = &default_model()) {
@@ -58,7 +59,7 @@ struct RunningServer {
     if (o.out == "serve-out") o.out = test::temp_dir("serve-out");
     out = o.out;
     server = std::make_unique<WebServer>(o, predictor);
-    const int port = server->bind();
+    port = server->bind();
     thread = std::thread([this] { server->run(); });
     client = std::make_unique<httplib::Client>("127.0.0.1", port);
     client->set_read_timeout(60, 0);
@@ -197,6 +198,29 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
   // Nothing ran, nothing was left behind.
   EXPECT_EQ(json::parse(s.client->Get("/api/job")->body)["state"], "idle");
   EXPECT_TRUE(fs::is_empty(s.out / "jobs"));
+}
+
+TEST(Serve, OtherWebsitesAreRefused) {
+  RunningServer s(room_options());
+  const std::string mask = view_mask_bytes("view_001");
+  auto error_of = [](const httplib::Result& r) { return json::parse(r->body)["error"].get<std::string>(); };
+  // DNS rebinding: a foreign name resolving to loopback.
+  auto r = s.client->Get("/api/info", {{"Host", "evil.example"}});
+  EXPECT_EQ(r->status, 403);
+  EXPECT_EQ(error_of(r),
+            "Host 'evil.example' is not a name of this server (open it as http://127.0.0.1:<port>/ or by the --host it "
+            "was started with)");
+  // A cross-origin form post from a page elsewhere.
+  r = s.client->Post("/api/masks", {{"Origin", "http://evil.example"}}, edit_form("view_001", mask));
+  EXPECT_EQ(r->status, 403);
+  EXPECT_EQ(error_of(r), "a request from another website (http://evil.example) may not change anything here");
+  EXPECT_EQ(json::parse(s.client->Get("/api/job")->body)["state"], "idle");
+  EXPECT_TRUE(fs::is_empty(s.out / "jobs"));
+  // The server's own names and page are served.
+  EXPECT_EQ(s.client->Get("/api/info", {{"Host", "localhost:8080"}})->status, 200);
+  EXPECT_EQ(s.client->Get("/api/info", {{"Host", "[::1]:8080"}})->status, 200);
+  const std::string own = "http://127.0.0.1:" + std::to_string(s.port);
+  EXPECT_EQ(s.client->Post("/api/masks", {{"Origin", own}}, edit_form("view_001", mask))->status, 202);
 }
 
 TEST(Serve, OneJobAtATimeAndAFailedJobLeavesTheServerRunning) {
