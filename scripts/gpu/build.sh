@@ -47,7 +47,7 @@ if [ -z "$python" ]; then
     python3 -m venv "$venv"
   fi
   if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
-    say "installing scripts/gpu/requirements.txt into $venv (PyPI's torch with CUDA, ~3 GB the first time; pip keeps the wheels in its cache)"
+    say "installing scripts/gpu/requirements.txt into $venv (PyPI's torch with CUDA, about 5 GB installed the first time; pip keeps the wheels in its cache)"
     "$venv/bin/pip" install --quiet --disable-pip-version-check --only-binary=:all: -r "$requirements"
     echo "$want" > "$stamp"
   fi

@@ -89,6 +89,9 @@ httplib::MultipartFormDataItems edit_form(const std::string& view, const std::st
   return items;
 }
 
+// The message of a refused request.
+std::string error_of(const httplib::Result& r) { return json::parse(r->body)["error"].get<std::string>(); }
+
 std::string view_mask_bytes(const std::string& view) {
   return test::file_bytes(room() / "images_4" / "label" / (view + ".png"));
 }
@@ -155,7 +158,6 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
   o.max_upload_bytes = 64 << 10;
   RunningServer s(o);
   const std::string mask = view_mask_bytes("view_001");
-  auto error_of = [](const httplib::Result& r) { return json::parse(r->body)["error"].get<std::string>(); };
 
   auto r = s.client->Post("/api/masks", "view=view_001", "application/x-www-form-urlencoded");
   EXPECT_EQ(r->status, 400);
@@ -203,7 +205,6 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
 TEST(Serve, OtherWebsitesAreRefused) {
   RunningServer s(room_options());
   const std::string mask = view_mask_bytes("view_001");
-  auto error_of = [](const httplib::Result& r) { return json::parse(r->body)["error"].get<std::string>(); };
   // DNS rebinding: a foreign name resolving to loopback.
   auto r = s.client->Get("/api/info", {{"Host", "evil.example"}});
   EXPECT_EQ(r->status, 403);
