@@ -9,15 +9,17 @@
 #   4. times the network: release model, 4 x 512² and 4 x 512 x 904, fast path, CUDA graph and
 #      the official code's way of computing in the same run;
 #   5. times `eval` end to end on a synthetic room with 40 test views at 904 x 512.
+#   6. writes $OUT/instainpaint.tar.xz, the binary with the Debian libraries it loads, for later
+#      calls that need no build (scripts/device/train-default-model.sh), and times a few training
+#      steps of the `medium` preset to size them.
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
-#   run(command="bash scripts/device/build-and-check.sh", carry=[".device"], timeout_s=600)
+#   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared"], timeout_s=600)
 # STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
 # machine stays warm).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}
-STEPS=${STEPS:-"tests bench eval"}
-DEPS=/opt/instainpaint-deps
+STEPS=${STEPS:-"tests bench eval bundle"}
 BUILD=build-gpu
 mkdir -p "$OUT"
 exec > >(tee -a "$OUT/build-and-check.log") 2>&1
@@ -29,23 +31,8 @@ python3 -c 'import torch; print("torch", torch.__version__, "cuda", torch.versio
 nproc
 
 step "dependencies from .device/debs"
-[ -d .device/debs ] || { echo "no .device/debs: run scripts/device/prepare.sh here and carry .device"; exit 2; }
-mkdir -p "$DEPS"
-for f in .device/debs/*.deb; do
-  if command -v dpkg-deb > /dev/null; then
-    dpkg-deb -x "$f" "$DEPS"
-  else  # a .deb is an ar archive holding data.tar.xz (Debian 12)
-    ar p "$f" data.tar.xz | tar -xJ -C "$DEPS"
-  fi
-done
-LIBS="$DEPS/usr/lib/x86_64-linux-gnu"
-# Debian's OpenCV loads BLAS/LAPACK through alternatives that dpkg-deb -x does not set up.
-export LD_LIBRARY_PATH="$LIBS:$LIBS/openblas-pthread:$DEPS/lib/x86_64-linux-gnu${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
-
-# The build finds the unpacked packages through CMake's and pkg-config's search paths.
-export CMAKE_PREFIX_PATH="$DEPS/usr${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
-export PKG_CONFIG=$DEPS/usr/bin/pkgconf
-export PKG_CONFIG_LIBDIR="$LIBS/pkgconfig:$DEPS/usr/share/pkgconfig" PKG_CONFIG_SYSROOT_DIR=$DEPS
+source scripts/device/deps.sh
+device_deps_from_debs
 
 step "configure and build ($BUILD): the recipe of make test-gpu-build, with this machine's PyTorch"
 if ! JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build "$BUILD" --cuda-arch 9.0 > "$OUT/build.log" 2>&1; then
@@ -58,11 +45,25 @@ BIN=$BUILD/instainpaint
 
 step "libraries the binary loads from this machine's own system (expected: glibc, libstdc++, libgcc)"
 ldd "$BIN" | grep -v -E "$DEPS|site-packages|linux-vdso|ld-linux" || true
+[[ " $STEPS " != *" bundle "* ]] || device_make_bundle "$BIN" "$OUT"
+
+if [[ " $STEPS " == *" bundle "* ]]; then
+  step "training throughput: medium preset, 256 x 256, bf16 (sizes scripts/device/train-default-model.sh)"
+  "$BIN" synth --out /tmp/ii-probe --scenes 4 --seed 5 --views 20 --test-views 4 --width 256 --height 256 \
+    --degrade mixed --threads "$(nproc)" 2>&1 | tail -1
+  for batch in 8 16; do
+    "$BIN" train --scenes /tmp/ii-probe --out "/tmp/ii-probe-$batch" --stage inpaint --preset medium --width 256 \
+      --height 256 --inputs 4 --targets 4 --batch "$batch" --steps 40 --val-every 0 --save-every 0 --device cuda \
+      --precision bf16 --workers 12 --log-every 20 2>&1 | grep -E "step 40|throughput|error" || true
+  done
+fi
 
 if [[ " $STEPS " == *" tests "* ]]; then
   step "tests (GPU tests included)"
   export INSTAINPAINT_SHARED=$PWD/.device/shared
-  (cd "$BUILD" && ctest -j 8 --output-on-failure) | tail -40 || echo "some tests failed (above)"
+  (cd "$BUILD" && ctest -j 12 --timeout 240 --output-on-failure) > "$OUT/ctest.log" 2>&1 ||
+    echo "some tests failed (ctest.log)"
+  grep -E "tests passed|Failed|\*\*\*|Not Run" "$OUT/ctest.log" | head -40 || true
   (cd "$BUILD" && ctest -R "Cuda|Gpu|GraphedForward|Device" -V) |
     grep -E "\[ +(OK|FAILED|SKIPPED) +\]|Expected|Which is|Value of" || true
 fi

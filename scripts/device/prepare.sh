@@ -4,8 +4,9 @@
 # device tool carries along (`carry: [".device"]`):
 #   .device/debs/     the Debian packages of our build dependencies and the libraries they
 #                     load that a CUDA image usually lacks (OpenCV's X11/GL/BLAS, TBB, ...)
-#   .device/shared/   the ../shared fixtures the GPU tests read (only ../shared's checkout
-#                     travels otherwise, and ../shared does not)
+#   .device/shared/   the ../shared fixtures and data the GPU tests read (only the checkout
+#                     travels, and ../shared does not)
+#   .device/scenes/   the real scenes a default model trains on (scripts/device/train-default-model.sh)
 # Then, on the GPU machine: bash scripts/device/build-and-check.sh (see its header).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -32,9 +33,11 @@ mkdir -p "$DEST/debs"
 rm -f "$DEST"/debs/*.deb
 (cd "$DEST/debs" && apt-get download -qq "${PACKAGES[@]}")
 
-mkdir -p "$DEST/shared/fixtures"
-rm -rf "$DEST/shared/fixtures/official-tiny"
+rm -rf "$DEST/shared" "$DEST/scenes"
+mkdir -p "$DEST/shared/fixtures" "$DEST/shared/data" "$DEST/scenes"
 cp -r "$SHARED/fixtures/official-tiny" "$DEST/shared/fixtures/"
+cp -r "$SHARED/data/render-golden" "$DEST/shared/data/"
+cp -r "$SHARED/data/fern" "$SHARED/data/fox" "$DEST/scenes/"
 
 echo "prepare: $(ls "$DEST"/debs/*.deb | wc -l) packages, $(du -sh "$DEST" | cut -f1) in $DEST"
-echo "carry it: run(command=\"bash scripts/device/build-and-check.sh\", carry=[\"$DEST\"])"
+echo "carry it: run(command=\"bash scripts/device/build-and-check.sh\", carry=[\"$DEST/debs\", \"$DEST/shared\"])"

@@ -36,6 +36,17 @@ ModelConfig ModelConfig::from_preset(const std::string& name) {
     c.rgb_from_input = true;
     return c;
   }
+  if (name == "medium") {  // a default model trained on a GPU: ~10 M parameters, head dim 64
+    c.embed_dim = 320;
+    c.blocks = 8;
+    c.heads = 5;
+    c.upsampler_dim = 256;
+    c.depth_far = 20.0;  // the same starting points as `mini` (see there)
+    c.depth_bias = -2.0;
+    c.scale_bias = -4.0;  // about a pixel wide at 256 px
+    c.rgb_from_input = true;
+    return c;
+  }
   if (name == "tiny") {  // the official-layout parity fixture
     c.embed_dim = 128;
     c.blocks = 2;
@@ -46,7 +57,7 @@ ModelConfig ModelConfig::from_preset(const std::string& name) {
   fail("unknown model preset '{}' (known: {})", name, preset_names());
 }
 
-const char* ModelConfig::preset_names() { return "release, base, small, mini, tiny"; }
+const char* ModelConfig::preset_names() { return "release, base, small, medium, mini, tiny"; }
 
 int64_t ModelConfig::parameter_count() const {
   const int64_t D = embed_dim, p2 = static_cast<int64_t>(patch) * patch;

@@ -1,7 +1,8 @@
 #pragma once
 // Architecture of the InstaInpaint network (spec §1). Presets: `release` is the published
 // 309M-parameter model; `tiny` is the official-layout parity fixture; `small` and `base`
-// are the sizes we train ourselves; `mini` is the embedded default model's.
+// are the sizes we train ourselves; `mini` is the embedded default model's, `medium` one
+// trained on a GPU.
 #include <cstdint>
 #include <string>
 
@@ -29,7 +30,7 @@ struct ModelConfig {
   double encoder_ln_eps = 1e-6, ln_eps = 1e-5;
 
   static ModelConfig from_preset(const std::string& name);  // throws Error on unknown names
-  static const char* preset_names();                        // "release, base, small, mini, tiny"
+  static const char* preset_names();                        // "release, base, small, medium, mini, tiny"
 
   int head_dim() const { return embed_dim / heads; }
   int64_t parameter_count() const;  // including the inert cls token

@@ -29,7 +29,7 @@ TEST(ModelConfig, PresetSizes) {
   const ModelConfig release = ModelConfig::from_preset("release");
   EXPECT_EQ(release.parameter_count(), 308902656 - 24 * 9216 - (5 * 1024 + 64 + 192 + 64 + 192 + 256));
   EXPECT_EQ(test::error_message([] { ModelConfig::from_preset("huge"); }),
-            "unknown model preset 'huge' (known: release, base, small, mini, tiny)");
+            "unknown model preset 'huge' (known: release, base, small, medium, mini, tiny)");
   ModelConfig bad = release;
   bad.heads = 5;
   EXPECT_EQ(test::error_message([&] { bad.validate(); }), "model config: embed_dim 1024 is not divisible by 5 heads");
