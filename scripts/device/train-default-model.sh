@@ -5,16 +5,20 @@
 # stage 2 inpainting with the depth loss), scaled to a GPU. The statue scene is left out: it is
 # the real scene the model is judged on. Evaluation happens afterwards on any machine
 # (models/MODEL_CARD.md); this writes to $OUT:
-#   stage1.safetensors, model.safetensors   the models after each stage (the latter updated at
-#                                           every checkpoint, so a run cut short still returns one)
+#   model.part-aa, -ab, ...   the model (the stage-2 checkpoint, updated while training runs, so a run
+#                             cut short still returns one), in pieces under the tool's 16 MiB a file:
+#                             cat model.part-* > model.safetensors
 #   train.log                               everything printed
-# Here, before:   scripts/device/prepare.sh; copy the bundle from build-and-check.sh's $OUT to
-#                 .device/bundle/instainpaint.tar.xz
-#   run(command="bash scripts/device/train-default-model.sh", carry=[".device/bundle", ".device/scenes"])
-# Environment: STAGE1_STEPS, STAGE2_STEPS, BATCH, ROOMS (training rooms), WORKERS.
+# Here, before:   scripts/device/prepare.sh, then either copy the bundle from build-and-check.sh's $OUT
+#                 to .device/bundle/instainpaint.tar.xz, or carry .device/debs to build here:
+#   run(command="bash scripts/device/train-default-model.sh", carry=[".device/debs", ".device/scenes"])
+# Environment: SIZE (pixels, square), STAGE1_STEPS, STAGE2_STEPS, BATCH, ROOMS (training rooms),
+# WORKERS, STAGE_SECONDS (each stage is stopped after this long; its last checkpoint counts).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}
+SIZE=${SIZE:-256}
+STAGE_SECONDS=${STAGE_SECONDS:-3600}
 STAGE1_STEPS=${STAGE1_STEPS:-1500}
 STAGE2_STEPS=${STAGE2_STEPS:-2000}
 BATCH=${BATCH:-8}
@@ -26,36 +30,40 @@ exec > >(tee -a "$OUT/train.log") 2>&1
 step() { printf '\n== %s (%s)\n' "$*" "$(date +%T)"; }
 
 source scripts/device/deps.sh
-device_deps_from_bundle
+if [ -f .device/bundle/instainpaint.tar.xz ]; then
+  device_deps_from_bundle
+else  # no bundle carried: build the program alone (about 2 minutes on 16 cores)
+  device_deps_from_debs
+  JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build build-gpu --cuda-arch 9.0 \
+    --target instainpaint > "$OUT/build.log" 2>&1 || { tail -40 "$OUT/build.log"; exit 1; }
+  BIN=build-gpu/instainpaint
+fi
 nvidia-smi --query-gpu=name,memory.total --format=csv,noheader || true
 "$BIN" --version
 
-step "training rooms ($ROOMS, seed 1001) and validation rooms (6, seed 777001) at 256 x 256"
-"$BIN" synth --out "$WORK/train" --scenes "$ROOMS" --seed 1001 --views 20 --test-views 4 --width 256 --height 256 \
-  --degrade mixed --threads "$(nproc)" 2>&1 | tail -1
-"$BIN" synth --out "$WORK/val" --scenes 6 --seed 777001 --views 20 --test-views 4 --width 256 --height 256 \
+step "training rooms ($ROOMS, seed 1001) and validation rooms (6, seed 777001) at $SIZE x $SIZE"
+"$BIN" synth --out "$WORK/train" --scenes "$ROOMS" --seed 1001 --views 20 --test-views 4 --width "$SIZE" \
+  --height "$SIZE" --degrade mixed --threads "$(nproc)" 2>&1 | tail -1
+"$BIN" synth --out "$WORK/val" --scenes 6 --seed 777001 --views 20 --test-views 4 --width "$SIZE" --height "$SIZE" \
   --degrade mixed --threads "$(nproc)" 2>&1 | tail -1
 SCENES="$WORK/train,.device/scenes/fern,.device/scenes/fox"
-common=(--scenes "$SCENES" --val-scenes "$WORK/val" --width 256 --height 256 --inputs 4 --targets 4
+common=(--scenes "$SCENES" --val-scenes "$WORK/val" --width "$SIZE" --height "$SIZE" --inputs 4 --targets 4
   --batch "$BATCH" --device cuda --precision bf16 --workers "$WORKERS" --val-every 250 --val-samples 12
-  --save-every 250 --log-every 50)
+  --save-every 100 --log-every 50)
 
 step "stage 1: reconstruction, $STAGE1_STEPS steps"
-"$BIN" train "${common[@]}" --out "$WORK/stage1" --stage reconstruct --preset medium --steps "$STAGE1_STEPS" \
-  --lr 6e-4 --warmup 100
-cp "$WORK/stage1/model.safetensors" "$OUT/stage1.safetensors"
+timeout "$STAGE_SECONDS" "$BIN" train "${common[@]}" --out "$WORK/stage1" --stage reconstruct --preset medium --steps "$STAGE1_STEPS" \
+  --lr 6e-4 --warmup 100 || echo "stage 1 stopped early (status $?)"
 
 step "stage 2: masked inpainting with the depth loss, $STAGE2_STEPS steps"
 # The last checkpoint goes to $OUT while training runs: a call cut short still brings a model back.
-( while sleep 20; do
-    [ -f "$WORK/stage2/model.safetensors" ] && cp "$WORK/stage2/model.safetensors" "$OUT/model.safetensors.part" &&
-      mv "$OUT/model.safetensors.part" "$OUT/model.safetensors"
-  done ) &
+export_model() { rm -f "$OUT"/model.part-*; split -b 15M "$WORK/stage2/model.safetensors" "$OUT/model.part-"; }
+( while sleep 20; do [ -f "$WORK/stage2/model.safetensors" ] && export_model; done ) &
 copier=$!
-"$BIN" train "${common[@]}" --out "$WORK/stage2" --stage inpaint --init "$WORK/stage1/model.safetensors" \
-  --steps "$STAGE2_STEPS" --lr 4e-4 --warmup 100 --depth-weight 0.2
+timeout "$STAGE_SECONDS" "$BIN" train "${common[@]}" --out "$WORK/stage2" --stage inpaint --init "$WORK/stage1/model.safetensors" \
+  --steps "$STAGE2_STEPS" --lr 4e-4 --warmup 100 --depth-weight 0.2 || echo "stage 2 stopped early (status $?)"
 kill "$copier"
-cp "$WORK/stage2/model.safetensors" "$OUT/model.safetensors"
+export_model
 cp "$WORK/stage1/log.jsonl" "$OUT/stage1-log.jsonl"
 cp "$WORK/stage2/log.jsonl" "$OUT/stage2-log.jsonl"
 step "done"

@@ -10,6 +10,7 @@
 #   --build DIR    build folder (default build-gpu)
 #   --cuda-arch A  CUDA architectures in LibTorch's TORCH_CUDA_ARCH_LIST form (LibTorch's CMake
 #                  configuration ignores CMAKE_CUDA_ARCHITECTURES); default "8.0;9.0" (A100, H100/H200)
+#   --target T     build only target T (repeatable; default: everything)
 #   --test         then run every test (those that need a GPU skip without one)
 # Examples:
 #   scripts/gpu/build.sh --test                          # what `make test-gpu-build` runs
@@ -23,11 +24,13 @@ python=""
 build=build-gpu
 archs=${TORCH_CUDA_ARCH_LIST:-"8.0;9.0"}
 run_tests=0
+targets=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --python) python=$2; shift 2 ;;
     --build) build=$2; shift 2 ;;
     --cuda-arch) archs=$2; shift 2 ;;
+    --target) targets+=(--target "$2"); shift 2 ;;
     --test) run_tests=1; shift ;;
     -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
     *) echo "gpu/build: unknown argument '$1' (see --help)" >&2; exit 2 ;;
@@ -119,7 +122,7 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   "${launcher[@]}" > "$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 1; }
 grep -E "^-- (CUDA|LibTorch|Default model|Web page)" "$build/configure.log" || true
 say "building ($jobs jobs)"
-cmake --build "$build" -j "$jobs"
+cmake --build "$build" -j "$jobs" "${targets[@]}"
 
 if readelf -d "$build/instainpaint" | grep -q 'libcuda\.so'; then
   say "$build/instainpaint needs libcuda.so: it would not start without a driver"

@@ -507,7 +507,9 @@ json run_evaluation(const EvalOptions& o) {
   json timings = json::object();
   json unavailable = json::object();
   quantize_image(Image(1, 1, 1), o.quantize);  // validates the mode before any work
-  const torch::Device device = o.device;
+  // A GPU given without an index (torch::kCUDA) is the first one: named so in the results and
+  // equal to the device of the tensors made there.
+  const torch::Device device = resolve_device(o.device.str());
   // Without the CUDA rasterizer kernels a GPU run renders on the CPU.
   const torch::Device render_on = render_device(device);
   if (o.method == EvalMethod::model && o.checkpoint && o.gaussians)
