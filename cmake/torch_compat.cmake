@@ -56,4 +56,8 @@ endif()
 # the call jumps to address 0 (docs/reliability.md). Listing libstdc++.so.6 first in every
 # program binds the standard library's symbols to the standard library, for our code and for
 # every library the program loads. Harmless with Debian's LibTorch, so done for both.
-add_link_options("LINKER:--push-state,--no-as-needed,-lstdc++,--pop-state")
+# By its file name, libstdc++.so.6, not -lstdc++: a compiler whose own folder holds only the
+# static libstdc++.a (the lent GPU machines' CXX=/opt/gcc/bin/g++) would take that archive,
+# from which nothing is needed yet at that point of the link, and the shared library would
+# again come after libtorch.so.
+add_link_options("LINKER:--push-state,--no-as-needed,-l:libstdc++.so.6,--pop-state")

@@ -15,7 +15,7 @@
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
 #   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared"], timeout_s=600)
 # STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
-# machine stays warm).
+# machine stays warm); TESTS=REGEX runs only the tests whose names match.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}
@@ -61,7 +61,7 @@ fi
 if [[ " $STEPS " == *" tests "* ]]; then
   step "tests (GPU tests included)"
   export INSTAINPAINT_SHARED=$PWD/.device/shared
-  (cd "$BUILD" && ctest -j 12 --timeout 240 --output-on-failure) > "$OUT/ctest.log" 2>&1 ||
+  (cd "$BUILD" && ctest -j 12 --timeout 240 --output-on-failure ${TESTS:+-R "$TESTS"}) > "$OUT/ctest.log" 2>&1 ||
     echo "some tests failed (ctest.log)"
   grep -E "tests passed|Failed|\*\*\*|Not Run" "$OUT/ctest.log" | head -40 || true
   (cd "$BUILD" && ctest -R "Cuda|Gpu|GraphedForward|Device" -V) |

@@ -88,6 +88,10 @@ TEST(ModelParity, BFloat16IsCloseToFloat32) {
   EXPECT_LT(max_abs(bf16.gaussians.opacity, f32.gaussians.opacity), 0.02);
   EXPECT_LT(max_abs(bf16.gaussians.rgb, f32.gaussians.rgb), 0.05);
   EXPECT_GT(max_abs(bf16.gaussians.rgb, f32.gaussians.rgb), 0.0);  // bf16 path really ran
+  // Rotations are the head's 4 channels divided by their norm: where that norm is small (this
+  // fixture's random weights), bf16's relative error becomes a large absolute one (0.07-0.10 on
+  // the CPUs and the H100 measured).
+  EXPECT_LT(max_abs(bf16.gaussians.rotation, f32.gaussians.rotation), 0.15);
 }
 
 TEST(ReleaseLayout, EveryReleaseKeyLoadsIntoTheReleasePreset) {
