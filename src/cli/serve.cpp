@@ -22,6 +22,8 @@ struct ServeArgs {
   int port = 8080;
   int height = 256;
   int views = 4;
+  std::string token;
+  bool no_token = false;
   std::string checkpoint;
   RuntimeOptions runtime;
 };
@@ -38,6 +40,10 @@ void run(const ServeArgs& a) {
   o.port = a.port;
   o.height = a.height;
   o.views = a.views;
+  o.token = a.token;
+  o.no_token = a.no_token;
+  if (a.no_token)
+    spdlog::warn("--no-token: any program on this machine and any website open in its browser can drive this server");
   if (o.host != "127.0.0.1" && o.host != "localhost" && o.host != "::1")
     spdlog::warn("listening on {}: anyone who can reach this machine can see the scene and run edits", o.host);
 
@@ -51,7 +57,8 @@ void run(const ServeArgs& a) {
   WebServer server(o, predictor ? &*predictor : nullptr);
   const int port = server.bind();
   const std::string host = o.host.find(':') != std::string::npos ? "[" + o.host + "]" : o.host;
-  fmt::print("instainpaint serve: open http://{}:{}/ (Ctrl-C stops)\n", host, port);
+  const std::string query = server.token().empty() ? "" : "?token=" + server.token();
+  fmt::print("instainpaint serve: open http://{}:{}/{} (Ctrl-C stops)\n", host, port, query);
   std::fflush(stdout);
   running_server = &server;
   std::signal(SIGINT, [](int) { running_server->stop(); });
@@ -85,13 +92,19 @@ void add_serve_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(8, 4096));
   cmd->add_option("--views", args->views, "Context views of an edit")->capture_default_str()->check(CLI::Range(1, 64));
+  cmd->add_option("--token", args->token,
+                  "The token every request must carry (default: a random one, printed in the address to open)");
+  cmd->add_flag("--no-token", args->no_token, "Serve without a token (not recommended: websites can then drive it)")
+      ->excludes("--token");
   cmd->add_option("--checkpoint", args->checkpoint, "Model weights (default: the model built into instainpaint)")
       ->check(CLI::ExistingFile);
   add_runtime_options(cmd, args->runtime);
   cmd->footer(
       "Examples:\n"
       "  instainpaint serve --scene ../shared/data/statue --ply out/statue/gaussians.ply\n"
-      "  instainpaint serve --ply guitar.compressed.ply --port 0");
+      "  instainpaint serve --ply guitar.compressed.ply --port 0\n"
+      "Open the printed address (http://127.0.0.1:8080/?token=...): the page then keeps the token in a cookie.\n"
+      "Scripts send it as ?token= or as the X-Instainpaint-Token header.");
   cmd->callback([args] { run(*args); });
 }
 

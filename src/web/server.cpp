@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <fstream>
 #include <mutex>
+#include <random>
 #include <regex>
 #include <thread>
 
@@ -73,6 +74,60 @@ std::optional<Refusal> foreign_request(const httplib::Request& req, const std::s
       return Refusal{403, fmt::format("a request from another website ({}) may not change anything here", origin)};
   }
   return std::nullopt;
+}
+
+constexpr const char* token_header = "X-Instainpaint-Token";
+
+// 128 random bits as hex: what a local program or a website would have to guess.
+std::string random_token() {
+  std::random_device device;
+  std::string token;
+  for (int i = 0; i < 4; ++i) token += fmt::format("{:08x}", static_cast<uint32_t>(device()));
+  return token;
+}
+
+// Cookies are per host name, not per port: each server's cookie carries its port.
+std::string token_cookie(int port) { return fmt::format("instainpaint-token-{}", port); }
+
+std::string cookie_value(const httplib::Request& req, const std::string& name) {
+  const std::string cookies = req.get_header_value("Cookie");
+  for (size_t at = 0; at < cookies.size();) {
+    size_t end = cookies.find(';', at);
+    if (end == std::string::npos) end = cookies.size();
+    std::string_view pair(cookies.data() + at, end - at);
+    while (!pair.empty() && pair.front() == ' ') pair.remove_prefix(1);
+    if (pair.size() > name.size() && pair.substr(0, name.size()) == name && pair[name.size()] == '=')
+      return std::string(pair.substr(name.size() + 1));
+    at = end + 1;
+  }
+  return {};
+}
+
+// Equal without an early exit, so that the time taken says nothing about how much of a guess
+// was right (the length is no secret).
+bool same_secret(const std::string& a, const std::string& b) {
+  if (a.size() != b.size()) return false;
+  unsigned char diff = 0;
+  for (size_t i = 0; i < a.size(); ++i) diff |= static_cast<unsigned char>(a[i] ^ b[i]);
+  return diff == 0;
+}
+
+// The token comes as ?token= (the address `serve` prints; the answer then sets the cookie, so
+// that the page's own requests carry it), as the cookie, or as a header (scripts).
+std::optional<Refusal> missing_token(const httplib::Request& req, httplib::Response& res, const std::string& token,
+                                     int port) {
+  if (token.empty()) return std::nullopt;
+  const std::string cookie = token_cookie(port);
+  if (req.has_param("token") && same_secret(req.get_param_value("token"), token)) {
+    res.set_header("Set-Cookie", fmt::format("{}={}; Path=/; HttpOnly; SameSite=Strict", cookie, token));
+    return std::nullopt;
+  }
+  if (same_secret(cookie_value(req, cookie), token) || same_secret(req.get_header_value(token_header), token))
+    return std::nullopt;
+  const bool given = req.has_param("token") || req.has_header(token_header) || !cookie_value(req, cookie).empty();
+  return Refusal{403, fmt::format("{} token: open the address that `instainpaint serve` printed at start "
+                                  "(http://...:{}/?token=...), or send the token as the {} header",
+                                  given ? "wrong" : "missing", port, token_header)};
 }
 
 const char* image_type(std::string_view bytes) {
@@ -149,6 +204,8 @@ struct WebServer::State {
   PoseNormalization normalization;
   httplib::Server http;
   fs::path out;  // canonical
+  std::string token;
+  int port = 0;
 
   std::mutex mutex;  // guards job, next_id, worker and the view cache
   Job job;
@@ -436,6 +493,10 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
   State& s = *state_;
   s.options = std::move(options);
   s.predictor = predictor;
+  if (s.options.token.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_") !=
+      std::string::npos)
+    fail("serve --token: only letters, digits, '-' and '_' (it goes into addresses and a cookie)");
+  s.token = s.options.no_token ? "" : !s.options.token.empty() ? s.options.token : random_token();
   for (const fs::path& p : s.options.plys)
     if (!fs::is_regular_file(p)) fail_file(p, "no such PLY file");
   if (s.options.scene_dir) {
@@ -465,6 +526,10 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
   });
   http.set_pre_routing_handler([&s](const httplib::Request& req, httplib::Response& res) {
     if (auto r = foreign_request(req, s.options.host)) {
+      refuse(res, *r);
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    if (auto r = missing_token(req, res, s.token, s.port)) {
       refuse(res, *r);
       return httplib::Server::HandlerResponse::Handled;
     }
@@ -575,14 +640,17 @@ WebServer::~WebServer() {
 int WebServer::bind() {
   State& s = *state_;
   if (s.options.port == 0) {
-    const int port = s.http.bind_to_any_port(s.options.host);
-    if (port < 0) fail("serve: cannot listen on {}", s.options.host);
-    return port;
+    s.port = s.http.bind_to_any_port(s.options.host);
+    if (s.port < 0) fail("serve: cannot listen on {}", s.options.host);
+    return s.port;
   }
   if (!s.http.bind_to_port(s.options.host, s.options.port))
     fail("serve: cannot listen on {}:{} (in use? --port picks another)", s.options.host, s.options.port);
-  return s.options.port;
+  s.port = s.options.port;
+  return s.port;
 }
+
+const std::string& WebServer::token() const { return state_->token; }
 
 void WebServer::run() { state_->http.listen_after_bind(); }
 

@@ -3,7 +3,10 @@
 // and a scene's cameras and views, and runs one-mask edits (mask propagation, the network,
 // refinement) as background jobs, one at a time.
 //
-// Safety: binds to loopback unless told otherwise; serves only the embedded page, the scene's
+// Safety: binds to loopback unless told otherwise; answers only requests addressed to one of its
+// names (Host) that carry its token (made at start: ?token= in the address it prints, then a
+// cookie; or the header X-Instainpaint-Token), and state-changing ones only from its own page
+// (Origin); serves only the embedded page, the scene's
 // views (by index, never by path), the PLYs it was started with (by index) and the files its
 // jobs wrote under `out`; uploads are size-limited and must be PNG or JPEG of the right size;
 // a request it cannot serve gets a 4xx with a JSON {"error"}; a job that fails reports its
@@ -43,6 +46,9 @@ struct ServeOptions {
   int height = 256;  // working height of edits
   int views = 4;     // context views of edits
   size_t max_upload_bytes = 32u << 20;
+  // Every request must carry this token; empty: a random one is made (WebServer::token()).
+  std::string token;
+  bool no_token = false;  // serve without a token (any local program and website can then drive it)
   std::function<void(int job)> before_job;  // called on the job's thread before it works (tests)
 };
 
@@ -56,6 +62,8 @@ class WebServer {
 
   // Binds the socket; returns the port (the free one chosen when options.port is 0).
   int bind();
+  // The token requests must carry (empty with no_token).
+  const std::string& token() const;
   // Serves until stop() (from another thread or a signal handler's thread).
   void run();
   void stop();

@@ -53,9 +53,12 @@ struct RunningServer {
   int port = 0;
   fs::path out;
 
+  static constexpr const char* token = "test-token-7f3a";
+
   explicit RunningServer(ServeOptions o, const Predictor* predictor = &default_model()) {
     o.port = 0;
     o.host = "127.0.0.1";
+    if (o.token.empty() && !o.no_token) o.token = token;
     if (o.out == "serve-out") o.out = test::temp_dir("serve-out");
     out = o.out;
     server = std::make_unique<WebServer>(o, predictor);
@@ -63,6 +66,7 @@ struct RunningServer {
     thread = std::thread([this] { server->run(); });
     client = std::make_unique<httplib::Client>("127.0.0.1", port);
     client->set_read_timeout(60, 0);
+    if (!o.no_token) client->set_default_headers({{"X-Instainpaint-Token", o.token}});
   }
   ~RunningServer() {
     server->stop();
@@ -195,6 +199,16 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
   EXPECT_EQ(error_of(r),
             "reference: 400x400 pixels, more than this server decodes for view view_001 (48x40: at most 4 times its "
             "pixels)");
+  // A decompression bomb (16000 x 16000 pixels: 3 GB decoded) costs the server no memory.
+  const double peak = test::peak_rss_mb();
+  r = s.client->Post("/api/edit", edit_form("view_001", test::png_header(16000, 16000)));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r),
+            "mask: 16000x16000 pixels, more than this server decodes for view view_001 (48x40: at most 4 times its "
+            "pixels)");
+  r = s.client->Post("/api/edit", edit_form("view_001", mask, "reference", test::png_header(16000, 16000)));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_LT(test::peak_rss_mb() - peak, 100.0);
   r = s.client->Post("/api/masks", edit_form("view_001", std::string(80 << 10, 'x')));
   EXPECT_EQ(r->status, 413);
   // Nothing ran, nothing was left behind.
@@ -222,6 +236,48 @@ TEST(Serve, OtherWebsitesAreRefused) {
   EXPECT_EQ(s.client->Get("/api/info", {{"Host", "[::1]:8080"}})->status, 200);
   const std::string own = "http://127.0.0.1:" + std::to_string(s.port);
   EXPECT_EQ(s.client->Post("/api/masks", {{"Origin", own}}, edit_form("view_001", mask))->status, 202);
+}
+
+TEST(Serve, EveryRequestNeedsTheToken) {
+  RunningServer s(room_options());
+  httplib::Client bare("127.0.0.1", s.port);
+  const std::string port = std::to_string(s.port);
+  const std::string advice = "token: open the address that `instainpaint serve` printed at start (http://...:" + port +
+                             "/?token=...), or send the token as the X-Instainpaint-Token header";
+  for (const char* path : {"/", "/api/info", "/api/views/0/image"}) {
+    auto r = bare.Get(path);
+    EXPECT_EQ(r->status, 403) << path;
+    EXPECT_EQ(error_of(r), "missing " + advice) << path;
+  }
+  auto r = bare.Post("/api/masks", edit_form("view_001", view_mask_bytes("view_001")));
+  EXPECT_EQ(r->status, 403);
+  EXPECT_EQ(error_of(r), "missing " + advice);
+  EXPECT_TRUE(fs::is_empty(s.out / "jobs"));
+  EXPECT_EQ(error_of(bare.Get("/api/info?token=test-token-7f3b")), "wrong " + advice);
+  EXPECT_EQ(error_of(bare.Get("/api/info", {{"X-Instainpaint-Token", "test-token-7f3"}})), "wrong " + advice);
+  // Another server's cookie (cookies are per host name, not per port) is no token here.
+  EXPECT_EQ(error_of(bare.Get("/api/info", {{"Cookie", "instainpaint-token-1=test-token-7f3a"}})), "missing " + advice);
+
+  // The printed address: answered, and the cookie that the page's own requests then carry.
+  r = bare.Get("/?token=test-token-7f3a");
+  EXPECT_EQ(r->status, 200);
+  const std::string cookie = "instainpaint-token-" + port + "=test-token-7f3a";
+  EXPECT_EQ(r->get_header_value("Set-Cookie"), cookie + "; Path=/; HttpOnly; SameSite=Strict");
+  EXPECT_EQ(bare.Get("/api/info", {{"Cookie", "other=1; " + cookie}})->status, 200);
+  EXPECT_EQ(bare.Get("/api/info", {{"X-Instainpaint-Token", "test-token-7f3a"}})->status, 200);
+}
+
+TEST(Serve, WithoutATokenOnlyWhenAskedTo) {
+  ServeOptions o = room_options();
+  o.no_token = true;
+  RunningServer s(o);
+  httplib::Client bare("127.0.0.1", s.port);
+  EXPECT_EQ(bare.Get("/api/info")->status, 200);
+  // A token of one's own must fit an address and a cookie.
+  ServeOptions bad = room_options();
+  bad.token = "a b";
+  EXPECT_EQ(test::error_message([&] { WebServer server(bad, nullptr); }),
+            "serve --token: only letters, digits, '-' and '_' (it goes into addresses and a cookie)");
 }
 
 TEST(Serve, OneJobAtATimeAndAFailedJobLeavesTheServerRunning) {

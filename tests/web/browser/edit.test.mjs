@@ -61,7 +61,7 @@ try {
   await page.locator("#video").click();
   await page.waitForFunction(() => document.querySelector("#exports a"), null, { timeout: 300000 });
   const video = await page.evaluate(() => document.querySelector("#exports a").getAttribute("href"));
-  const mp4 = await fetch(new URL(video, server.url));
+  const mp4 = await server.get(video);
   h.check(mp4.status === 200 && mp4.headers.get("content-type") === "video/mp4", `the orbit video is served (${video})`);
   await page.close();
 
@@ -71,7 +71,7 @@ try {
   const maskedPsnr = async (ply, tag) => {
     const exact = await browser.newPage();
     exact.on("pageerror", (e) => errors.push(`page: ${e.message}`));
-    await exact.goto(`${server.url}?view=2&exact=1&ply=${encodeURIComponent(ply)}`, { timeout: 120000 });
+    await exact.goto(server.page(`view=2&exact=1&ply=${encodeURIComponent(ply)}`), { timeout: 120000 });
     await exact.evaluate(() => window.instainpaint.ready);
     await h.frames(exact, 10);
     const shot = join(dir, `${tag}.png`);

@@ -39,7 +39,11 @@ export function roomWithGaussians(dir) {
   return { scene, ply: join(dir, "infer", "gaussians.ply") };
 }
 
-// `instainpaint serve` on a free loopback port; resolves with its address once it listens.
+// `instainpaint serve` on a free loopback port; resolves once it listens with
+//   url      the address it prints, token included (what a user opens),
+//   base     that address without the token, token  the token,
+//   page(q)  the printed address with more URL parameters q ("view=1&exact=1"),
+//   get(p)   fetch of path p from Node with the token header (a script's way).
 export function serve(args) {
   const child = spawn(cli, ["serve", "--port", "0", ...args], { stdio: ["ignore", "pipe", "pipe"] });
   let log = "";
@@ -48,8 +52,17 @@ export function serve(args) {
     let out = "";
     child.stdout.on("data", (d) => {
       out += d;
-      const m = out.match(/open (http:\/\/[^ ]+\/)/);
-      if (m) resolveUrl({ url: m[1], stop: () => child.kill("SIGTERM"), log: () => log });
+      const m = out.match(/open ((http:\/\/[^ ]+\/)\?token=([\w-]+))/);
+      if (m)
+        resolveUrl({
+          url: m[1],
+          base: m[2],
+          token: m[3],
+          page: (query) => `${m[1]}&${query}`,
+          get: (path) => fetch(new URL(path, m[2]), { headers: { "X-Instainpaint-Token": m[3] } }),
+          stop: () => child.kill("SIGTERM"),
+          log: () => log,
+        });
     });
     child.on("exit", (code) => reject(new Error(`serve exited with ${code}: ${log}`)));
   });

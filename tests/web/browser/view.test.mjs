@@ -21,11 +21,18 @@ const { scene, ply } = h.roomWithGaussians(dir);
 const server = await h.serve(["--scene", scene, "--ply", ply, "--out", join(dir, "serve")]);
 const browser = await h.browser();
 try {
+  // Without the token in the address (and so without its cookie) nothing is served.
+  const stranger = await browser.newPage();
+  const denied = await stranger.goto(server.base);
+  h.check(denied.status() === 403 && (await denied.text()).includes("missing token"),
+    `without the token the page is refused (${denied.status()})`);
+  await stranger.close();
+
   const page = await browser.newPage({ viewport: { width: 900, height: 600 } });
   const errors = h.collectErrors(page);
 
   // From scene view 1, at its size, with its intrinsics.
-  await page.goto(`${server.url}?view=1&exact=1`);
+  await page.goto(server.page("view=1&exact=1"));
   await page.evaluate(() => window.instainpaint.ready);
   await h.frames(page, 10);  // Spark sorts in a worker: let it settle
   const shot = join(dir, "page-view_001.png");
@@ -69,7 +76,7 @@ try {
   await h.frames(viewer, 20);
   const fps = await viewer.evaluate(([f, t]) => (1000 * (window.instainpaint.frames - f)) / (performance.now() - t), since);
   const stats = { firstFrameMs: await viewer.evaluate(() => window.instainpaint.firstFrameMs), fps };
-  const bundle = (await (await fetch(`${server.url}app.js`)).arrayBuffer()).byteLength;
+  const bundle = (await (await server.get("app.js")).arrayBuffer()).byteLength;
   console.log(`measured: page load to first frame ${stats.firstFrameMs.toFixed(0)} ms, ${stats.fps.toFixed(1)} fps ` +
     `(900x600, headless Chromium, SwiftShader), bundle ${(bundle / 1e6).toFixed(2)} MB`);
   h.check(errors.length === 0 && viewerErrors.length === 0, `no console errors ${JSON.stringify([...errors, ...viewerErrors])}`);
