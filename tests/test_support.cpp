@@ -49,6 +49,26 @@ fs::path temp_dir(const std::string& tag) {
   return p;
 }
 
+std::string png_header(uint32_t width, uint32_t height) {
+  auto be32 = [](uint32_t v) {
+    return std::string{static_cast<char>(v >> 24), static_cast<char>(v >> 16), static_cast<char>(v >> 8),
+                       static_cast<char>(v)};
+  };
+  // Signature, then the IHDR chunk: size, type, width, height, 8 bits, RGB, deflate, no filter
+  // or interlace, and a CRC that no header probe checks.
+  return std::string("\x89PNG\r\n\x1a\n", 8) + be32(13) + "IHDR" + be32(width) + be32(height) +
+         std::string("\x08\x02\x00\x00\x00", 5) + be32(0);
+}
+
+double peak_rss_mb() {
+  std::ifstream status("/proc/self/status");
+  for (std::string key; status >> key;) {
+    double kb = 0;
+    if (key == "VmHWM:" && status >> kb) return kb / 1024.0;
+  }
+  return 0;
+}
+
 fs::path cli_executable() {
   return fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "instainpaint";
 }

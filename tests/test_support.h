@@ -3,6 +3,7 @@
 // when it is absent.
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -24,6 +25,12 @@ template <typename T>
 std::string raw(const std::vector<T>& v) {
   return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
 }
+
+// The first bytes of a PNG claiming width x height RGB pixels: what a decompression bomb shows
+// a reader before its pixel data (enough for a header probe; no decoder gets further).
+std::string png_header(uint32_t width, uint32_t height);
+// The process's peak resident memory so far (Linux VmHWM), in MB.
+double peak_rss_mb();
 
 // The built `instainpaint` executable (beside the tests' folder), for end-to-end CLI tests.
 std::filesystem::path cli_executable();

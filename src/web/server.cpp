@@ -513,6 +513,10 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
 
   httplib::Server& http = s.http;
   http.set_payload_max_length(s.options.max_upload_bytes);
+  // httplib drops a client that sends nothing for 5 s, not one that trickles a byte a second;
+  // each such client holds a thread until it is done. 64 threads (httplib's default: 8 on a
+  // small machine) keep the page answering beside dozens of them (docs/reliability.md).
+  http.new_task_queue = [] { return new httplib::ThreadPool(64); };
   http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
     std::string what = "internal error";
     try {

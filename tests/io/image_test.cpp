@@ -102,6 +102,12 @@ TEST(ImageIo, BadInputIsAClearError) {
   std::ofstream(dir / "cut.png", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
   const std::string cut = test::error_message([&] { read_image_rgb(dir / "cut.png"); });
   EXPECT_EQ(cut.rfind((dir / "cut.png").string() + ": cannot decode image (", 0), 0u) << cut;
+  // A decompression bomb is refused from its header, before any pixel is decoded.
+  test::write_bytes(dir / "bomb.png", test::png_header(16000, 16000));
+  EXPECT_EQ(test::error_message([&] { read_image_rgb(dir / "bomb.png"); }),
+            (dir / "bomb.png").string() + ": 16000x16000 pixels, more than instainpaint decodes (at most 134 million)");
+  EXPECT_EQ(test::error_message([&] { read_mask(dir / "bomb.png"); }),
+            (dir / "bomb.png").string() + ": 16000x16000 pixels, more than instainpaint decodes (at most 134 million)");
   EXPECT_EQ(test::error_message([&] { write_png(dir / "x.png", Image{}); }),
             (dir / "x.png").string() + ": cannot write an empty image");
   EXPECT_FALSE(fs::exists(dir / "x.png"));
