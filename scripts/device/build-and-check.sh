@@ -9,9 +9,7 @@
 #   4. times the network: release model, 4 x 512² and 4 x 512 x 904, fast path, CUDA graph and
 #      the official code's way of computing in the same run;
 #   5. times `eval` end to end on a synthetic room with 40 test views at 904 x 512.
-#   6. writes $OUT/instainpaint.tar.xz, the binary with the Debian libraries it loads, for later
-#      calls that need no build (scripts/device/train-default-model.sh), and times a few training
-#      steps of the `medium` preset to size them.
+#   6. times a few training steps of the `medium` preset (to size scripts/device/train-default-model.sh).
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
 #   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared"], timeout_s=600)
 # STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
@@ -19,7 +17,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}
-STEPS=${STEPS:-"tests bench eval bundle"}
+STEPS=${STEPS:-"training tests bench eval"}
 BUILD=build-gpu
 mkdir -p "$OUT"
 exec > >(tee -a "$OUT/build-and-check.log") 2>&1
@@ -45,9 +43,8 @@ BIN=$BUILD/instainpaint
 
 step "libraries the binary loads from this machine's own system (expected: glibc, libstdc++, libgcc)"
 ldd "$BIN" | grep -v -E "$DEPS|site-packages|linux-vdso|ld-linux" || true
-[[ " $STEPS " != *" bundle "* ]] || device_make_bundle "$BIN" "$OUT"
 
-if [[ " $STEPS " == *" bundle "* ]]; then
+if [[ " $STEPS " == *" training "* ]]; then
   step "training throughput: medium preset, 256 x 256, bf16 (sizes scripts/device/train-default-model.sh)"
   "$BIN" synth --out /tmp/ii-probe --scenes 4 --seed 5 --views 20 --test-views 4 --width 256 --height 256 \
     --degrade mixed --threads "$(nproc)" 2>&1 | tail -1

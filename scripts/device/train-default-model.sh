@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Run ON a lent GPU machine: trains a candidate default model (preset `medium`, 256 x 256, bf16)
-# in one device call, from the binary that build-and-check.sh bundled (no build here). The recipe
+# Run ON a lent GPU machine: trains a candidate default model (preset `medium`, bf16) in one
+# device call (the program alone is built first, about 2 minutes on 16 cores). The recipe
 # is scripts/train-default-model.sh's (synthetic rooms plus real scenes, stage 1 reconstruction,
 # stage 2 inpainting with the depth loss), scaled to a GPU. The statue scene is left out: it is
 # the real scene the model is judged on. Evaluation happens afterwards on any machine
@@ -8,10 +8,10 @@
 #   model.part-aa, -ab, ...   the model (the stage-2 checkpoint, updated while training runs, so a run
 #                             cut short still returns one), in pieces under the tool's 16 MiB a file:
 #                             cat model.part-* > model.safetensors
-#   train.log                               everything printed
-# Here, before:   scripts/device/prepare.sh, then either copy the bundle from build-and-check.sh's $OUT
-#                 to .device/bundle/instainpaint.tar.xz, or carry .device/debs to build here:
-#   run(command="bash scripts/device/train-default-model.sh", carry=[".device/debs", ".device/scenes"])
+#   train.log                 everything printed; stage1-log.jsonl, stage2-log.jsonl the runs' logs
+# Here, before: scripts/device/prepare.sh. Session 12 ran it at 128 x 128 (see docs/benchmarks.md):
+#   run(command="SIZE=128 BATCH=16 STAGE_SECONDS=185 bash scripts/device/train-default-model.sh",
+#       carry=[".device/debs", ".device/scenes"])
 # Environment: SIZE (pixels, square), STAGE1_STEPS, STAGE2_STEPS, BATCH, ROOMS (training rooms),
 # WORKERS, STAGE_SECONDS (each stage is stopped after this long; its last checkpoint counts).
 set -euo pipefail
@@ -30,14 +30,10 @@ exec > >(tee -a "$OUT/train.log") 2>&1
 step() { printf '\n== %s (%s)\n' "$*" "$(date +%T)"; }
 
 source scripts/device/deps.sh
-if [ -f .device/bundle/instainpaint.tar.xz ]; then
-  device_deps_from_bundle
-else  # no bundle carried: build the program alone (about 2 minutes on 16 cores)
-  device_deps_from_debs
-  JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build build-gpu --cuda-arch 9.0 \
-    --target instainpaint > "$OUT/build.log" 2>&1 || { tail -40 "$OUT/build.log"; exit 1; }
-  BIN=build-gpu/instainpaint
-fi
+device_deps_from_debs
+JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build build-gpu --cuda-arch 9.0 \
+  --target instainpaint > "$OUT/build.log" 2>&1 || { tail -40 "$OUT/build.log"; exit 1; }
+BIN=build-gpu/instainpaint
 nvidia-smi --query-gpu=name,memory.total --format=csv,noheader || true
 "$BIN" --version
 
