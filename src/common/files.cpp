@@ -43,6 +43,14 @@ static void fsync_path(const fs::path& p) {
   }
 }
 
+bool is_atomic_write_leftover(const fs::path& file) {
+  // ".<name>.tmp" and 8 hex digits, as write_file_atomic names its temporaries.
+  const std::string n = file.filename().string();
+  const size_t at = n.rfind(".tmp");
+  return n.size() > 14 && n.front() == '.' && at != std::string::npos && at > 1 && n.size() - at == 12 &&
+         n.find_first_not_of("0123456789abcdef", at + 4) == std::string::npos;
+}
+
 void write_file_atomic(const fs::path& path, const std::function<void(const fs::path&)>& write) {
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   std::error_code ec;

@@ -19,5 +19,7 @@ std::string read_file_text(const std::filesystem::path& path);
 void write_file_atomic(const std::filesystem::path& path,
                        const std::function<void(const std::filesystem::path& tmp)>& write);
 void write_file_atomic(const std::filesystem::path& path, std::string_view bytes);
+// Whether `file` is the temporary of a write_file_atomic that a killed process left behind.
+bool is_atomic_write_leftover(const std::filesystem::path& file);
 
 }  // namespace ii

@@ -510,6 +510,14 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
     if (!n.empty() && std::all_of(n.begin(), n.end(), ::isdigit) && n.size() < 9)
       s.next_id = std::max(s.next_id, std::stoi(n) + 1);
   }
+  // A server killed during a job leaves the temporary of the file it was writing: never served
+  // (no URL names it), removed here.
+  std::vector<fs::path> leftovers;
+  for (const auto& e : fs::recursive_directory_iterator(s.out / "jobs"))
+    if (e.is_regular_file() && is_atomic_write_leftover(e.path())) leftovers.push_back(e.path());
+  for (const fs::path& p : leftovers) fs::remove(p);
+  if (!leftovers.empty())
+    spdlog::info("removed {} half-written file(s) of an earlier run from {}", leftovers.size(), s.out.string());
 
   httplib::Server& http = s.http;
   http.set_payload_max_length(s.options.max_upload_bytes);

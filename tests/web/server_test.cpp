@@ -282,6 +282,23 @@ TEST(Serve, WithoutATokenOnlyWhenAskedTo) {
             "serve --token: only letters, digits, '-' and '_' (it goes into addresses and a cookie)");
 }
 
+TEST(Serve, AKilledRunsHalfWrittenFilesAreRemovedAndNumbersGoOn) {
+  ServeOptions o = room_options();
+  o.out = test::temp_dir("serve-killed");
+  const fs::path job = o.out / "jobs" / "3";
+  fs::create_directories(job / "masks");
+  test::write_bytes(job / "masks" / "0.png", "done");
+  test::write_bytes(job / "masks" / ".1.png.tmp59b2bf1f", "half");  // killed while writing
+  test::write_bytes(job / ".notes.tmp", "not ours");
+  RunningServer s(o);
+  EXPECT_TRUE(fs::exists(job / "masks" / "0.png"));
+  EXPECT_FALSE(fs::exists(job / "masks" / ".1.png.tmp59b2bf1f"));
+  EXPECT_TRUE(fs::exists(job / ".notes.tmp"));
+  EXPECT_EQ(s.client->Get("/api/jobs/3/gaussians.ply")->status, 404);
+  EXPECT_EQ(s.client->Post("/api/masks", edit_form("view_001", view_mask_bytes("view_001")))->status, 202);
+  EXPECT_EQ(s.finished_job()["id"], 4);
+}
+
 TEST(Serve, OneJobAtATimeAndAFailedJobLeavesTheServerRunning) {
   ServeOptions o = room_options();
   std::promise<void> release;
