@@ -5,11 +5,11 @@
 #   1. unpacks the carried Debian packages into a private prefix (nothing can be installed);
 #   2. builds with scripts/gpu/build.sh, the recipe of `make test-gpu-build`, against the
 #      LibTorch of the machine's own PyTorch (CUDA) and for its GPU (sm_90);
-#   3. runs the whole test suite, the GPU tests included (agreement with the float32 CPU path);
-#   4. times the network: release model, 4 x 512² and 4 x 512 x 904, fast path, CUDA graph and
+#   3. times a few training steps of the `medium` preset (to size scripts/device/train-default-model.sh);
+#   4. runs the whole test suite, the GPU tests included (agreement with the float32 CPU path);
+#   5. times the network: release model, 4 x 512² and 4 x 512 x 904, fast path, CUDA graph and
 #      the official code's way of computing in the same run;
-#   5. times `eval` end to end on a synthetic room with 40 test views at 904 x 512.
-#   6. times a few training steps of the `medium` preset (to size scripts/device/train-default-model.sh).
+#   6. times `eval` end to end on a synthetic room with 40 test views at 904 x 512.
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
 #   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared"], timeout_s=600)
 # STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
@@ -60,7 +60,7 @@ if [[ " $STEPS " == *" tests "* ]]; then
   export INSTAINPAINT_SHARED=$PWD/.device/shared
   (cd "$BUILD" && ctest -j 12 --timeout 240 --output-on-failure ${TESTS:+-R "$TESTS"}) > "$OUT/ctest.log" 2>&1 ||
     echo "some tests failed (ctest.log)"
-  grep -E "tests passed|Failed|\*\*\*|Not Run" "$OUT/ctest.log" | head -40 || true
+  grep -E "tests passed|\*\*\*(Failed|Exception|Timeout)|Not Run" "$OUT/ctest.log" | head -40 || true
   (cd "$BUILD" && ctest -R "Cuda|Gpu|GraphedForward|Device" -V) |
     grep -E "\[ +(OK|FAILED|SKIPPED) +\]|Expected|Which is|Value of" || true
 fi
