@@ -122,9 +122,9 @@ std::optional<Refusal> missing_token(const httplib::Request& req, httplib::Respo
     res.set_header("Set-Cookie", fmt::format("{}={}; Path=/; HttpOnly; SameSite=Strict", cookie, token));
     return std::nullopt;
   }
-  if (same_secret(cookie_value(req, cookie), token) || same_secret(req.get_header_value(token_header), token))
-    return std::nullopt;
-  const bool given = req.has_param("token") || req.has_header(token_header) || !cookie_value(req, cookie).empty();
+  const std::string from_cookie = cookie_value(req, cookie);
+  if (same_secret(from_cookie, token) || same_secret(req.get_header_value(token_header), token)) return std::nullopt;
+  const bool given = req.has_param("token") || req.has_header(token_header) || !from_cookie.empty();
   return Refusal{403, fmt::format("{} token: open the address that `instainpaint serve` printed at start "
                                   "(http://...:{}/?token=...), or send the token as the {} header",
                                   given ? "wrong" : "missing", port, token_header)};
