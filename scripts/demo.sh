@@ -5,8 +5,8 @@
 #   2. masks for every view from ONE mask (the reference view's) and its depth map, compared with
 #      the exact ones (and the same with the default model's depth);
 #   3. inference from that one mask: the Gaussians of the room without the object, as the network
-#      predicts them (gaussians-unrefined.ply) and refined for 100 steps on all the room's views
-#      (gaussians.ply, --refine);
+#      predicts them (gaussians-unrefined.ply) and refined for a minute on all the room's views
+#      (gaussians.ply, --refine fast);
 #   4. the same model given the object (no masks), to compare with;
 #   5. novel views of all three next to the ground truth, and an orbit video;
 #   6. metrics against the exact ground truth, next to two 2D baselines.
@@ -40,7 +40,7 @@ echo "  (without --depth the default model's reconstruction gives the depth, abo
 
 step "3/6 inference with the default model from that one mask: the room without the object, refined on all 12 views"
 "$BIN" infer --scene "$SCENE" --reference "$SCENE/reference.png" --context "$CONTEXT" "${ONE_MASK[@]}" \
-  --height "$SIZE" --refine 100 --keep-unrefined --out "$OUT/inpainted"
+  --height "$SIZE" --refine fast --keep-unrefined --out "$OUT/inpainted"
 
 step "4/6 the same model given the object (no masks), to compare with"
 "$BIN" infer --scene "$SCENE" --context "$CONTEXT" --height "$SIZE" --keep-object --out "$OUT/with-object"
@@ -82,8 +82,8 @@ cat <<TXT
 
 Done in $(($(date +%s) - start)) s. In $OUT/:
   masks/                    a mask per view made from the reference view's mask and depth (masks.json: recall, precision)
-  inpainted/gaussians.ply   3D Gaussians of the room without the object (standard 3DGS PLY), refined for
-                            100 steps; gaussians-unrefined.ply: the network's own prediction
+  inpainted/gaussians.ply   3D Gaussians of the room without the object (standard 3DGS PLY), refined for a
+                            minute (--refine fast); gaussians-unrefined.ply: the network's own prediction
   inpainted/depth/          the predicted depth of each context view
   novel-views.png           novel views, one per row: with the object | object removed | refined | ground truth
   orbit/rgb.mp4             an orbit around the scene, object removed

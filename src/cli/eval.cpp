@@ -29,6 +29,7 @@ struct EvalArgs {
   int ring_width = 8;
   std::string lpips_vgg, lpips_alex, lpips_heads, inception;
   bool no_report = false;
+  bool keep_object = false;
   EditArgs edit;
   RefineArgs refine;
   RuntimeOptions runtime;
@@ -60,7 +61,11 @@ void run(const EvalArgs& a) {
   o.context = a.context;
   o.reference_view = a.edit.reference_view;
   o.inpainter = parse_inpainter(a.edit.inpainter);
-  if (!a.edit.view.empty()) o.edit = one_mask_request(a.edit, load_scene(a.scene_dir, a.scene));
+  if (a.keep_object && (!a.reference.empty() || !a.edit.view.empty()))
+    fail("--keep-object evaluates a reconstruction: drop --reference, --view and --mask");
+  o.keep_object = a.keep_object;
+  o.scene.hold_out_whole = a.keep_object;
+  if (!a.edit.view.empty()) o.edit = one_mask_request(a.edit, load_scene(a.scene_dir, o.scene));
   o.num_views = a.views;
   o.height = a.height;
   o.sh_degree = a.sh_degree;
@@ -71,13 +76,16 @@ void run(const EvalArgs& a) {
   o.lpips_heads_dir = optional_path(a.lpips_heads);
   o.inception = optional_path(a.inception);
   o.write_report = !a.no_report;
-  if (a.refine.steps > 0 && (o.method != EvalMethod::model || o.gaussians))
+  const RefineOptions refine = refine_options(a.refine);
+  if (refine_requested(refine) && (o.method != EvalMethod::model || o.gaussians))
     fail("--refine refines the network's prediction: use it with --method model and without --gaussians");
-  if (a.refine.steps > 0)
-    o.after_prediction = [&a](const Scene& scene, const Prediction& p, const SceneInputOptions& input,
-                              GaussianSet g, nlohmann::json& report) {
+  if (refine_requested(refine))
+    o.after_prediction = [&refine, out = o.out](const Scene& scene, const Prediction& p, const SceneInputOptions& input,
+                                   GaussianSet g, nlohmann::json& report) {
       report["refine"] = nlohmann::json::object();
-      return refine_prediction(scene, p, input, g, refine_options(a.refine), report["refine"]);
+      GaussianSet refined = refine_prediction(scene, p, input, g, refine, report["refine"]);
+      write_loss_chart(out, report["refine"]);
+      return refined;
     };
   const nlohmann::json m = run_evaluation(o);
 
@@ -134,6 +142,9 @@ void add_eval_command(CLI::App& app) {
   add_reference_options(cmd, a->edit);
   add_edit_options(cmd, a->edit);
   add_refine_options(cmd, a->refine);
+  cmd->add_flag("--keep-object", a->keep_object,
+                "Evaluate a reconstruction of the scene as captured (no masks, the reference's own photo; views held "
+                "out by --hold-out-every are compared whole): how well the model and --refine reconstruct");
   cmd->add_option("--views", a->views, "Number of context views when chosen automatically")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));

@@ -89,11 +89,12 @@ void run(const InferArgs& a) {
   const fs::path out(a.out);
   GaussianSet gaussians = p.gaussians();
   nlohmann::json refine_report;
-  if (a.refine.steps > 0) {
+  const RefineOptions refine = refine_options(a.refine);
+  if (refine_requested(refine)) {
     if (a.keep_unrefined) write_splat_ply(out / "gaussians-unrefined.ply", splats_from_gaussians(gaussians));
-    spdlog::info("refining {} Gaussians for {} steps against every view", gaussians.size(), a.refine.steps);
-    gaussians = refine_prediction(scene, p, opts, gaussians.to(render_device(runtime.device)), refine_options(a.refine),
-                                  refine_report);
+    spdlog::info("refining {} Gaussians for {} against every view", gaussians.size(), refine_length(refine));
+    gaussians = refine_prediction(scene, p, opts, gaussians.to(render_device(runtime.device)), refine, refine_report);
+    write_loss_chart(out, refine_report);
     refine_report["unrefined"] = a.keep_unrefined ? nlohmann::json("gaussians-unrefined.ply") : nlohmann::json();
     timings["refine_ms"] = watch.lap();
   }

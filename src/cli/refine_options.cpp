@@ -2,46 +2,86 @@
 
 #include <unistd.h>
 
-#include <algorithm>
 #include <cstdio>
-#include <memory>
 
 #include <spdlog/spdlog.h>
 
-#include "common/stopwatch.h"
+#include "common/error.h"
+#include "data/chart.h"
+#include "io/image.h"
 
 namespace ii::cli {
 
+namespace {
+// What `--refine` alone means: the best result in about 5 minutes on 2 CPU cores.
+constexpr const char* kDefaultRefinement = "balanced";
+}  // namespace
+
 void add_refine_options(CLI::App* cmd, RefineArgs& args) {
-  cmd->add_option("--refine", args.steps,
-                  "Optimise the predicted Gaussians for this many steps against every view of the scene (outside "
-                  "the object masks; the reference everywhere); 0 = the feed-forward result, as the paper")
-      ->capture_default_str()
-      ->check(CLI::Range(0, 100000));
+  cmd->add_option("--refine", args.setting,
+                  "Optimise the predicted Gaussians against every view of the scene (outside the object masks; the "
+                  "reference everywhere), 3DGS-style with densification: fast (1 minute), balanced (5 minutes), best "
+                  "(10 minutes), a time (90s, 2m) or a number of steps. --refine alone: balanced; without it (or 0): "
+                  "the feed-forward result, as the paper")
+      ->expected(0, 1)
+      ->default_str(kDefaultRefinement)  // the value of `--refine` given alone
+      ->check([](const std::string& text) {
+        try {
+          refine_setting(text.empty() ? kDefaultRefinement : text);
+          return std::string();
+        } catch (const Error& e) {
+          return std::string(e.what());
+        }
+      });
   cmd->add_option("--refine-sh-degree", args.sh_degree,
                   "With --refine: 0 = one colour per Gaussian; 1-3 = fit view-dependent colour (spherical "
                   "harmonics of this degree, written to the PLY's f_rest)")
       ->capture_default_str()
       ->check(CLI::Range(0, 3));
+  cmd->add_flag("--refine-exposure", args.exposure,
+                "With --refine: correct each view's colours (an affine colour map per view, reported in the run's "
+                "JSON), for phone captures whose exposure or white balance changes between photos");
+  cmd->add_option("--refine-without", args.without,
+                  "With --refine: parts of the optimisation to switch off: cover (new Gaussians where no Gaussian "
+                  "covers a view), densify (clone, split, prune), coarse-to-fine")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"cover", "densify", "coarse-to-fine"}));
 }
 
 RefineOptions refine_options(const RefineArgs& args) {
-  RefineOptions o;
-  o.steps = args.steps;
+  RefineOptions o = refine_setting(args.setting.empty() ? kDefaultRefinement : args.setting);
   o.sh_degree = args.sh_degree;
-  auto watch = std::make_shared<Stopwatch>();
+  o.exposure = args.exposure;
+  for (const std::string& part : args.without) {
+    if (part == "cover") o.cover = false;
+    if (part == "densify") o.densify.enabled = false;
+    if (part == "coarse-to-fine") o.coarse_to_fine = false;
+  }
   // A terminal gets one line rewritten in place; a log file a line per tenth of the run.
   const bool tty = ::isatty(::fileno(stderr));
-  o.progress = [watch, tty](int done, int total, double loss) {
-    const double eta = watch->ms() / done * (total - done) / 1000;
+  auto last_tenth = std::make_shared<int>(-1);
+  o.progress = [tty, last_tenth](const RefineProgress& p) {
+    const bool done = p.fraction >= 1;
     if (tty) {
-      std::fprintf(stderr, "\rrefine %d/%d  loss %.4f  ETA %.0f s\033[K", done, total, loss, eta);
-      if (done == total) std::fprintf(stderr, "\n");
-    } else if (done == 1 || done == total || done % std::max(1, total / 10) == 0) {
-      spdlog::info("refine {}/{}  loss {:.4f}  ETA {:.0f} s", done, total, loss, eta);
+      std::fprintf(stderr, "\rrefine %3.0f%%  step %d  loss %.4f  %lld Gaussians  ETA %.0f s\033[K", 100 * p.fraction,
+                   p.step, p.loss, static_cast<long long>(p.gaussians), p.eta_s);
+      if (done) std::fprintf(stderr, "\n");
+    } else if (static_cast<int>(p.fraction * 10) > *last_tenth || p.step == 1) {
+      *last_tenth = static_cast<int>(p.fraction * 10);
+      spdlog::info("refine {:.0f}%  step {}  loss {:.4f}  {} Gaussians  ETA {:.0f} s", 100 * p.fraction, p.step, p.loss,
+                   p.gaussians, p.eta_s);
     }
   };
   return o;
+}
+
+void write_loss_chart(const std::filesystem::path& out, nlohmann::json& report) {
+  const std::vector<double> losses = report["losses"].get<std::vector<double>>();
+  const std::string title = fmt::format("refinement loss per step ({}, {:.0f} s)", report["length"].get<std::string>(),
+                                        report["seconds"].get<double>());
+  std::filesystem::create_directories(out);
+  write_png(out / "refine-loss.png", line_chart(losses, title));
+  report["loss_chart"] = "refine-loss.png";
 }
 
 }  // namespace ii::cli

@@ -1,5 +1,10 @@
 #pragma once
-// `--refine STEPS` and `--refine-sh-degree` for the commands that run the network (infer, eval).
+// `--refine` (fast, balanced, best, a time or a number of steps), `--refine-sh-degree`,
+// `--refine-exposure` and `--refine-without` for the commands that run the network (infer, eval).
+#include <filesystem>
+#include <string>
+#include <vector>
+
 #include <CLI/CLI.hpp>
 
 #include "refine/refine.h"
@@ -7,12 +12,17 @@
 namespace ii::cli {
 
 struct RefineArgs {
-  int steps = 0;  // 0 = the feed-forward result
+  std::string setting = "0";  // 0 = the feed-forward result
   int sh_degree = 0;
+  std::vector<std::string> without;  // parts switched off: cover, densify, coarse-to-fine
+  bool exposure = false;
 };
 
 void add_refine_options(CLI::App* cmd, RefineArgs& args);
-// The refinement asked for, with a progress line (loss, ETA) on stderr.
+// The refinement asked for, with a progress line (loss, Gaussians, ETA) on stderr.
 RefineOptions refine_options(const RefineArgs& args);
+// The loss curve of a refinement report (refinement_report()) as OUT/refine-loss.png, named in
+// the report as "loss_chart".
+void write_loss_chart(const std::filesystem::path& out, nlohmann::json& report);
 
 }  // namespace ii::cli

@@ -98,9 +98,14 @@ Scene load_scene(const fs::path& dir, const SceneOptions& options) {
         inputs.push_back(std::move(v));
         continue;
       }
-      if (!v.mask_path && !v.mask_from_alpha)
-        fail_file(dir, "view {} has no object mask; a held-out view is compared outside its mask", v.name);
-      v.shows_object = true;
+      if (options.hold_out_whole) {
+        v.mask_path.reset();
+        v.mask_from_alpha = false;
+      } else if (!v.mask_path && !v.mask_from_alpha) {
+        fail_file(dir, "view {} has no object mask; a held-out view is compared outside its mask (or evaluate a "
+                  "reconstruction with --keep-object)", v.name);
+      }
+      v.shows_object = !options.hold_out_whole;
       scene.test_views.push_back(std::move(v));
     }
     if (inputs.empty()) fail_file(dir, "holding out every view leaves no input view");

@@ -45,6 +45,9 @@ struct SceneOptions {
   // > 0: input views 0, N, 2N, ... (3DGS's LLFF hold-out) become test views that show the
   // object, for scenes without object-free test views (they need masks).
   int hold_out_every = 0;
+  // With hold_out_every: a reconstruction (nothing removed), so the held-out views need no
+  // masks and are compared whole.
+  bool hold_out_whole = false;
 };
 
 // Reads a scene folder in any supported format (detected from its files when

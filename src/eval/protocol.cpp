@@ -206,6 +206,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   opts.preprocess.height = o.height;
   opts.inpainter = o.inpainter;
   opts.reference_view = o.reference_view;
+  opts.keep_object = o.keep_object;
   if (o.edit) {
     spdlog::info("masks for every view from the region on {}", o.edit->view);
     const SceneMasks masks = masks_from_one(scene, *o.edit, [&]() -> const Predictor& { return predictor; }, opts);
@@ -319,6 +320,11 @@ void write_report(const fs::path& out, const json& metrics) {
   }
   h += "<p class=\"note\">Each sheet: ground truth | prediction | error map (mean absolute error, black 0, yellow ≥ " +
        fmt::format("{:.2f}", kErrorMapFullScale) + ") | prediction with the mask outline (red).</p>\n";
+  const json refine = metrics["prediction"].value("after_prediction", json::object()).value("refine", json::object());
+  if (refine.contains("loss_chart"))
+    h += "<h2>Refinement</h2>\n<p>" + html_escape(refine.value("length", std::string())) + ", " +
+         std::to_string(refine.value("steps", 0)) + " steps</p><img src=\"" +
+         html_escape(refine["loss_chart"].get<std::string>()) + "\" alt=\"refinement loss\">\n";
   h += "<h2>Views</h2>\n";
   for (const json& v : metrics["views"]) {
     h += "<div class=\"view\"><h3>" + html_escape(v["name"].get<std::string>()) + "</h3><table><tr>";

@@ -1,14 +1,16 @@
 #include "refine/refine.h"
 
-#include <torch/optim/adam.h>
-
 #include <cmath>
+
+#include <Eigen/LU>
+#include <fmt/format.h>
 
 #include "common/error.h"
 #include "common/stopwatch.h"
 #include "data/masks.h"
 #include "eval/metrics.h"
 #include "model/scene_input.h"
+#include "refine/adam.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
 
@@ -16,36 +18,196 @@ namespace ii {
 
 namespace {
 
-// One view as the loss needs it: the photo (1, 3, H, W) with unsupervised pixels zeroed, the
-// supervised pixels (1, 1, H, W).
-struct Target {
+// One view at one resolution as the loss needs it: the photo (1, 3, H, W) with unsupervised
+// pixels zeroed, the supervised pixels (1, 1, H, W).
+struct Level {
   RenderCamera camera;
   torch::Tensor rgb, weight;
+  bool any = false;  // some pixel supervised
+  // Usable for the loss: something supervised, and no smaller than SSIM's 11x11 window.
+  bool usable() const { return any && camera.camera.K.width >= 11 && camera.camera.K.height >= 11; }
 };
+
+// A view at full, half and quarter resolution. A coarse pixel is supervised only when all of
+// the pixels it averages are, so masked pixels never reach the loss at any level.
+struct Target {
+  std::string name;
+  std::array<Level, 3> levels;
+};
+
+Level half_of(const Level& fine) {
+  Level l;
+  const Intrinsics& K = fine.camera.camera.K;
+  l.camera = fine.camera;
+  l.camera.camera.K.width = K.width / 2;  // the odd last column and row are dropped
+  l.camera.camera.K.height = K.height / 2;
+  for (double* v : {&l.camera.camera.K.fx, &l.camera.camera.K.fy, &l.camera.camera.K.cx, &l.camera.camera.K.cy})
+    *v /= 2;
+  if (K.width < 2 || K.height < 2) return l;  // nothing supervised
+  l.weight = (torch::avg_pool2d(fine.weight, 2) >= 1 - 1e-6).to(torch::kFloat32);
+  l.rgb = torch::avg_pool2d(fine.rgb, 2) * l.weight;
+  l.any = l.weight.sum().item<double>() > 0;
+  return l;
+}
+
+double elapsed_s(const Stopwatch& clock) { return clock.ms() / 1000; }
+
+// Pixels (u, v) of a camera at z-depth `depth`, in the world.
+torch::Tensor unproject(const Camera& camera, const torch::Tensor& u, const torch::Tensor& v, double depth) {
+  const Eigen::Matrix4d c2w = camera.w2c_opencv().inverse();
+  const torch::Tensor x = (u + 0.5 - camera.K.cx) / camera.K.fx * depth;
+  const torch::Tensor y = (v + 0.5 - camera.K.cy) / camera.K.fy * depth;
+  const torch::Tensor local = torch::stack({x, y, torch::full_like(x, depth)}, 1).to(torch::kFloat64);
+  torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
+  for (int i = 0; i < 3; ++i) {
+    t[i] = c2w(i, 3);
+    for (int j = 0; j < 3; ++j) R[i][j] = c2w(i, j);
+  }
+  return (local.matmul(R.t()) + t).to(torch::kFloat32);
+}
+
+// New Gaussians where a view's supervised pixels are not covered (RefineOptions::cover).
+GaussianSet cover_uncovered(const GaussianSet& start, const std::vector<Target>& targets) {
+  torch::NoGradGuard no_grad;
+  const torch::Device device = start.means.device();
+  std::vector<torch::Tensor> means, scales, colours;
+  for (const Target& t : targets) {
+    const Level& l = t.levels[2];
+    if (!l.any) continue;
+    const RenderOutput out = render(start, l.camera);
+    const torch::Tensor alpha = out.alpha.squeeze(2).to(torch::kCPU);
+    const torch::Tensor open = (alpha < 0.5).logical_and(l.weight[0][0].to(torch::kCPU) > 0.5);
+    if (open.sum().item<int64_t>() == 0) continue;
+    const torch::Tensor seen = out.depth.squeeze(2).to(torch::kCPU).index({alpha >= 0.5});
+    // The median depth of what this view sees; with nothing seen, the extent of the start set.
+    const double depth = seen.numel() > 0 ? seen.median().item<double>()
+                                          : std::max(1e-3, 2 * visible_bounds(start).radius);
+    const torch::Tensor pixels = open.nonzero();
+    const torch::Tensor v = pixels.select(1, 0).to(torch::kFloat64), u = pixels.select(1, 1).to(torch::kFloat64);
+    means.push_back(unproject(l.camera.camera, u, v, depth));
+    const double sigma = depth / l.camera.camera.K.fx;  // one quarter-resolution pixel at that depth
+    scales.push_back(torch::full({pixels.size(0), 3}, sigma, torch::kFloat32));
+    const torch::Tensor rgb = l.rgb[0].to(torch::kCPU).permute({1, 2, 0});
+    colours.push_back(rgb.index({pixels.select(1, 0), pixels.select(1, 1)}));
+  }
+  GaussianSet added;
+  if (means.empty()) return added;
+  added.means = torch::cat(means).to(device);
+  added.scales = torch::cat(scales).to(device);
+  added.colors = torch::cat(colours).to(device);
+  const int64_t n = added.means.size(0);
+  added.quats = torch::tensor({1.f, 0.f, 0.f, 0.f}, torch::TensorOptions(device)).repeat({n, 1});
+  added.opacities = torch::full({n}, 0.5f, torch::TensorOptions(device));
+  return added;
+}
+
+// The view-space (NDC) gradient of each Gaussian's projected centre, from its world gradient:
+// the part across the viewing direction, divided by the projection's scale (fx / z pixels per
+// unit, W / 2 pixels per NDC unit); the path through the covariance is left out.
+torch::Tensor view_space_gradient(const torch::Tensor& means, const torch::Tensor& grad, const Camera& camera) {
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  torch::Tensor R = torch::empty({3, 3}, torch::kFloat32), t = torch::empty({3}, torch::kFloat32);
+  for (int i = 0; i < 3; ++i) {
+    t[i] = w2c(i, 3);
+    for (int j = 0; j < 3; ++j) R[i][j] = w2c(i, j);
+  }
+  R = R.to(means.device());
+  t = t.to(means.device());
+  const torch::Tensor z = (means.matmul(R.t()) + t).select(1, 2).clamp_min(1e-6);
+  const torch::Tensor g = grad.matmul(R.t());
+  const torch::Tensor gx = g.select(1, 0) * z * (camera.K.width / (2 * camera.K.fx));
+  const torch::Tensor gy = g.select(1, 1) * z * (camera.K.height / (2 * camera.K.fy));
+  return (gx * gx + gy * gy).sqrt();
+}
 
 }  // namespace
 
-RefineResult refine_gaussians(const GaussianSet& start, const std::vector<RefineView>& views,
+bool refine_requested(const RefineOptions& options) { return options.time_budget_s > 0 || options.steps > 0; }
+
+std::string refine_length(const RefineOptions& options) {
+  if (options.time_budget_s > 0) {
+    const double s = options.time_budget_s;
+    return s >= 60 && std::fmod(s, 60) == 0 ? fmt::format("{} minute{}", s / 60, s == 60 ? "" : "s")
+                                            : fmt::format("{} s", s);
+  }
+  return fmt::format("{} step{}", options.steps, options.steps == 1 ? "" : "s");
+}
+
+RefineOptions refine_setting(const std::string& text) {
+  RefineOptions o;
+  if (text == "fast" || text == "balanced" || text == "best") {
+    o.time_budget_s = text == "fast" ? 60 : text == "balanced" ? 300 : 600;
+    return o;
+  }
+  // A number of steps, or a time: digits with an optional fraction and the unit s or m.
+  size_t used = 0;
+  double value = -1;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  const std::string unit = used > 0 ? text.substr(used) : "";
+  const bool digits_only = !text.empty() && text.find_first_not_of("0123456789") == std::string::npos;
+  if (digits_only && text.size() <= 6) {
+    o.steps = std::stoi(text);
+    return o;
+  }
+  if (used > 0 && std::isdigit(static_cast<unsigned char>(text[0])) && (unit == "s" || unit == "m") &&
+      value > 0 && value <= 24 * 3600) {
+    o.time_budget_s = unit == "m" ? value * 60 : value;
+    if (o.time_budget_s <= 24 * 3600) return o;
+  }
+  fail("refine: '{}' is not a refinement: use fast, balanced or best, a time such as 90s or 2m (up to 24 hours), or a "
+       "number of steps",
+       text);
+}
+
+RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<RefineView>& views,
                               const RefineOptions& options) {
+  const Stopwatch clock;
   if (views.empty()) fail("refine: no views to refine against");
   if (options.steps < 0) fail("refine: the number of steps must be 0 or more, got {}", options.steps);
-  if (start.sh_degree >= 0) fail("refine: the Gaussians must have RGB colours (as the network predicts them)");
+  if (!(options.time_budget_s >= 0)) fail("refine: the time budget must be 0 or more seconds, got {}", options.time_budget_s);
+  if (start_set.sh_degree >= 0) fail("refine: the Gaussians must have RGB colours (as the network predicts them)");
   if (options.sh_degree < 0 || options.sh_degree > 3)
     fail("refine: the SH degree must be 0 to 3, got {}", options.sh_degree);
-  const torch::Device device = start.means.device();
+  const torch::Device device = start_set.means.device();
   std::vector<Target> targets;
   for (const RefineView& v : views) {
     if (v.mask && (v.mask->width != v.rgb.width || v.mask->height != v.rgb.height || v.mask->channels != 1))
       fail("refine: the mask of view {} does not fit its {}x{} image", v.name, v.rgb.width, v.rgb.height);
     Target t;
-    t.camera.camera = v.camera;
-    t.rgb = image_to_tensor(v.rgb).to(device);
-    t.weight = v.mask ? (image_to_tensor(*v.mask) <= 0.5).to(torch::kFloat32).to(device)
-                      : torch::ones({1, 1, v.rgb.height, v.rgb.width}, torch::TensorOptions(device));
-    t.rgb = t.rgb * t.weight;
-    if (t.weight.sum().item<double>() > 0) targets.push_back(std::move(t));  // a view masked everywhere says nothing
+    t.name = v.name;
+    Level& full = t.levels[0];
+    full.camera.camera = v.camera;
+    full.rgb = image_to_tensor(v.rgb).to(device);
+    full.weight = v.mask ? (image_to_tensor(*v.mask) <= 0.5).to(torch::kFloat32).to(device)
+                         : torch::ones({1, 1, v.rgb.height, v.rgb.width}, torch::TensorOptions(device));
+    full.rgb = full.rgb * full.weight;
+    full.any = full.weight.sum().item<double>() > 0;
+    if (!full.any) continue;  // a view masked everywhere says nothing
+    t.levels[1] = half_of(full);
+    t.levels[2] = half_of(t.levels[1]);
+    targets.push_back(std::move(t));
   }
   if (targets.empty()) fail("refine: every view is masked everywhere");
+  RefineResult result;
+  for (const Target& t : targets) result.views.push_back(t.name);
+
+  const bool optimise = refine_requested(options);
+  result.start_count = start_set.size();
+  GaussianSet start = start_set.to(device);
+  if (optimise && options.cover) {
+    const GaussianSet added = cover_uncovered(start, targets);
+    result.covered = added.size();
+    if (added.size() > 0) {
+      for (auto [to, from] : {std::pair{&start.means, &added.means}, {&start.scales, &added.scales},
+                              {&start.quats, &added.quats}, {&start.colors, &added.colors}})
+        *to = torch::cat({to->to(torch::kFloat32), from->to(to->device())});
+      start.opacities = torch::cat({start.opacities.to(torch::kFloat32).reshape({-1}), added.opacities});
+    }
+  }
 
   // 3DGS's parametrisation: raw positions, log scales, raw quaternions, opacity logits, colours.
   const torch::TensorOptions f32 = torch::TensorOptions(device).dtype(torch::kFloat32);
@@ -66,65 +228,160 @@ RefineResult refine_gaussians(const GaussianSet& start, const std::vector<Refine
   }
 
   const double extent = std::max(visible_bounds(start).radius, 1e-6);
-  auto group = [](torch::Tensor t, double lr) {
-    return torch::optim::OptimizerParamGroup({std::move(t)},
-                                             std::make_unique<torch::optim::AdamOptions>(
-                                                 torch::optim::AdamOptions(lr).eps(1e-15)));
-  };
-  std::vector<torch::optim::OptimizerParamGroup> groups;
-  groups.push_back(group(means, options.position_lr * extent));
-  groups.push_back(group(log_scales, options.scale_lr));
-  groups.push_back(group(quats, options.rotation_lr));
-  groups.push_back(group(logits, options.opacity_lr));
-  groups.push_back(group(colours, options.colour_lr));
-  if (sh) groups.push_back(group(sh_rest, options.colour_lr / 20));
-  torch::optim::Adam adam(std::move(groups), torch::optim::AdamOptions(1e-3));
+  RowAdam adam;
+  adam.add(&means, options.position_lr * extent);
+  adam.add(&log_scales, options.scale_lr);
+  adam.add(&quats, options.rotation_lr);
+  adam.add(&logits, options.opacity_lr);
+  adam.add(&colours, options.colour_lr);
+  if (sh) adam.add(&sh_rest, options.colour_lr / 20);
 
-  auto current = [&] {
+  // Per-view colour maps (3 x 4: gains and offsets) for every view but the first.
+  torch::Tensor exposure;
+  RowAdam exposure_adam;
+  if (options.exposure && targets.size() > 1) {
+    exposure = torch::cat({torch::eye(3, f32), torch::zeros({3, 1}, f32)}, 1)
+                   .repeat({static_cast<int64_t>(targets.size()) - 1, 1, 1})
+                   .requires_grad_(true);
+    exposure_adam.add(&exposure, options.exposure_lr);
+  }
+
+  auto current = [&](int degree) {
     GaussianSet g;
     g.means = means;
     g.scales = log_scales.exp();
     g.quats = quats;
     g.opacities = torch::sigmoid(logits);
     g.colors = sh ? torch::cat({colours, sh_rest}, 1) : colours;
-    g.sh_degree = sh ? options.sh_degree : -1;
+    g.sh_degree = sh ? degree : -1;
     return g;
+  };
+
+  const int64_t max_gaussians = options.densify.max_gaussians > 0
+                                    ? options.densify.max_gaussians
+                                    : static_cast<int64_t>(start.size() * (1 + options.densify.max_growth));
+  torch::Tensor grad_sum = torch::zeros({start.size()}, f32), seen = torch::zeros({start.size()}, f32);
+  auto densify = [&] {
+    torch::NoGradGuard no_grad;
+    const DensifyDecision d = decide_densification(grad_sum / seen.clamp_min(1), log_scales.exp().amax(1),
+                                                   torch::sigmoid(logits), extent, max_gaussians, options.densify);
+    result.cloned += d.clone.sum().item<int64_t>();
+    result.split += d.split.sum().item<int64_t>();
+    result.pruned += d.prune.sum().item<int64_t>();
+    // New rows: the clones; each split Gaussian's two children, smaller. A clone and its
+    // parent share the parent's opacity o: both get 1 − √(1 − o), so that the pair in one
+    // place is as opaque as the parent was (as 3DGS-MCMC does; 3DGS keeps o and the image jumps).
+    const torch::Tensor shared = torch::logit(1 - (1 - torch::sigmoid(logits)).sqrt(), 1e-6);
+    logits.data().copy_(torch::where(d.clone, shared, logits));
+    const auto [first, second] = split_centres(means.index({d.split}), log_scales.index({d.split}).exp(),
+                                               quats.index({d.split}));
+    const torch::Tensor smaller = split_log_scales(log_scales.index({d.split}));
+    auto rows = [&](const torch::Tensor& t) {
+      return torch::cat({t.index({d.clone}), t.index({d.split}), t.index({d.split})});
+    };
+    std::vector<torch::Tensor> added = {
+        torch::cat({means.index({d.clone}), first, second}),
+        torch::cat({log_scales.index({d.clone}), smaller, smaller}),
+        rows(quats),
+        rows(logits),
+        rows(colours)};
+    if (sh) added.push_back(rows(sh_rest));
+    // Parents of splits and pruned ones go; the new rows come after the kept ones.
+    adam.keep_rows(d.split.logical_or(d.prune).logical_not());
+    adam.append_rows(added);
+    grad_sum = torch::zeros({means.size(0)}, f32);
+    seen = torch::zeros({means.size(0)}, f32);
   };
 
   // Views in a seeded order, each once per pass.
   MaskRng rng(options.seed);
   std::vector<size_t> order;
-  RefineResult result;
-  Stopwatch watch;
-  for (int step = 0; step < options.steps; ++step) {
+  const double budget = options.time_budget_s;
+  const double initial_position_lr = options.position_lr * extent;
+  double loop_start = 0;
+  Stopwatch loop_clock;
+  for (int step = 0;; ++step) {
+    const double now = elapsed_s(clock);
+    const double fraction = budget > 0 ? now / budget : options.steps > 0 ? double(step) / options.steps : 1;
+    if (fraction >= 1) break;
+    if (step == 0) loop_start = now;
     if (order.empty()) {
       for (size_t i = 0; i < targets.size(); ++i) order.push_back(i);
       random_shuffle(order, rng);
     }
-    const Target& t = targets[order.back()];
+    const size_t view = order.back();
     order.pop_back();
-    adam.zero_grad();
+    const int wanted_level = !options.coarse_to_fine                ? 0
+                             : fraction < options.quarter_until ? 2
+                             : fraction < options.half_until    ? 1
+                                                                : 0;
+    int level = wanted_level;
+    while (level > 0 && !targets[view].levels[level].usable()) --level;
+    const Level& t = targets[view].levels[level];
+    const int degree = std::min(options.sh_degree, static_cast<int>(fraction * 10));
+    adam.set_lr(0, initial_position_lr * std::pow(options.position_lr_final / options.position_lr, fraction));
+
     // Unsupervised pixels are zero in both images: no gradient flows from them, and the SSIM
     // windows that reach into them see the same values on both sides.
-    const torch::Tensor rgb = render(current(), t.camera).rgb.permute({2, 0, 1}).unsqueeze(0) * t.weight;
+    torch::Tensor rgb = render(current(degree), t.camera).rgb.permute({2, 0, 1}).unsqueeze(0);
+    if (exposure.defined() && view > 0) {
+      const torch::Tensor map = exposure[static_cast<int64_t>(view) - 1];
+      rgb = (map.narrow(1, 0, 3).matmul(rgb.reshape({3, -1})) + map.narrow(1, 3, 1)).reshape(rgb.sizes());
+    }
+    rgb = rgb * t.weight;
     const torch::Tensor supervised = t.weight.sum().clamp_min(1);
     const torch::Tensor l1 = ((rgb - t.rgb).abs() * t.weight).sum() / (3 * supervised);
     const torch::Tensor loss = (1 - options.ssim_weight) * l1 +
                                options.ssim_weight * (1 - masked_ssim(rgb, t.rgb, t.weight).mean());
     loss.backward();
+
+    const bool densifying = options.densify.enabled && fraction >= 0.05 && fraction < 0.6;
+    if (densifying) {
+      torch::NoGradGuard no_grad;
+      const torch::Tensor g = view_space_gradient(means.detach(), means.grad(), t.camera.camera);
+      grad_sum += g;
+      seen += (means.grad().abs().sum(1) > 0).to(torch::kFloat32);
+    }
     adam.step();
+    if (exposure.defined()) exposure_adam.step();
+    if (densifying && (step + 1) % options.densify_every == 0) densify();
+
     result.losses.push_back(loss.item<double>());
-    if (options.progress) options.progress(step + 1, options.steps, result.losses.back());
+    result.steps = step + 1;
+    if (options.progress) {
+      RefineProgress p;
+      p.step = step + 1;
+      p.elapsed_s = elapsed_s(clock);
+      p.fraction = budget > 0 ? std::min(1.0, p.elapsed_s / budget) : double(step + 1) / options.steps;
+      p.loss = result.losses.back();
+      p.eta_s = budget > 0 ? std::max(0.0, budget - p.elapsed_s)
+                           : (p.elapsed_s - loop_start) / (step + 1) * (options.steps - step - 1);
+      p.gaussians = means.size(0);
+      options.progress(p);
+    }
   }
-  result.ms_per_step = options.steps > 0 ? watch.ms() / options.steps : 0;
+  result.ms_per_step = result.steps > 0 ? loop_clock.ms() / result.steps : 0;
 
   torch::NoGradGuard no_grad;
-  GaussianSet refined = current();
+  GaussianSet refined = current(options.sh_degree);
   const torch::Tensor keep = refined.opacities >= 1.0 / 255;
   result.dropped = refined.size() - keep.sum().item<int64_t>();
   for (torch::Tensor* t : {&refined.means, &refined.scales, &refined.quats, &refined.opacities, &refined.colors})
     *t = t->index({keep}).detach();
   result.gaussians = refined;
+  if (exposure.defined()) {
+    result.exposure.push_back({targets[0].name, {1, 1, 1, 0, 0, 0}});
+    const torch::Tensor maps = exposure.detach().to(torch::kCPU);
+    for (int64_t v = 0; v < maps.size(0); ++v) {
+      std::array<double, 6> e;
+      for (int c = 0; c < 3; ++c) {
+        e[c] = maps[v][c][c].item<double>();
+        e[3 + c] = maps[v][c][3].item<double>();
+      }
+      result.exposure.push_back({targets[v + 1].name, e});
+    }
+  }
+  result.seconds = elapsed_s(clock);
   return result;
 }
 
@@ -148,18 +405,54 @@ std::vector<RefineView> refinement_views(const Scene& scene, const Prediction& p
   return views;
 }
 
+nlohmann::json refinement_report(const RefineResult& r, const RefineOptions& options) {
+  nlohmann::json exposure = nlohmann::json::object();
+  for (const auto& [name, e] : r.exposure)
+    exposure[name] = {{"gain", {e[0], e[1], e[2]}}, {"offset", {e[3], e[4], e[5]}}};
+  return {{"length", refine_length(options)},
+          {"steps", r.steps},
+          {"seconds", r.seconds},
+          {"ms_per_step", r.ms_per_step},
+          {"views", r.views},
+          {"losses", r.losses},
+          {"gaussians", {{"start", r.start_count},
+                         {"covered", r.covered},
+                         {"cloned", r.cloned},
+                         {"split", r.split},
+                         {"pruned", r.pruned},
+                         {"dropped", r.dropped},
+                         {"end", r.gaussians.size()}}},
+          {"dropped", r.dropped},
+          {"sh_degree", options.sh_degree},
+          {"coarse_to_fine", options.coarse_to_fine},
+          {"densify", options.densify.enabled},
+          {"exposure", options.exposure ? exposure : nlohmann::json()}};
+}
+
+GaussianSet thinned_prediction(const GaussianSet& gaussians, const Prediction& prediction, int stride) {
+  if (stride <= 1) return gaussians;
+  // The network's Gaussians are per pixel, in the order view, row, column.
+  std::vector<int64_t> rows;
+  int64_t first = 0;
+  for (const PreparedView& v : prediction.input.views) {
+    for (int y = 0; y < v.rgb.height; y += stride)
+      for (int x = 0; x < v.rgb.width; x += stride) rows.push_back(first + int64_t(y) * v.rgb.width + x);
+    first += int64_t(v.rgb.width) * v.rgb.height;
+  }
+  if (first != gaussians.size())
+    fail("refine: {} Gaussians do not match the prediction's {} pixels", gaussians.size(), first);
+  const torch::Tensor index = torch::tensor(rows, torch::kInt64).to(gaussians.means.device());
+  GaussianSet g = gaussians;
+  for (torch::Tensor* t : {&g.means, &g.scales, &g.quats, &g.opacities, &g.colors}) *t = t->index_select(0, index);
+  g.scales = g.scales * stride;
+  return g;
+}
+
 GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, const SceneInputOptions& options,
                               const GaussianSet& start, const RefineOptions& refine, nlohmann::json& report) {
-  const std::vector<RefineView> views = refinement_views(scene, prediction, options);
-  RefineResult r = refine_gaussians(start, views, refine);
-  nlohmann::json names = nlohmann::json::array();
-  for (const RefineView& v : views) names.push_back(v.name);
-  report = {{"steps", refine.steps},
-            {"ms_per_step", r.ms_per_step},
-            {"views", names},
-            {"losses", r.losses},
-            {"dropped", r.dropped},
-            {"sh_degree", refine.sh_degree}};
+  RefineResult r = refine_gaussians(thinned_prediction(start, prediction, refine.start_stride),
+                                    refinement_views(scene, prediction, options), refine);
+  report = refinement_report(r, refine);
   return std::move(r.gaussians);
 }
 

@@ -1,12 +1,15 @@
 #pragma once
-// Refinement: a short optimisation of predicted Gaussians against every view of the capture,
+// Refinement: a 3DGS optimisation of predicted Gaussians against every view of the capture,
 // starting from the network's prediction (the feed-forward pass sees a few views; a capture
-// has dozens). 3DGS's parametrisation and per-parameter learning rates, Adam, loss
-// L1 + λ (1 − SSIM). Each view supervises outside its object mask; the reference (the
-// inpainted image the network saw) supervises everywhere, so the hole keeps its content.
+// has dozens). 3DGS's parametrisation, per-parameter learning rates and adaptive density
+// control (clone, split, prune), Adam, loss L1 + λ (1 − SSIM), coarse to fine, optional
+// per-view colour correction. Each view supervises outside its object mask; the reference
+// (the inpainted image the network saw) supervises everywhere, so the hole keeps its content.
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -17,6 +20,7 @@
 #include "gaussians/gaussians.h"
 #include "io/image.h"
 #include "model/predictor.h"
+#include "refine/densify.h"
 
 namespace ii {
 
@@ -27,29 +31,81 @@ struct RefineView {
   Camera camera;              // for `rgb`, in the Gaussians' frame
 };
 
+// Where a refinement stands, after each step.
+struct RefineProgress {
+  int step = 0;           // steps done
+  double fraction = 0;    // of the run: steps / steps asked for, or time used / time budget
+  double loss = 0;        // of this step
+  double elapsed_s = 0;
+  double eta_s = 0;
+  int64_t gaussians = 0;  // now
+};
+
 struct RefineOptions {
-  int steps = 300;
+  int steps = 300;           // how long, unless time_budget_s is set
+  double time_budget_s = 0;  // > 0: optimise until this many seconds have passed (steps is then ignored)
   double ssim_weight = 0.2;  // λ
   uint64_t seed = 0;         // the order the views are visited in
   // 0: one colour per Gaussian (as the network predicts); 1-3: view-dependent colour, SH
-  // coefficients of this degree fitted from zero (3DGS's rate: colour_lr / 20).
+  // coefficients up to this degree fitted from zero (3DGS's rate: colour_lr / 20), one degree
+  // more at each tenth of the run, as 3DGS raises it over its first 3000 of 30000 steps.
   int sh_degree = 0;
-  // Adam learning rates (3DGS's); positions are scaled by the set's extent.
-  double position_lr = 1.6e-4, scale_lr = 5e-3, rotation_lr = 1e-3, opacity_lr = 5e-2, colour_lr = 2.5e-3;
-  std::function<void(int done, int total, double loss)> progress;  // after each step
+  // Adam learning rates, 3DGS's but for positions: scaled by the set's extent, decaying
+  // exponentially to position_lr_final over the run, and 100 times 3DGS's. The network's
+  // geometry of a real capture is off by a good part of the scene (docs/benchmarks.md: fern
+  // held out 20.6 dB in 2 minutes at 3DGS's rate, 22.7 at 10x, 24.4 at 30x, 25.8 at 100x).
+  double position_lr = 1.6e-2, position_lr_final = 1.6e-4, scale_lr = 5e-3, rotation_lr = 1e-3,
+         opacity_lr = 5e-2, colour_lr = 2.5e-3;
+  // Per-view colour correction for captures whose exposure and white balance change between
+  // photos: an affine colour map per view (3x3 + offset, from the identity) applied to the
+  // render before the loss; the first view's colours (the reference) are taken as they are.
+  // Off by default: on captures of steady exposure (fern) the maps absorb part of what the
+  // Gaussians should learn, and held-out views have no map.
+  bool exposure = false;
+  double exposure_lr = 1e-3;
+  // Coarse to fine: the run at a quarter of the resolution until quarter_until, then at half
+  // until half_until (fractions of the run): cheaper steps while the large errors are fixed.
+  bool coarse_to_fine = true;
+  double quarter_until = 0.1, half_until = 0.3;
+  // Before optimising, new Gaussians where a view's supervised pixels are not covered by the
+  // start set (opacity < 0.5): one per pixel of the quarter-resolution view, at the median depth
+  // of what that view does see, in the photo's colour.
+  bool cover = true;
+  // refine_prediction only: start from the network's Gaussians of every n-th pixel row and
+  // column of each context view, scales x n (n² times fewer: cheaper steps; densification
+  // adds detail where the views ask for it).
+  int start_stride = 3;
+  DensifyOptions densify;  // between 5 % and 60 % of the run, every densify_every steps
+  int densify_every = 50;
+  std::function<void(const RefineProgress&)> progress;  // after each step
 };
+
+// `--refine`'s settings by name: "fast" (1 minute), "balanced" (5 minutes, what a user gets by
+// default), "best" (10 minutes), a time budget ("90s", "2m", "1.5m"), or a number of steps
+// ("300"; "0" = no refinement). Error naming the text otherwise.
+RefineOptions refine_setting(const std::string& text);
+// Whether the options ask for any optimisation.
+bool refine_requested(const RefineOptions& options);
+// What the setting is, for logs and reports: "300 steps", "5 minutes".
+std::string refine_length(const RefineOptions& options);
 
 struct RefineResult {
   // float32 on the start set's device; fully transparent ones dropped; RGB colours for
   // sh_degree 0, else SH of that degree.
   GaussianSet gaussians;
   std::vector<double> losses;  // per step
+  int steps = 0;               // done
+  double seconds = 0;          // the whole call
   double ms_per_step = 0;
+  int64_t start_count = 0, covered = 0, cloned = 0, split = 0, pruned = 0;
   int64_t dropped = 0;  // Gaussians whose opacity ended below 1/255
+  std::vector<std::string> views;  // that supervised (views masked everywhere say nothing)
+  // Per view, with exposure: the colour map's diagonal gains and offsets (R, G, B).
+  std::vector<std::pair<std::string, std::array<double, 6>>> exposure;
 };
 
 // `start` has RGB colours (sh_degree -1), like the network's. Errors: no views, a view whose
-// mask does not fit its image, steps < 0, an SH degree outside 0-3.
+// mask does not fit its image, steps < 0, a negative time budget, an SH degree outside 0-3.
 RefineResult refine_gaussians(const GaussianSet& start, const std::vector<RefineView>& views,
                               const RefineOptions& options);
 
@@ -61,8 +117,9 @@ std::vector<RefineView> refinement_views(const Scene& scene, const Prediction& p
                                          const SceneInputOptions& options);
 
 // Both of the above for a prediction: `start` (its Gaussians, on the device to refine on)
-// refined against the scene's views; `report` receives {"steps", "ms_per_step", "views",
-// "losses", "dropped"} for run.json / metrics.json.
+// refined against the scene's views; `report` receives what refinement_report() makes, for
+// run.json / metrics.json.
+nlohmann::json refinement_report(const RefineResult& result, const RefineOptions& options);
 GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, const SceneInputOptions& options,
                               const GaussianSet& start, const RefineOptions& refine, nlohmann::json& report);
 

@@ -182,7 +182,7 @@ struct JobRequest {
   EditMode mode = EditMode::Remove;
   Image region;                    // the uploaded mask, checked against the view
   std::optional<Image> reference;  // the uploaded inpainted reference
-  int refine = 0;
+  RefineOptions refine = refine_setting("0");
   // video, eval: the PLY, one the server serves
   fs::path ply;
 };
@@ -319,11 +319,13 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
   }
   if (req.has_file("refine")) {
     const std::string text = req.get_file_value("refine").content;
-    char* end = nullptr;
-    const long steps = std::strtol(text.c_str(), &end, 10);
-    if (text.empty() || *end != '\0' || steps < 0 || steps > 5000)
-      return Refusal{400, "refine must be a number of steps from 0 to 5000"};
-    edit.refine = static_cast<int>(steps);
+    try {
+      edit.refine = refine_setting(text);
+    } catch (const Error&) {
+      edit.refine.steps = -1;
+    }
+    if (edit.refine.steps < 0 || edit.refine.steps > 5000 || edit.refine.time_budget_s > 600)
+      return Refusal{400, "refine must be fast, balanced or best, a time up to 10m, or a number of steps up to 5000"};
   }
 
   // Uploaded images: PNG or JPEG, kept in the job's folder under fixed names and decoded now
@@ -394,12 +396,14 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   stage("running the network", 0.3);
   const Prediction p = predictor->predict(*scene, input);
   GaussianSet gaussians = p.gaussians();
-  if (edit.refine > 0) {
-    RefineOptions refine;
-    refine.steps = edit.refine;
-    refine.progress = [&](int done, int total, double loss) {
-      if (done % 10 == 0 || done == total)
-        stage(fmt::format("refining {}/{} (loss {:.4f})", done, total, loss), 0.4 + 0.5 * done / total);
+  if (refine_requested(edit.refine)) {
+    RefineOptions refine = edit.refine;
+    int shown = -1;
+    refine.progress = [&](const RefineProgress& p) {
+      if (static_cast<int>(p.fraction * 100) == shown) return;
+      shown = static_cast<int>(p.fraction * 100);
+      stage(fmt::format("refining: {:.0f} s left, {} Gaussians (loss {:.4f})", p.eta_s, p.gaussians, p.loss),
+            0.4 + 0.5 * p.fraction);
     };
     json report;
     gaussians =

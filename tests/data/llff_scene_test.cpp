@@ -62,7 +62,14 @@ TEST(LlffScene, HoldOutEveryNthViewAsATestViewThatShowsTheObject) {
   II_REQUIRE_SHARED(fern, "data/fern");
   EXPECT_EQ(test::error_message([&] { load_scene(fern, o); }),
             fern.string() + ": view " + load_scene(fern).views[0].name +
-                " has no object mask; a held-out view is compared outside its mask");
+                " has no object mask; a held-out view is compared outside its mask (or evaluate a reconstruction with "
+            "--keep-object)");
+  // A reconstruction's held-out views need none: compared whole.
+  o.hold_out_whole = true;
+  const Scene held = load_scene(fern, o);
+  ASSERT_FALSE(held.test_views.empty());
+  EXPECT_FALSE(held.test_views[0].shows_object);
+  EXPECT_FALSE(held.test_views[0].mask_path.has_value());
 }
 
 TEST(LlffScene, FernHasNoMasks) {

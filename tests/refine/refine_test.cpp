@@ -3,10 +3,15 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
 
 #include <nlohmann/json.hpp>
 
+#include "io/image.h"
 #include "io/ply.h"
+#include "refine/densify.h"
 #include "refine/refine.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
@@ -47,11 +52,25 @@ std::vector<RefineView> views_of(const GaussianSet& truth) {
   return views;
 }
 
+// The plain optimisation: no new Gaussians, no colour maps, full resolution.
 RefineOptions few_steps(int steps) {
   RefineOptions o;
   o.steps = steps;
   o.colour_lr = 0.02;
   o.seed = 3;
+  o.cover = false;
+  o.densify.enabled = false;
+  o.exposure = false;
+  o.coarse_to_fine = false;
+  return o;
+}
+
+// Everything switched on, densifying every 4 steps from step 2 on.
+RefineOptions all_parts(int steps) {
+  RefineOptions o = few_steps(steps);
+  o.cover = o.densify.enabled = o.exposure = o.coarse_to_fine = true;
+  o.densify_every = 4;
+  o.densify.grad_threshold = 0.015;  // these tiny views give large gradients: a few qualify
   return o;
 }
 
@@ -71,21 +90,144 @@ TEST(Refine, MaskedPixelsHaveNoInfluence) {
       for (int x = 0; x < 14; ++x) mask.at(y, x) = 1;
     views[k].mask = mask;
   }
-  const RefineResult a = refine_gaussians(grid(0.25f), views, few_steps(6));
-  for (size_t k = 1; k < views.size(); ++k)
-    for (int y = 0; y < 24; ++y)
-      for (int x = 0; x < 14; ++x) views[k].rgb.at(y, x, 1) = 0.f;  // paint the masked part
-  const RefineResult b = refine_gaussians(grid(0.25f), views, few_steps(6));
-  EXPECT_TRUE(torch::equal(a.gaussians.colors, b.gaussians.colors));
-  EXPECT_TRUE(torch::equal(a.gaussians.means, b.gaussians.means));
+  for (const RefineOptions& o : {few_steps(6), all_parts(40)}) {
+    std::vector<RefineView> painted = views;
+    for (size_t k = 1; k < views.size(); ++k)
+      for (int y = 0; y < 24; ++y)
+        for (int x = 0; x < 14; ++x) painted[k].rgb.at(y, x, 1) = 0.f;  // paint the masked part
+    const RefineResult a = refine_gaussians(grid(0.25f), views, o);
+    const RefineResult b = refine_gaussians(grid(0.25f), painted, o);
+    ASSERT_EQ(a.gaussians.size(), b.gaussians.size());
+    EXPECT_TRUE(torch::equal(a.gaussians.colors, b.gaussians.colors));
+    EXPECT_TRUE(torch::equal(a.gaussians.means, b.gaussians.means));
+    EXPECT_EQ(a.losses, b.losses);
+  }
 }
 
 TEST(Refine, SameSeedSameGaussians) {
-  const RefineResult a = refine_gaussians(grid(0.25f), views_of(grid()), few_steps(5));
-  const RefineResult b = refine_gaussians(grid(0.25f), views_of(grid()), few_steps(5));
+  const RefineResult a = refine_gaussians(grid(0.25f), views_of(grid()), all_parts(30));
+  const RefineResult b = refine_gaussians(grid(0.25f), views_of(grid()), all_parts(30));
+  EXPECT_GT(a.cloned + a.split, 0);  // the run densified
+  ASSERT_EQ(a.gaussians.size(), b.gaussians.size());
   EXPECT_TRUE(torch::equal(a.gaussians.means, b.gaussians.means));
   EXPECT_TRUE(torch::equal(a.gaussians.scales, b.gaussians.scales));
   EXPECT_EQ(a.losses, b.losses);
+  RefineOptions other = all_parts(30);
+  other.seed = 4;
+  EXPECT_NE(refine_gaussians(grid(0.25f), views_of(grid()), other).losses, a.losses);
+}
+
+TEST(Refine, AllPartsLowerTheLossAndReportTheColourMaps) {
+  const RefineResult r = refine_gaussians(grid(0.25f), views_of(grid()), all_parts(40));
+  // The first steps are at a coarser resolution: compared with the loss at full resolution.
+  const double start = refine_gaussians(grid(0.25f), views_of(grid()), few_steps(1)).losses[0];
+  EXPECT_LT(r.losses.back(), 0.5 * start);
+  ASSERT_EQ(r.exposure.size(), 3u);
+  EXPECT_EQ(r.exposure[0].first, "v0");
+  EXPECT_EQ(r.exposure[0].second, (std::array<double, 6>{1, 1, 1, 0, 0, 0}));  // the reference as it is
+  EXPECT_NE(r.exposure[1].second, r.exposure[0].second);
+  EXPECT_EQ(r.steps, 40);
+}
+
+// The grid's right half only: the views' left parts are not covered.
+TEST(Refine, UncoveredPixelsGetGaussiansWhereTheViewSawSomething) {
+  const GaussianSet truth = grid();
+  const torch::Tensor right = truth.means.select(1, 0) > 0;
+  GaussianSet half;
+  for (auto [to, from] : {std::pair{&half.means, &truth.means}, {&half.scales, &truth.scales},
+                          {&half.quats, &truth.quats}, {&half.opacities, &truth.opacities},
+                          {&half.colors, &truth.colors}})
+    *to = from->index({right});
+  RefineOptions o = few_steps(1);
+  o.cover = true;
+  const RefineResult r = refine_gaussians(half, views_of(truth), o);
+  ASSERT_GT(r.covered, 0);
+  EXPECT_EQ(r.gaussians.size(), half.size() + r.covered);
+  // The new ones fill the left side, at the depth of what the views see (z = -3).
+  const torch::Tensor added = r.gaussians.means.narrow(0, half.size(), r.covered);
+  EXPECT_LT(added.select(1, 0).mean().item<double>(), 0);
+  EXPECT_NEAR(added.select(1, 2).mean().item<double>(), -3, 0.05);
+}
+
+TEST(Densify, LargeGradientsCloneSmallAndSplitLargeGaussiansTransparentOnesGo) {
+  // extent 10: scales up to 0.1 are small.
+  const torch::Tensor grad = torch::tensor({3e-4, 1e-4, 5e-4, 2e-4, 9e-4});
+  const torch::Tensor scale = torch::tensor({0.05, 0.05, 0.5, 0.1, 0.05});
+  const torch::Tensor opacity = torch::tensor({0.5, 0.5, 0.5, 0.5, 0.001});
+  const DensifyDecision d = decide_densification(grad, scale, opacity, 10, 100, DensifyOptions{});
+  auto list = [](const torch::Tensor& b) {
+    std::vector<int64_t> v;
+    for (int64_t i = 0; i < b.size(0); ++i)
+      if (b[i].item<bool>()) v.push_back(i);
+    return v;
+  };
+  EXPECT_EQ(list(d.clone), (std::vector<int64_t>{0, 3}));  // 2e-4 is at the threshold
+  EXPECT_EQ(list(d.split), (std::vector<int64_t>{2}));
+  EXPECT_EQ(list(d.prune), (std::vector<int64_t>{4}));  // pruned even with the largest gradient
+  EXPECT_EQ(d.added(), 3);
+  // A cap of 5 with one pruned leaves room for one more: the largest gradient (Gaussian 2).
+  const DensifyDecision capped = decide_densification(grad, scale, opacity, 10, 5, DensifyOptions{});
+  EXPECT_EQ(list(capped.clone), std::vector<int64_t>{});
+  EXPECT_EQ(list(capped.split), (std::vector<int64_t>{2}));
+  EXPECT_EQ(capped.added(), 1);
+}
+
+TEST(Densify, SplitChildrenSitAlongTheLongestAxis) {
+  // Rotated 90 degrees about z: the local y axis (the longest) points along -x in the world.
+  const double h = std::sqrt(0.5);
+  const torch::Tensor quats = torch::tensor({h, 0.0, 0.0, h}).reshape({1, 4}).to(torch::kFloat32);
+  const torch::Tensor means = torch::tensor({1.f, 2.f, 3.f}).reshape({1, 3});
+  const torch::Tensor scales = torch::tensor({0.1f, 0.3f, 0.2f}).reshape({1, 3});
+  const auto [a, b] = split_centres(means, scales, quats);
+  const double d = 0.3 * std::sqrt(1 - 1 / (1.6 * 1.6));
+  EXPECT_TRUE(torch::allclose(a, torch::tensor({1 - d, 2.0, 3.0}).reshape({1, 3}).to(torch::kFloat32), 1e-5, 1e-6))
+      << a;
+  EXPECT_TRUE(torch::allclose(b, torch::tensor({1 + d, 2.0, 3.0}).reshape({1, 3}).to(torch::kFloat32), 1e-5, 1e-6))
+      << b;
+}
+
+TEST(Refine, DensifyingAddsGaussiansAndPruningRemovesTransparentOnes) {
+  GaussianSet start = grid(0.25f);
+  start.opacities[5] = 0.0045f;  // above 1/255 (kept by the final drop), below 0.005 (pruned)
+  start.opacities[7] = 0.0045f;
+  RefineOptions o = few_steps(8);
+  o.densify.enabled = true;
+  o.densify_every = 2;
+  o.densify.grad_threshold = 0;  // every Gaussian seen qualifies: the cap decides
+  o.densify.max_gaussians = 40;
+  o.opacity_lr = 0;  // the two stay transparent
+  const RefineResult r = refine_gaussians(start, views_of(grid()), o);
+  EXPECT_EQ(r.pruned, 2);
+  EXPECT_EQ(r.cloned + r.split, 40 - 34);  // up to the cap once the two are gone
+  EXPECT_EQ(r.gaussians.size(), 40);
+}
+
+TEST(Refine, ATimeBudgetIsKept) {
+  RefineOptions o = all_parts(0);
+  o.time_budget_s = 1.5;
+  const RefineResult r = refine_gaussians(grid(0.25f), views_of(grid()), o);
+  EXPECT_GE(r.seconds, 1.5);
+  EXPECT_LE(r.seconds, 1.65);
+  EXPECT_GT(r.steps, 5);
+}
+
+TEST(Refine, SettingsByNameTimeOrSteps) {
+  EXPECT_EQ(refine_setting("fast").time_budget_s, 60);
+  EXPECT_EQ(refine_setting("balanced").time_budget_s, 300);
+  EXPECT_EQ(refine_setting("best").time_budget_s, 600);
+  EXPECT_EQ(refine_setting("90s").time_budget_s, 90);
+  EXPECT_EQ(refine_setting("1.5m").time_budget_s, 90);
+  EXPECT_EQ(refine_setting("300").steps, 300);
+  EXPECT_EQ(refine_setting("300").time_budget_s, 0);
+  EXPECT_FALSE(refine_requested(refine_setting("0")));
+  EXPECT_EQ(refine_length(refine_setting("balanced")), "5 minutes");
+  EXPECT_EQ(refine_length(refine_setting("1")), "1 step");
+  for (const char* bad : {"", "quick", "-5", "5h", "0s", "1e9", "2m30", "1234567"})
+    EXPECT_EQ(test::error_message([&] { refine_setting(bad); }),
+              fmt::format("refine: '{}' is not a refinement: use fast, balanced or best, a time such as 90s or 2m (up "
+                          "to 24 hours), or a number of steps",
+                          bad))
+        << bad;
 }
 
 TEST(Refine, TransparentGaussiansAreDropped) {
@@ -146,7 +288,9 @@ TEST(RefineCli, InferRefinesAgainstEveryViewNotHeldOut) {
   EXPECT_EQ(run["refine"]["sh_degree"], 1);
   EXPECT_EQ(read_splat_ply(tmp / "gaussians.ply").sh_rest_per_channel, 3);
   EXPECT_EQ(read_splat_ply(tmp / "gaussians-unrefined.ply").sh_rest_per_channel, 0);
-  EXPECT_NE(test::file_bytes(log).find("refine 2/2"), std::string::npos) << test::file_bytes(log);
+  EXPECT_NE(test::file_bytes(log).find("refine 100%  step 2"), std::string::npos) << test::file_bytes(log);
+  EXPECT_EQ(run["refine"]["loss_chart"], "refine-loss.png");
+  EXPECT_EQ(read_image_rgb(tmp / "refine-loss.png").width, 640);
 }
 
 TEST(RefineCli, EvalRefinesBeforeRendering) {

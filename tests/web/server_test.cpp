@@ -186,9 +186,12 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
   r = s.client->Post("/api/masks", edit_form("view_001", mask, "mode", "paint"));
   EXPECT_EQ(r->status, 400);
   EXPECT_EQ(error_of(r), "mode must be remove or insert");
-  r = s.client->Post("/api/edit", edit_form("view_001", mask, "refine", "1e9"));
-  EXPECT_EQ(r->status, 400);
-  EXPECT_EQ(error_of(r), "refine must be a number of steps from 0 to 5000");
+  for (const char* refine : {"1e9", "5001", "11m", "quick", ""}) {
+    r = s.client->Post("/api/edit", edit_form("view_001", mask, "refine", refine));
+    EXPECT_EQ(r->status, 400) << refine;
+    EXPECT_EQ(error_of(r), "refine must be fast, balanced or best, a time up to 10m, or a number of steps up to 5000")
+        << refine;
+  }
   r = s.client->Post("/api/edit", edit_form("view_001", mask, "mode", "insert"));
   EXPECT_EQ(r->status, 400);
   EXPECT_EQ(error_of(r), "insert needs a reference: the view's photo with the new object painted in");

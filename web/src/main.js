@@ -402,7 +402,7 @@ async function runJob(path) {
   form.append("view", api.info.scene.views[selected].name);
   form.append("mask", await maskBlob(), "mask.png");
   form.append("mode", $("mode").value);
-  form.append("refine", String(Number($("refine").value) || 0));
+  form.append("refine", $("refine").value);
   const reference = $("reference-file").files[0];
   if (reference) form.append("reference", reference, reference.name);
   const clicked = performance.now();

@@ -1,0 +1,33 @@
+#pragma once
+// Adam over a few tensors whose rows may be removed or appended between steps (densification
+// changes the number of Gaussians; LibTorch's optimizers key their state by tensor and cannot
+// follow that). The moments of appended rows start at zero, as in 3DGS.
+#include <vector>
+
+#include "common/torch.h"
+
+namespace ii {
+
+class RowAdam {
+ public:
+  // A leaf tensor (requires_grad) optimised at rate `lr`; rows are its first dimension.
+  void add(torch::Tensor* parameter, double lr);
+  void set_lr(size_t slot, double lr) { slots_[slot].lr = lr; }
+  // One Adam step for every parameter that has a gradient; the gradients are then cleared.
+  void step();
+  // Keep the rows where `keep` (bool, N) is true, in every parameter and its moments.
+  void keep_rows(const torch::Tensor& keep);
+  // Append rows, one tensor per parameter in the order added (moments zero).
+  void append_rows(const std::vector<torch::Tensor>& rows);
+
+ private:
+  struct Slot {
+    torch::Tensor* parameter;
+    torch::Tensor m, v;
+    double lr;
+  };
+  std::vector<Slot> slots_;
+  int64_t steps_ = 0;
+};
+
+}  // namespace ii
