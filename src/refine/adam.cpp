@@ -11,20 +11,24 @@ torch::Tensor leaf(torch::Tensor t) { return t.detach().requires_grad_(true); }
 }  // namespace
 
 void RowAdam::add(torch::Tensor* parameter, double lr) {
+  if (!age_.defined()) age_ = torch::zeros({parameter->size(0)}, parameter->options().dtype(torch::kFloat32));
   slots_.push_back({parameter, torch::zeros_like(*parameter), torch::zeros_like(*parameter), lr});
 }
 
 void RowAdam::step() {
   torch::NoGradGuard no_grad;
-  ++steps_;
-  const double correction1 = 1 - std::pow(kBeta1, steps_), correction2 = 1 - std::pow(kBeta2, steps_);
+  age_.add_(1);
+  // Per row: 1 − β^age (age ≥ 1), shaped to broadcast over each parameter's other dimensions.
+  const torch::Tensor correction1 = 1 - torch::pow(kBeta1, age_), correction2 = 1 - torch::pow(kBeta2, age_);
   for (Slot& s : slots_) {
     torch::Tensor& g = s.parameter->mutable_grad();
     if (!g.defined()) continue;
+    std::vector<int64_t> shape(static_cast<size_t>(s.parameter->dim()), 1);
+    shape[0] = -1;
     s.m.mul_(kBeta1).add_(g, 1 - kBeta1);
     s.v.mul_(kBeta2).addcmul_(g, g, 1 - kBeta2);
-    const torch::Tensor denominator = (s.v / correction2).sqrt_().add_(kEps);
-    s.parameter->addcdiv_(s.m, denominator, -s.lr / correction1);
+    const torch::Tensor denominator = (s.v / correction2.view(shape)).sqrt_().add_(kEps);
+    s.parameter->addcdiv_(s.m / correction1.view(shape), denominator, -s.lr);
     g = torch::Tensor();
   }
 }
@@ -36,6 +40,7 @@ void RowAdam::keep_rows(const torch::Tensor& keep) {
     s.m = s.m.index({keep});
     s.v = s.v.index({keep});
   }
+  age_ = age_.index({keep});
 }
 
 void RowAdam::append_rows(const std::vector<torch::Tensor>& rows) {
@@ -47,6 +52,7 @@ void RowAdam::append_rows(const std::vector<torch::Tensor>& rows) {
     s.m = torch::cat({s.m, torch::zeros_like(r)});
     s.v = torch::cat({s.v, torch::zeros_like(r)});
   }
+  if (!rows.empty()) age_ = torch::cat({age_, torch::zeros({rows[0].size(0)}, age_.options())});
 }
 
 }  // namespace ii

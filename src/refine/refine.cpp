@@ -299,6 +299,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   const double budget = options.time_budget_s;
   const double initial_position_lr = options.position_lr * extent;
   double loop_start = 0;
+  double views_seen = 0;  // full-resolution views' worth of pixels visited
   Stopwatch loop_clock;
   for (int step = 0;; ++step) {
     const double now = elapsed_s(clock);
@@ -319,7 +320,10 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
     while (level > 0 && !targets[view].levels[level].usable()) --level;
     const Level& t = targets[view].levels[level];
     const int degree = std::min(options.sh_degree, static_cast<int>(fraction * 10));
-    adam.set_lr(0, initial_position_lr * std::pow(options.position_lr_final / options.position_lr, fraction));
+    const double decayed = options.position_decay_views > 0 ? std::max(fraction, views_seen / options.position_decay_views)
+                                                             : fraction;
+    adam.set_lr(0, initial_position_lr *
+                       std::pow(options.position_lr_final / options.position_lr, std::min(1.0, decayed)));
 
     // Unsupervised pixels are zero in both images: no gradient flows from them, and the SSIM
     // windows that reach into them see the same values on both sides.
@@ -346,6 +350,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
     if (exposure.defined()) exposure_adam.step();
     if (densifying && (step + 1) % options.densify_every == 0) densify();
 
+    views_seen += std::pow(0.25, level);
     result.losses.push_back(loss.item<double>());
     result.steps = step + 1;
     if (options.progress) {

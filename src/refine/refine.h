@@ -50,12 +50,19 @@ struct RefineOptions {
   // coefficients up to this degree fitted from zero (3DGS's rate: colour_lr / 20), one degree
   // more at each tenth of the run, as 3DGS raises it over its first 3000 of 30000 steps.
   int sh_degree = 0;
-  // Adam learning rates, 3DGS's but for positions: scaled by the set's extent, decaying
-  // exponentially to position_lr_final over the run, and 100 times 3DGS's. The network's
-  // geometry of a real capture is off by a good part of the scene (docs/benchmarks.md: fern
-  // held out 20.6 dB in 2 minutes at 3DGS's rate, 22.7 at 10x, 24.4 at 30x, 25.8 at 100x).
-  double position_lr = 1.6e-2, position_lr_final = 1.6e-4, scale_lr = 5e-3, rotation_lr = 1e-3,
+  // Adam learning rates, 3DGS's but for positions: scaled by the set's extent, starting at
+  // 300 times 3DGS's and decaying exponentially to position_lr_final (over the run, or sooner:
+  // position_decay_views). The network's geometry of a real capture is off by a good part of
+  // the scene, and 3DGS's rate is made for positions that are right already
+  // (docs/benchmarks.md: in 2 minutes, fern held out 20.6 dB at 3DGS's rate, 25.7 at 300x;
+  // the synthetic rooms the model was trained on would rather have 10x).
+  double position_lr = 4.8e-2, position_lr_final = 1.6e-4, scale_lr = 5e-3, rotation_lr = 1e-3,
          opacity_lr = 5e-2, colour_lr = 2.5e-3;
+  // The position rate's decay ends by the end of the run or after this many views' worth of
+  // pixels (a quarter-resolution view counts 1/16), whichever comes first (0: the run alone).
+  // A long run otherwise spends thousands of steps at rates that shake Gaussians which are
+  // already right, and fits the supervising views at the held-out views' cost.
+  double position_decay_views = 600;
   // Per-view colour correction for captures whose exposure and white balance change between
   // photos: an affine colour map per view (3x3 + offset, from the identity) applied to the
   // render before the loss; the first view's colours (the reference) are taken as they are.

@@ -11,6 +11,7 @@
 
 #include "io/image.h"
 #include "io/ply.h"
+#include "refine/adam.h"
 #include "refine/densify.h"
 #include "refine/refine.h"
 #include "render/rasterizer.h"
@@ -184,6 +185,33 @@ TEST(Densify, SplitChildrenSitAlongTheLongestAxis) {
       << a;
   EXPECT_TRUE(torch::allclose(b, torch::tensor({1 + d, 2.0, 3.0}).reshape({1, 3}).to(torch::kFloat32), 1e-5, 1e-6))
       << b;
+}
+
+TEST(RowAdam, AnAppendedRowStepsLikeAFreshAdam) {
+  // Adam's first step is the rate times the gradient's sign, whatever the gradient's size; a
+  // row appended after 200 steps must take that same first step (with the optimiser's own
+  // step count it would take 1.35 times the rate here, 3.16 times after thousands of steps).
+  torch::Tensor x = torch::zeros({1, 2}).requires_grad_(true);
+  RowAdam adam;
+  adam.add(&x, 0.01);
+  for (int i = 0; i < 200; ++i) {
+    x.mutable_grad() = torch::ones({1, 2});
+    adam.step();
+  }
+  adam.append_rows({torch::tensor({{5.f, 5.f}})});
+  ASSERT_EQ(x.size(0), 2);
+  x.mutable_grad() = torch::tensor({{1.f, 1.f}, {-40.f, 0.003f}});
+  adam.step();
+  EXPECT_NEAR(x[1][0].item<double>(), 5 + 0.01, 1e-6);
+  EXPECT_NEAR(x[1][1].item<double>(), 5 - 0.01, 1e-6);
+  // Rows kept after a removal keep their own count: the appended row's second step is still
+  // the rate (the same gradient twice: m / sqrt(v) = 1 after correction).
+  adam.keep_rows(torch::tensor({false, true}));
+  ASSERT_EQ(x.size(0), 1);
+  x.mutable_grad() = torch::tensor({{-40.f, 0.003f}});
+  adam.step();
+  EXPECT_NEAR(x[0][0].item<double>(), 5 + 0.02, 1e-6);
+  EXPECT_NEAR(x[0][1].item<double>(), 5 - 0.02, 1e-6);
 }
 
 TEST(Refine, DensifyingAddsGaussiansAndPruningRemovesTransparentOnes) {
