@@ -1,6 +1,6 @@
 #pragma once
 // `--refine` (fast, balanced, best, a time or a number of steps), `--refine-sh-degree`,
-// `--refine-exposure` and `--refine-without` for the commands that run the network (infer, eval).
+// `--refine-exposure`, `--refine-position-rate` and `--refine-without` for the commands that run the network (infer, eval).
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -16,6 +16,7 @@ struct RefineArgs {
   int sh_degree = 0;
   std::vector<std::string> without;  // parts switched off: cover, densify, coarse-to-fine
   bool exposure = false;
+  double position_rate = 0;  // × 3DGS's position learning rate; 0: RefineOptions' default
 };
 
 void add_refine_options(CLI::App* cmd, RefineArgs& args);

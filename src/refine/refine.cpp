@@ -429,6 +429,7 @@ nlohmann::json refinement_report(const RefineResult& r, const RefineOptions& opt
                          {"end", r.gaussians.size()}}},
           {"dropped", r.dropped},
           {"sh_degree", options.sh_degree},
+          {"position_rate", options.position_lr / kGaussianSplattingPositionLr},  // × 3DGS's
           {"coarse_to_fine", options.coarse_to_fine},
           {"densify", options.densify.enabled},
           {"exposure", options.exposure ? exposure : nlohmann::json()}};

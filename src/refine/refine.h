@@ -41,6 +41,9 @@ struct RefineProgress {
   int64_t gaussians = 0;  // now
 };
 
+// 3DGS's initial position learning rate (× the scene's extent).
+constexpr double kGaussianSplattingPositionLr = 1.6e-4;
+
 struct RefineOptions {
   int steps = 300;           // how long, unless time_budget_s is set
   double time_budget_s = 0;  // > 0: optimise until this many seconds have passed (steps is then ignored)
@@ -56,8 +59,8 @@ struct RefineOptions {
   // the scene, and 3DGS's rate is made for positions that are right already
   // (docs/benchmarks.md: in 2 minutes, fern held out 20.6 dB at 3DGS's rate, 25.7 at 300x;
   // the synthetic rooms the model was trained on would rather have 10x).
-  double position_lr = 4.8e-2, position_lr_final = 1.6e-4, scale_lr = 5e-3, rotation_lr = 1e-3,
-         opacity_lr = 5e-2, colour_lr = 2.5e-3;
+  double position_lr = 300 * kGaussianSplattingPositionLr, position_lr_final = kGaussianSplattingPositionLr,
+         scale_lr = 5e-3, rotation_lr = 1e-3, opacity_lr = 5e-2, colour_lr = 2.5e-3;
   // The position rate's decay ends by the end of the run or after this many views' worth of
   // pixels (a quarter-resolution view counts 1/16), whichever comes first (0: the run alone).
   // A long run otherwise spends thousands of steps at rates that shake Gaussians which are

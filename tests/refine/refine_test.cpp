@@ -300,7 +300,7 @@ TEST(RefineCli, InferRefinesAgainstEveryViewNotHeldOut) {
   const std::filesystem::path log = tmp / "log.txt";
   ASSERT_EQ(test::run_command(exe.string() + " infer --scene '" + dir.string() +
                                   "' --height 64 --hold-out-every 8 --refine 2 --refine-sh-degree 1 "
-                                  "--keep-unrefined --threads 2 --out '" +
+                                  "--refine-position-rate 10 --keep-unrefined --threads 2 --out '" +
                                   tmp.string() + "'",
                               log),
             0)
@@ -314,6 +314,7 @@ TEST(RefineCli, InferRefinesAgainstEveryViewNotHeldOut) {
   EXPECT_EQ(views[0], run["context"][0]);  // the reference first
   EXPECT_EQ(run["refine"]["losses"].size(), 2u);
   EXPECT_EQ(run["refine"]["sh_degree"], 1);
+  EXPECT_NEAR(run["refine"]["position_rate"].get<double>(), 10, 1e-9);
   EXPECT_EQ(read_splat_ply(tmp / "gaussians.ply").sh_rest_per_channel, 3);
   EXPECT_EQ(read_splat_ply(tmp / "gaussians-unrefined.ply").sh_rest_per_channel, 0);
   EXPECT_NE(test::file_bytes(log).find("refine 100%  step 2"), std::string::npos) << test::file_bytes(log);
