@@ -52,17 +52,24 @@ Level half_of(const Level& fine) {
 
 double elapsed_s(const Stopwatch& clock) { return clock.ms() / 1000; }
 
+// The rotation (3, 3) and translation (3) of a rigid transform, as tensors.
+std::pair<torch::Tensor, torch::Tensor> rotation_and_translation(const Eigen::Matrix4d& m,
+                                                                 const torch::TensorOptions& options) {
+  torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
+  for (int i = 0; i < 3; ++i) {
+    t[i] = m(i, 3);
+    for (int j = 0; j < 3; ++j) R[i][j] = m(i, j);
+  }
+  return {R.to(options), t.to(options)};
+}
+
 // Pixels (u, v) of a camera at z-depth `depth`, in the world.
 torch::Tensor unproject(const Camera& camera, const torch::Tensor& u, const torch::Tensor& v, double depth) {
   const Eigen::Matrix4d c2w = camera.w2c_opencv().inverse();
   const torch::Tensor x = (u + 0.5 - camera.K.cx) / camera.K.fx * depth;
   const torch::Tensor y = (v + 0.5 - camera.K.cy) / camera.K.fy * depth;
   const torch::Tensor local = torch::stack({x, y, torch::full_like(x, depth)}, 1).to(torch::kFloat64);
-  torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
-  for (int i = 0; i < 3; ++i) {
-    t[i] = c2w(i, 3);
-    for (int j = 0; j < 3; ++j) R[i][j] = c2w(i, j);
-  }
+  const auto [R, t] = rotation_and_translation(c2w, torch::TensorOptions().dtype(torch::kFloat64));
   return (local.matmul(R.t()) + t).to(torch::kFloat32);
 }
 
@@ -105,14 +112,7 @@ GaussianSet cover_uncovered(const GaussianSet& start, const std::vector<Target>&
 // the part across the viewing direction, divided by the projection's scale (fx / z pixels per
 // unit, W / 2 pixels per NDC unit); the path through the covariance is left out.
 torch::Tensor view_space_gradient(const torch::Tensor& means, const torch::Tensor& grad, const Camera& camera) {
-  const Eigen::Matrix4d w2c = camera.w2c_opencv();
-  torch::Tensor R = torch::empty({3, 3}, torch::kFloat32), t = torch::empty({3}, torch::kFloat32);
-  for (int i = 0; i < 3; ++i) {
-    t[i] = w2c(i, 3);
-    for (int j = 0; j < 3; ++j) R[i][j] = w2c(i, j);
-  }
-  R = R.to(means.device());
-  t = t.to(means.device());
+  const auto [R, t] = rotation_and_translation(camera.w2c_opencv(), means.options());
   const torch::Tensor z = (means.matmul(R.t()) + t).select(1, 2).clamp_min(1e-6);
   const torch::Tensor g = grad.matmul(R.t());
   const torch::Tensor gx = g.select(1, 0) * z * (camera.K.width / (2 * camera.K.fx));
