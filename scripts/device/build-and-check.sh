@@ -9,15 +9,16 @@
 #   4. runs the whole test suite, the GPU tests included (agreement with the float32 CPU path);
 #   5. times the network: release model, 4 x 512² and 4 x 512 x 904, fast path, CUDA graph and
 #      the official code's way of computing in the same run;
-#   6. times `eval` end to end on a synthetic room with 40 test views at 904 x 512.
+#   6. times `eval` end to end on a synthetic room with 40 test views at 904 x 512;
+#   7. refines the statue on the GPU (every 8th view held out, preset fast) for ms per step.
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
 #   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared"], timeout_s=600)
-# STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
+# STEPS="training ..." adds a training-throughput probe; STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
 # machine stays warm); TESTS=REGEX runs only the tests whose names match.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}
-STEPS=${STEPS:-"training tests bench eval"}
+STEPS=${STEPS:-"tests bench eval refine"}
 BUILD=build-gpu
 mkdir -p "$OUT"
 exec > >(tee -a "$OUT/build-and-check.log") 2>&1
@@ -94,5 +95,14 @@ if [[ " $STEPS " == *" eval "* ]]; then
 print(', '.join(f'{k} {v:.0f}' for k, v in t.items()))" "/tmp/ii-eval-$model/metrics.json"
     cp "/tmp/ii-eval-$model/metrics.json" "$OUT/eval-$model.json"
   done
+fi
+if [[ " $STEPS " == *" refine "* ]]; then
+  step "refinement on the GPU: statue, every 8th view held out, 256 high, preset fast"
+  "$BIN" eval --device cuda --scene .device/shared/data/statue --hold-out-every 8 --height 256 --refine fast \
+    --no-report --out /tmp/ii-refine-statue > "$OUT/refine-statue.log" 2>&1 || tail -20 "$OUT/refine-statue.log"
+  python3 -c "import json, sys; m = json.load(open(sys.argv[1])); r = m['prediction']['after_prediction']['refine']
+print('outside the mask: PSNR %.2f SSIM %.3f; %d steps, %.1f ms/step, %.1f s' % (m['mean']['outside_psnr'],
+      m['mean']['outside_ssim'], r['steps'], r['ms_per_step'], r['seconds']))" /tmp/ii-refine-statue/metrics.json || true
+  cp /tmp/ii-refine-statue/metrics.json "$OUT/refine-statue.json" || true
 fi
 step "done"

@@ -4,8 +4,8 @@
 # device tool carries along (`carry: [".device"]`):
 #   .device/debs/     the Debian packages of our build dependencies and the libraries they
 #                     load that a CUDA image usually lacks (OpenCV's X11/GL/BLAS, TBB, ...)
-#   .device/shared/   the ../shared fixtures and data the GPU tests read (only the checkout
-#                     travels, and ../shared does not)
+#   .device/shared/   the ../shared fixtures and data the GPU tests and the refinement timing
+#                     read (only the checkout travels, and ../shared does not)
 #   .device/scenes/   the real scenes a default model trains on (scripts/device/train-default-model.sh)
 # Then, on the GPU machine: bash scripts/device/build-and-check.sh (see its header).
 set -euo pipefail
@@ -36,8 +36,10 @@ rm -f "$DEST"/debs/*.deb
 rm -rf "$DEST/shared" "$DEST/scenes"
 mkdir -p "$DEST/shared/fixtures" "$DEST/shared/data" "$DEST/scenes"
 cp -r "$SHARED/fixtures/official-tiny" "$DEST/shared/fixtures/"
-cp -r "$SHARED/data/render-golden" "$DEST/shared/data/"
+cp -r "$SHARED/data/render-golden" "$SHARED/data/statue" "$SHARED/data/lpips" "$DEST/shared/data/"
 cp -r "$SHARED/data/fern" "$SHARED/data/fox" "$DEST/scenes/"
 
 echo "prepare: $(ls "$DEST"/debs/*.deb | wc -l) packages, $(du -sh "$DEST" | cut -f1) in $DEST"
+# The device tool carries at most 64 MiB, the checkout's tracked files included.
+echo "a check call carries $(du -cm "$DEST/debs" "$DEST/shared" $(git ls-files) | tail -1 | cut -f1) MiB (limit 64)"
 echo "carry it: run(command=\"bash scripts/device/build-and-check.sh\", carry=[\"$DEST/debs\", \"$DEST/shared\"])"
