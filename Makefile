@@ -4,6 +4,9 @@
 #   make test-gpu-build   the same against PyPI's LibTorch 2.x with the CUDA code compiled
 #               (scripts/gpu/build.sh; tests that need a GPU skip themselves without one)
 JOBS ?= $(shell nproc)
+# Threads per test while JOBS tests run at once: more would oversubscribe the cores, and
+# the tests that keep a time budget would miss it.
+TEST_THREADS ?= $(shell echo $$(( $$(nproc) / $(JOBS) > 1 ? $$(nproc) / $(JOBS) : 1 )))
 BUILD ?= build
 SAN_BUILD ?= build-asan
 GPU_BUILD ?= build-gpu
@@ -28,7 +31,7 @@ demo: build
 test: test-main test-asan
 
 test-main: build
-	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+	@cd $(BUILD) && OMP_NUM_THREADS=$(TEST_THREADS) ctest --output-on-failure -j $(JOBS)
 
 # Parsers, cameras and scene readers under AddressSanitizer + UndefinedBehaviorSanitizer,
 # built with clang so that the same build holds the libFuzzer targets (each runs briefly).

@@ -20,6 +20,7 @@ PACKAGES=(
   libopencv-core-dev libopencv-core406 libopencv-imgproc-dev libopencv-imgproc406
   libopencv-calib3d-dev libopencv-calib3d406 libopencv-photo-dev libopencv-photo406
   libopencv-features2d-dev libopencv-features2d406 libopencv-flann-dev libopencv-flann406
+  libgloo-dev  # Gloo's headers (CPU data-parallel training), which the machines' PyTorch lacks
   libgtest-dev libgmock-dev libbenchmark-dev libbenchmark1debian
   libcpp-httplib-dev libcpp-httplib0.11 libbrotli1 libssl3
   pkgconf pkgconf-bin libpkgconf3  # the build finds cpp-httplib through pkg-config,

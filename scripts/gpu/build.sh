@@ -132,5 +132,7 @@ fi
 # ---- 4. tests --------------------------------------------------------------------------------
 if [ "$run_tests" = 1 ]; then
   say "testing ($(command -v nvidia-smi > /dev/null && nvidia-smi -L | head -1 || echo 'no GPU: GPU tests skip'))"
-  cd "$build" && ctest --output-on-failure -j "$jobs"
+  # One core's share per test (more oversubscribes, and time-budget tests miss their budget).
+  cd "$build" && OMP_NUM_THREADS=${OMP_NUM_THREADS:-$(( $(nproc) / jobs > 1 ? $(nproc) / jobs : 1 ))} \
+    ctest --output-on-failure -j "$jobs"
 fi

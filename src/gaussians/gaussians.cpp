@@ -30,7 +30,8 @@ BoundingSphere visible_bounds(const GaussianSet& g) {
   if (g.size() == 0) fail("visible_bounds: no splats");
   const torch::Tensor keep = g.opacities.reshape({-1}) > 0.1;
   const torch::Tensor means = (keep.any().item<bool>() ? g.means.index({keep}) : g.means).to(torch::kFloat64);
-  const torch::Tensor box = means.quantile(torch::tensor({0.02, 0.98}, torch::kFloat64), 0);  // (2, 3)
+  const torch::Tensor levels = torch::tensor({0.02, 0.98}, torch::TensorOptions(torch::kFloat64).device(means.device()));
+  const torch::Tensor box = means.quantile(levels, 0);  // (2, 3)
   const torch::Tensor mid = box.mean(0);
   BoundingSphere s;
   s.centre = Eigen::Vector3d(mid[0].item<double>(), mid[1].item<double>(), mid[2].item<double>());

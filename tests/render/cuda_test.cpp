@@ -70,6 +70,15 @@ TEST(RenderCuda, MatchesCpuDouble) {
   compare(test::random_scene(300, 2, torch::kFloat64, 3), test::opencv_camera(64, 48, 50, Eigen::Vector3d(0, 0, -4)));
 }
 
+// The scene bounds (orbit videos, refinement's coverage) of splats on the GPU.
+TEST(RenderCuda, VisibleBoundsOfSplatsOnTheGpu) {
+  II_REQUIRE_CUDA();
+  const GaussianSet g = test::random_scene(500, -1, torch::kFloat32, 1, 1.2, 0.08);
+  const BoundingSphere cpu = visible_bounds(g), gpu = visible_bounds(g.to(torch::kCUDA));
+  EXPECT_LT((cpu.centre - gpu.centre).norm(), 1e-6);
+  EXPECT_NEAR(cpu.radius, gpu.radius, 1e-6);
+}
+
 TEST(RenderCuda, Golden) {
   II_REQUIRE_CUDA();
   II_REQUIRE_SHARED(path, "data/render-golden/basic_case.safetensors");
