@@ -1,6 +1,8 @@
 #include "common/files.h"
 
 #include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -28,6 +30,33 @@ std::vector<uint8_t> read_file_bytes(const fs::path& path) {
   if (size > 0 && !in.read(reinterpret_cast<char*>(bytes.data()), size))
     fail_file(path, "read error");
   return bytes;
+}
+
+MappedFile::MappedFile(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) fail_file(path, "file not found");
+  if (fs::is_directory(path, ec)) fail_file(path, "is a directory, expected a file");
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) fail_file(path, "cannot open for reading: {}", std::strerror(errno));
+  struct stat st {};
+  if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
+    void* p = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_PRIVATE, fd, 0);
+    if (p != MAP_FAILED) {
+      data_ = static_cast<const uint8_t*>(p);
+      size_ = static_cast<size_t>(st.st_size);
+      mapped_ = true;
+    }
+  }
+  ::close(fd);
+  if (!mapped_) {
+    read_ = read_file_bytes(path);
+    data_ = read_.data();
+    size_ = read_.size();
+  }
+}
+
+MappedFile::~MappedFile() {
+  if (mapped_) ::munmap(const_cast<uint8_t*>(data_), size_);
 }
 
 std::string read_file_text(const fs::path& path) {

@@ -14,6 +14,25 @@ namespace ii {
 std::vector<uint8_t> read_file_bytes(const std::filesystem::path& path);
 std::string read_file_text(const std::filesystem::path& path);
 
+// A whole file's bytes, mapped read-only: large files (checkpoints) are read from the page
+// cache without a copy into fresh memory. Files that cannot be mapped (pipes) are read
+// instead. The same errors as read_file_bytes.
+class MappedFile {
+ public:
+  explicit MappedFile(const std::filesystem::path& path);
+  ~MappedFile();
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+  const uint8_t* data() const { return data_; }
+  size_t size() const { return size_; }
+
+ private:
+  const uint8_t* data_ = nullptr;
+  size_t size_ = 0;
+  bool mapped_ = false;
+  std::vector<uint8_t> read_;  // when not mapped
+};
+
 // Calls `write(stream_path)` to fill a temporary file, then renames it to `path`.
 // If `write` throws, the temporary is removed and `path` is untouched.
 void write_file_atomic(const std::filesystem::path& path,

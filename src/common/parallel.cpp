@@ -66,4 +66,24 @@ void parallel_dynamic(int64_t n, int threads, const std::function<void(int64_t)>
   });
 }
 
+BackgroundJobs::~BackgroundJobs() {
+  for (auto& f : pending_)
+    if (f.valid()) f.wait();
+}
+
+void BackgroundJobs::add(std::function<void()> job) {
+  while (pending_.size() >= limit_) {
+    pending_.front().get();
+    pending_.pop_front();
+  }
+  pending_.push_back(std::async(std::launch::async, std::move(job)));
+}
+
+void BackgroundJobs::finish() {
+  while (!pending_.empty()) {
+    pending_.front().get();
+    pending_.pop_front();
+  }
+}
+
 }  // namespace ii

@@ -117,8 +117,8 @@ const TensorData& SafetensorsFile::at(const std::string& name, const fs::path& f
 }
 
 SafetensorsFile read_safetensors(const fs::path& path) {
-  const std::vector<uint8_t> bytes = read_file_bytes(path);
-  return parse_safetensors(bytes.data(), bytes.size(), path);
+  const MappedFile file(path);
+  return parse_safetensors(file.data(), file.size(), path);
 }
 
 SafetensorsFile parse_safetensors(const uint8_t* data, size_t size, const fs::path& path) {

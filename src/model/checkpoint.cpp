@@ -109,7 +109,7 @@ ModelConfig infer_config(const StateDict& state, const nlohmann::json& hints, co
 
 StateDict read_safetensors_tensors(const fs::path& path) {
   StateDict out;
-  for (const auto& [name, t] : read_safetensors(path).tensors) out[name] = tensor_from_data(t, path);
+  for (auto& [name, t] : read_safetensors(path).tensors) out[name] = tensor_from_data(std::move(t), path);
   return out;
 }
 
@@ -125,11 +125,11 @@ void finish_checkpoint(Checkpoint& ck, const StateDict& raw, const nlohmann::jso
 
 }  // namespace
 
-Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const fs::path& path, bool keep_weight_norm) {
+Checkpoint checkpoint_from_safetensors(SafetensorsFile file, const fs::path& path, bool keep_weight_norm) {
   Checkpoint ck;
   ck.format = "safetensors";
   StateDict raw;
-  for (const auto& [name, t] : file.tensors) raw[name] = tensor_from_data(t, path);
+  for (auto& [name, t] : file.tensors) raw[name] = tensor_from_data(std::move(t), path);
   ck.extra = nlohmann::json(file.metadata);
   nlohmann::json hints = nlohmann::json::object();
   if (auto it = file.metadata.find("config"); it != file.metadata.end()) {
@@ -169,9 +169,15 @@ Network network_from_checkpoint(const Checkpoint& ck, const std::string& source)
   return net;
 }
 
+Network network_from_checkpoint(Checkpoint&& ck, const std::string& source) {
+  Network net(ck.config, /*initialise=*/false);
+  net.load(std::move(ck.state), source);
+  return net;
+}
+
 Network load_network(const fs::path& path) {
   const Checkpoint ck = read_checkpoint(path);
-  Network net = network_from_checkpoint(ck, path.string());
+  Network net = network_from_checkpoint(std::move(ck), path.string());
   spdlog::debug("{}: {} model ({} blocks, width {}), {} weight-norm pairs folded", path.string(),
                 ck.config.preset, ck.config.blocks, ck.config.embed_dim, ck.folded_weight_norms);
   return net;

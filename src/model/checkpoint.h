@@ -32,11 +32,13 @@ struct Checkpoint {
 // Reads a checkpoint file (format from its content, not its extension).
 Checkpoint read_checkpoint(const std::filesystem::path& path, bool keep_weight_norm = false);
 // A checkpoint from parsed safetensors (`path` names it in messages).
-Checkpoint checkpoint_from_safetensors(const SafetensorsFile& file, const std::filesystem::path& path,
+Checkpoint checkpoint_from_safetensors(SafetensorsFile file, const std::filesystem::path& path,
                                       bool keep_weight_norm = false);
 
 // A Network of the checkpoint's architecture holding its weights.
 Network network_from_checkpoint(const Checkpoint& checkpoint, const std::string& source);
+// The same, taking the checkpoint's tensors over (no copy of the weights).
+Network network_from_checkpoint(Checkpoint&& checkpoint, const std::string& source);
 
 // read_checkpoint + a Network of the inferred architecture with the weights loaded.
 Network load_network(const std::filesystem::path& path);

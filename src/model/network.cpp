@@ -97,7 +97,7 @@ std::vector<torch::Tensor> Network::parameters() const {
   return out;
 }
 
-void Network::load(const std::map<std::string, torch::Tensor>& state, const std::string& source) {
+void Network::check_fits(const std::map<std::string, torch::Tensor>& state, const std::string& source) const {
   std::vector<std::string> missing, wrong_shape;
   std::set<std::string> used;
   for (auto& [name, param] : params_) {
@@ -130,9 +130,24 @@ void Network::load(const std::map<std::string, torch::Tensor>& state, const std:
     list("unexpected", unexpected);
     throw Error(msg);
   }
+}
+
+void Network::load(const std::map<std::string, torch::Tensor>& state, const std::string& source) {
+  check_fits(state, source);
   torch::NoGradGuard no_grad;
   for (auto& [name, param] : params_) param.copy_(state.at(name));
   clear_weight_caches();
+}
+
+void Network::load(std::map<std::string, torch::Tensor>&& state, const std::string& source) {
+  check_fits(state, source);
+  std::vector<torch::Tensor> values;
+  for (const auto& [name, param] : params_) {
+    torch::Tensor& t = state.at(name);
+    const bool as_is = t.scalar_type() == param.scalar_type() && t.device() == param.device() && t.is_contiguous();
+    values.push_back((as_is ? std::move(t) : t.to(param.options()).contiguous()).requires_grad_(param.requires_grad()));
+  }
+  set_parameters(values);
 }
 
 void Network::to(const torch::Device& device) {

@@ -60,6 +60,9 @@ class Network {
   // Copies values in by name. Strict: every parameter must be present with its exact shape
   // and no unknown key may remain; errors list what is missing or unexpected.
   void load(const std::map<std::string, torch::Tensor>& state, const std::string& source);
+  // The same, taking the tensors over instead of copying them (a large checkpoint's weights
+  // are not copied once more).
+  void load(std::map<std::string, torch::Tensor>&& state, const std::string& source);
 
   // images: (B, V, C, H, W) with C = image_channels, RGB in [-1,1] then mask;
   // plucker: (B, V, 6, H, W); rays_o, rays_d_un: (B, V, H, W, 3).
@@ -94,6 +97,8 @@ class Network {
   // The heads' first Linear weights stacked along the output dimension.
   torch::Tensor fused_head_input_weight() const;
   void clear_weight_caches();
+  // Throws the load error (missing, unexpected or misshapen tensors) when `state` does not fit.
+  void check_fits(const std::map<std::string, torch::Tensor>& state, const std::string& source) const;
 
   ModelConfig config_;
   std::vector<std::pair<std::string, torch::Tensor>> params_;

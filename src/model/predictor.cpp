@@ -13,9 +13,9 @@ Predictor::Predictor(const std::string& checkpoint, const torch::Device& device,
       device_(device),
       precision_(precision),
       network_([&] {
-        const Checkpoint ck = checkpoint_or_default(checkpoint);
+        Checkpoint ck = checkpoint_or_default(checkpoint);
         format_ = ck.format;
-        Network network = network_from_checkpoint(ck, model_name_);
+        Network network = network_from_checkpoint(std::move(ck), model_name_);
         network.to(device);
         return network;
       }()) {}

@@ -5,12 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <deque>
-#include <future>
 #include <limits>
 
 #include "common/error.h"
 #include "common/files.h"
+#include "common/parallel.h"
 #include "common/stopwatch.h"
 #include "io/image.h"
 #include "io/npy.h"
@@ -24,34 +23,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr uint64_t kReferenceStream = 99;
-
-// Runs file writes on background threads while the next view renders (PNG encoding and the
-// atomic writes' fsync), at most `limit` at a time; rethrows the first failure.
-class BackgroundWrites {
- public:
-  explicit BackgroundWrites(size_t limit) : limit_(limit) {}
-  ~BackgroundWrites() {
-    for (auto& f : pending_)
-      if (f.valid()) f.wait();
-  }
-  void add(std::function<void()> job) {
-    while (pending_.size() >= limit_) {
-      pending_.front().get();
-      pending_.pop_front();
-    }
-    pending_.push_back(std::async(std::launch::async, std::move(job)));
-  }
-  void finish() {
-    while (!pending_.empty()) {
-      pending_.front().get();
-      pending_.pop_front();
-    }
-  }
-
- private:
-  size_t limit_;
-  std::deque<std::future<void>> pending_;
-};
 
 // float32 (H, W) array.
 void write_depth(const fs::path& path, const Image& depth) {
@@ -151,7 +122,7 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
     rows.insert(rows.end(), row.begin(), row.end());
   };
 
-  BackgroundWrites writes(8);
+  BackgroundJobs writes(8);
   // Removal: test views and clean/ without the object, inputs with it. Insertion: the reverse.
   using Member = Image SynthViewImages::*;
   const Member with = &SynthViewImages::with_object, without = &SynthViewImages::clean;

@@ -20,12 +20,16 @@ const std::vector<std::pair<std::string, torch::ScalarType>>& dtypes() {
   return all;
 }
 
+torch::ScalarType scalar_type(const std::string& dtype, const fs::path& file) {
+  for (const auto& [name, type] : dtypes())
+    if (name == dtype) return type;
+  fail_file(file, "unsupported tensor dtype {}", dtype);
+}
+
 torch::Tensor from_bytes(const std::string& dtype, const std::vector<int64_t>& shape, const std::vector<uint8_t>& bytes,
                          const fs::path& file) {
-  for (const auto& [name, type] : dtypes())
-    if (name == dtype)
-      return torch::from_blob(const_cast<uint8_t*>(bytes.data()), shape, torch::TensorOptions().dtype(type)).clone();
-  fail_file(file, "unsupported tensor dtype {}", dtype);
+  const torch::ScalarType type = scalar_type(dtype, file);
+  return torch::from_blob(const_cast<uint8_t*>(bytes.data()), shape, torch::TensorOptions().dtype(type)).clone();
 }
 
 }  // namespace
@@ -39,6 +43,13 @@ bool is_safetensors_file(const fs::path& path) {
 
 torch::Tensor tensor_from_data(const TensorData& data, const fs::path& file) {
   return from_bytes(data.dtype, data.shape, data.bytes, file);
+}
+
+torch::Tensor tensor_from_data(TensorData&& data, const fs::path& file) {
+  const torch::TensorOptions options = torch::TensorOptions().dtype(scalar_type(data.dtype, file));
+  if (data.bytes.empty()) return torch::empty(data.shape, options);
+  auto* bytes = new std::vector<uint8_t>(std::move(data.bytes));
+  return torch::from_blob(bytes->data(), data.shape, [bytes](void*) { delete bytes; }, options);
 }
 
 torch::Tensor tensor_from_pth(const PthTensor& tensor, const fs::path& file) {
@@ -60,7 +71,7 @@ TensorData data_from_tensor(const torch::Tensor& tensor) {
 TensorMap read_tensor_file(const fs::path& path) {
   TensorMap out;
   if (is_safetensors_file(path)) {
-    for (const auto& [name, t] : read_safetensors(path).tensors) out[name] = tensor_from_data(t, path);
+    for (auto& [name, t] : read_safetensors(path).tensors) out[name] = tensor_from_data(std::move(t), path);
   } else {
     for (const auto& [name, t] : read_pth_tensors(path)) out[name] = tensor_from_pth(t, path);
   }

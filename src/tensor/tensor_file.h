@@ -24,6 +24,8 @@ bool is_safetensors_file(const std::filesystem::path& path);
 // A stored tensor as a CPU tensor of its own dtype (F64 F32 F16 BF16 I64 I32 I16 I8 U8 BOOL);
 // another dtype is an error naming `file`.
 torch::Tensor tensor_from_data(const TensorData& data, const std::filesystem::path& file);
+// The same without a copy: the tensor takes the bytes over.
+torch::Tensor tensor_from_data(TensorData&& data, const std::filesystem::path& file);
 torch::Tensor tensor_from_pth(const PthTensor& tensor, const std::filesystem::path& file);
 // The other way: a tensor's bytes (any device; contiguous copy) under its safetensors dtype.
 TensorData data_from_tensor(const torch::Tensor& tensor);

@@ -213,6 +213,11 @@ class SafetensorsBad : public ::testing::Test {
   }
 };
 
+TEST_F(SafetensorsBad, MissingFileOrAFolder) {
+  EXPECT_EQ(test::error_message([&] { read_safetensors(dir / "absent"); }), (dir / "absent").string() + ": file not found");
+  EXPECT_EQ(test::error_message([&] { read_safetensors(dir); }), dir.string() + ": is a directory, expected a file");
+}
+
 TEST_F(SafetensorsBad, TruncatedOrLyingHeaderLength) {
   EXPECT_EQ(error("short", "abc"), "not a safetensors file: shorter than its 8-byte header length");
   EXPECT_EQ(error("empty", ""), "not a safetensors file: shorter than its 8-byte header length");
