@@ -14,7 +14,8 @@ PACKAGES=(
   libopencv-imgproc-dev libopencv-calib3d-dev libopencv-photo-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libgloo-dev
-  ffmpeg
+  ffmpeg                        # videos out (render, serve) and in (capture)
+  colmap                        # capture: poses photos and video frames (CPU SIFT and mapping)
   libcpp-httplib-dev            # serve
   chromium                      # the browser tests of serve's page (headless, software WebGL)
 )

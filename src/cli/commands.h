@@ -8,6 +8,7 @@
 namespace ii::cli {
 
 void add_scene_info_command(CLI::App& app);
+void add_capture_command(CLI::App& app);
 void add_prepare_command(CLI::App& app);
 void add_infer_command(CLI::App& app);
 void add_bench_command(CLI::App& app);

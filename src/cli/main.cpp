@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
       spdlog::set_level(spdlog::level::debug);
 
   ii::cli::add_scene_info_command(app);
+  ii::cli::add_capture_command(app);
   ii::cli::add_prepare_command(app);
   ii::cli::add_masks_command(app);
   ii::cli::add_infer_command(app);

@@ -1,0 +1,226 @@
+#include "capture/capture.h"
+
+#include <spdlog/spdlog.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+
+#include "capture/frames.h"
+#include "common/error.h"
+#include "common/files.h"
+#include "common/process.h"
+#include "common/stopwatch.h"
+#include "data/colmap_run.h"
+#include "data/image_ops.h"
+
+namespace ii {
+
+namespace fs = std::filesystem;
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+
+namespace {
+
+constexpr int kStages = 4;
+
+Matrix3d rotation_of(const ColmapImage& im) {
+  return Eigen::Quaterniond(im.qvec[0], im.qvec[1], im.qvec[2], im.qvec[3]).normalized().toRotationMatrix();
+}
+
+Vector3d centre_of(const ColmapImage& im) { return -rotation_of(im).transpose() * im.tvec; }
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+// Images of a folder, resized so the long side is at most max_size, as PNGs in `dir`.
+int copy_images(const fs::path& folder, const fs::path& dir, int max_size) {
+  const std::vector<fs::path> files = list_images(folder);
+  if (files.size() < 3)
+    fail_file(folder, "holds {} image(s) (png, jpg); posing needs at least 3, better 20 or more with much overlap",
+              files.size());
+  fs::create_directories(dir);
+  for (const fs::path& f : files) {
+    Image im = read_image_rgb(f);
+    const int long_side = std::max(im.width, im.height);
+    if (long_side > max_size) {
+      const double s = static_cast<double>(max_size) / long_side;
+      im = resize_area(im, std::max(1, static_cast<int>(std::lround(im.width * s))),
+                       std::max(1, static_cast<int>(std::lround(im.height * s))));
+    }
+    write_png(dir / (f.stem().string() + ".png"), im);
+  }
+  return static_cast<int>(files.size());
+}
+
+}  // namespace
+
+SceneFrame sensible_frame(const ColmapModel& model) {
+  SceneFrame f;
+  if (model.images.empty()) return f;
+  std::vector<Vector3d> centres;
+  Vector3d up = Vector3d::Zero();
+  for (const auto& [id, im] : model.images) {
+    centres.push_back(centre_of(im));
+    up += -rotation_of(im).transpose() * Vector3d::UnitY();  // a camera's up is its -y axis
+  }
+  // Centre: the median of the points (what the cameras look at), else of the cameras.
+  std::vector<double> xs, ys, zs;
+  if (!model.points.empty())
+    for (const auto& [id, p] : model.points) xs.push_back(p.xyz.x()), ys.push_back(p.xyz.y()), zs.push_back(p.xyz.z());
+  else
+    for (const Vector3d& c : centres) xs.push_back(c.x()), ys.push_back(c.y()), zs.push_back(c.z());
+  f.centre = Vector3d(median(xs), median(ys), median(zs));
+  if (up.norm() > 1e-9) f.rotation = Eigen::Quaterniond::FromTwoVectors(up.normalized(), -Vector3d::UnitY()).toRotationMatrix();
+  std::vector<double> distances;
+  for (const Vector3d& c : centres) distances.push_back((c - f.centre).norm());
+  const double d = median(distances);
+  f.scale = d > 1e-12 ? 1 / d : 1;
+  return f;
+}
+
+void apply_frame(ColmapModel& model, const SceneFrame& f) {
+  // x' = s R (x - c): a camera's R_i' = R_i R^T, t_i' = s (R_i c + t_i).
+  for (auto& [id, im] : model.images) {
+    const Matrix3d r = rotation_of(im);
+    const Eigen::Quaterniond q(r * f.rotation.transpose());
+    im.qvec = Eigen::Vector4d(q.w(), q.x(), q.y(), q.z());
+    im.tvec = f.scale * (r * f.centre + im.tvec);
+  }
+  for (auto& [id, p] : model.points) p.xyz = f.scale * f.rotation * (p.xyz - f.centre);
+}
+
+PoseComparison compare_poses(const ColmapModel& posed, const ColmapModel& reference) {
+  auto by_stem = [](const ColmapModel& m) {
+    std::map<std::string, const ColmapImage*> out;
+    for (const auto& [id, im] : m.images) out[fs::path(im.name).stem().string()] = &im;
+    return out;
+  };
+  const auto a = by_stem(posed), b = by_stem(reference);
+  std::vector<std::pair<const ColmapImage*, const ColmapImage*>> pairs;
+  for (const auto& [stem, im] : a)
+    if (b.count(stem)) pairs.emplace_back(im, b.at(stem));
+  if (pairs.empty() && a.size() <= b.size()) {  // frames of a video made from the reference's images in name order
+    auto it = b.begin();
+    for (const auto& [stem, im] : a) pairs.emplace_back(im, (it++)->second);
+  }
+  PoseComparison c;
+  c.matched = static_cast<int>(pairs.size());
+  if (pairs.size() < 3) return c;
+  Eigen::Matrix3Xd src(3, pairs.size()), dst(3, pairs.size());
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    src.col(i) = centre_of(*pairs[i].first);
+    dst.col(i) = centre_of(*pairs[i].second);
+  }
+  const Eigen::Matrix4d sim = Eigen::umeyama(src, dst, true);
+  const Matrix3d sr = sim.topLeftCorner<3, 3>();
+  const double s = std::cbrt(sr.determinant());
+  const Matrix3d align = sr / s;
+  double spread = 0;
+  for (size_t i = 0; i < pairs.size(); ++i)
+    for (size_t j = i + 1; j < pairs.size(); ++j) spread = std::max(spread, (dst.col(i) - dst.col(j)).norm());
+  std::vector<double> rot, pos;
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    const Matrix3d c2w_posed = align * rotation_of(*pairs[i].first).transpose();
+    const Matrix3d c2w_ref = rotation_of(*pairs[i].second).transpose();
+    const double angle = Eigen::AngleAxisd(c2w_ref.transpose() * c2w_posed).angle();
+    rot.push_back(angle * 180 / M_PI);
+    const Vector3d moved = sr * src.col(i) + sim.topRightCorner<3, 1>();
+    pos.push_back((moved - dst.col(i)).norm() / std::max(spread, 1e-12));
+  }
+  c.median_rotation_deg = median(rot);
+  c.max_rotation_deg = *std::max_element(rot.begin(), rot.end());
+  c.median_position = median(pos);
+  c.max_position = *std::max_element(pos.begin(), pos.end());
+  return c;
+}
+
+nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const CaptureOptions& o) {
+  Stopwatch total, stage;
+  auto begin = [&](int k, const std::string& what) {
+    if (o.on_stage) o.on_stage(k, kStages, what);
+    stage.lap();
+  };
+  if (!fs::exists(input)) fail_file(input, "not found (give a video file or a folder of photos)");
+  if (o.frames < 3) fail("--frames {}: posing needs at least 3 frames", o.frames);
+  if (o.max_size < 64) fail("--max-size {}: too small to pose (at least 64 pixels)", o.max_size);
+  const bool video = !fs::is_directory(input);
+  const std::string matcher = o.matcher == "auto" ? (video ? "sequential" : "exhaustive") : o.matcher;
+  if (matcher != "sequential" && matcher != "exhaustive")
+    fail("unknown matcher '{}' (auto, sequential or exhaustive)", o.matcher);
+  if (find_colmap(o.colmap).empty())
+    fail("COLMAP is not installed ('{}' not found): `apt install colmap` (scripts/install-deps.sh does it) or give "
+         "its path with --colmap",
+         o.colmap);
+  if (fs::exists(out) && !(fs::is_directory(out) && fs::is_empty(out)))
+    fail_file(out, "already exists; give a new folder (nothing there is overwritten)");
+  const fs::path work = fs::absolute(out) / "colmap";
+  fs::create_directories(work);
+
+  nlohmann::json report = {{"input", fs::absolute(input).string()}, {"kind", video ? "video" : "images"},
+                           {"matcher", matcher}, {"max_size", o.max_size}};
+  nlohmann::json timings;
+  begin(1, video ? "picking the sharpest frames" : "reading the images");
+  int inputs = 0;
+  if (video) {
+    const VideoFrames frames = extract_video_frames(input, work / "images", work, o.frames, o.max_size);
+    inputs = static_cast<int>(frames.picked.size());
+    report["video_frames"] = frames.decoded;
+    report["picked_frames"] = frames.picked;
+    if (inputs < 3) fail_file(input, "has {} frame(s); posing needs at least 3", inputs);
+  } else {
+    inputs = copy_images(input, work / "images", o.max_size);
+  }
+  report["images"] = inputs;
+  timings["frames_s"] = stage.ms() / 1000;
+
+  begin(2, fmt::format("posing {} images with COLMAP ({} matching; log: {})", inputs, matcher,
+                       (work / "colmap.log").string()));
+  ColmapRunOptions colmap;
+  colmap.executable = o.colmap;
+  colmap.matcher = matcher;
+  const fs::path model_dir = run_colmap(work, colmap);
+  const ColmapModel raw = read_colmap_model(model_dir);
+  const int registered = static_cast<int>(raw.images.size());
+  report["registered"] = registered;
+  timings["colmap_s"] = stage.ms() / 1000;
+  if (registered < 3 || 2 * registered < inputs)
+    fail("COLMAP registered {} of {} images (log: {}): too few to trust. Try more overlap between neighbouring "
+         "frames, slower motion, more texture in view, or --matcher exhaustive",
+         registered, inputs, (work / "colmap.log").string());
+  if (registered < inputs)
+    spdlog::warn("COLMAP registered {} of {} images; the others are left out", registered, inputs);
+
+  begin(3, "undistorting to pinhole cameras");
+  const fs::path undistorted = work / "undistorted";
+  run_logged(find_colmap(o.colmap),
+             {"image_undistorter", "--image_path", (work / "images").string(), "--input_path", model_dir.string(),
+              "--output_path", undistorted.string(), "--output_type", "COLMAP"},
+             work / "colmap.log", "colmap image_undistorter");
+  timings["undistort_s"] = stage.ms() / 1000;
+
+  begin(4, "centring the scene and writing it");
+  ColmapModel model = read_colmap_model(undistorted / "sparse");
+  const SceneFrame frame = sensible_frame(model);
+  apply_frame(model, frame);
+  write_colmap_model(out / "sparse" / "0", model, true);
+  fs::rename(undistorted / "images", out / "images");
+  fs::remove_all(undistorted);
+  report["transform"] = {{"centre", {frame.centre.x(), frame.centre.y(), frame.centre.z()}},
+                         {"scale", frame.scale},
+                         {"note", "x_scene = scale * rotation * (x_colmap - centre); up is -y"}};
+  std::vector<std::vector<double>> rot;
+  for (int r = 0; r < 3; ++r) rot.push_back({frame.rotation(r, 0), frame.rotation(r, 1), frame.rotation(r, 2)});
+  report["transform"]["rotation"] = rot;
+  report["points"] = model.points.size();
+  timings["write_s"] = stage.ms() / 1000;
+  timings["total_s"] = total.ms() / 1000;
+  report["timings"] = timings;
+  write_file_atomic(out / "capture.json", report.dump(2) + "\n");
+  return report;
+}
+
+}  // namespace ii

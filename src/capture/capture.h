@@ -1,0 +1,53 @@
+#pragma once
+// From a video or a folder of unposed photos to a posed scene the readers load: frames picked
+// (the sharpest of each stretch of a video), posed by COLMAP, undistorted to pinhole cameras,
+// and moved into a frame that suits our cameras (centred, up = -y, cameras about 1 away).
+//
+//   OUT/images/, OUT/sparse/   the scene (COLMAP layout, PINHOLE cameras)
+//   OUT/capture.json           what was done: inputs, frames, registration, timings, transform
+//   OUT/colmap/                COLMAP's work: frames as posed, database, colmap.log, raw model
+#include <filesystem>
+#include <functional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "io/colmap.h"
+
+namespace ii {
+
+struct CaptureOptions {
+  int frames = 100;                 // frames taken from a video (all images of a folder are used)
+  int max_size = 1008;              // long side of the posed images, in pixels
+  std::string matcher = "auto";     // auto (sequential for a video, exhaustive for a folder) | ...
+  std::string colmap = "colmap";    // the colmap executable (PATH lookup unless it has a '/')
+  // Called at the start of each stage: (stage number from 1, stage count, what it does).
+  std::function<void(int, int, const std::string&)> on_stage;
+};
+
+// Runs the whole capture; returns capture.json's content. Throws Error with one clear message
+// (missing tools, unreadable input, too few images, too few registered).
+nlohmann::json capture_scene(const std::filesystem::path& input, const std::filesystem::path& out,
+                             const CaptureOptions& options = {});
+
+// The similarity (x' = scale * rotation * (x - centre)) that centres a model on its points,
+// turns the cameras' mean up direction to -y and puts the cameras about 1 from the centre.
+struct SceneFrame {
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  double scale = 1;
+};
+SceneFrame sensible_frame(const ColmapModel& model);
+void apply_frame(ColmapModel& model, const SceneFrame& frame);
+
+// Camera poses of `posed` against `reference` after the best similarity between their camera
+// centres (views matched by file stem, else in name order): rotation errors in degrees,
+// position errors as a fraction of the largest distance between two reference cameras.
+struct PoseComparison {
+  int matched = 0;
+  double median_rotation_deg = 0, max_rotation_deg = 0;
+  double median_position = 0, max_position = 0;
+};
+PoseComparison compare_poses(const ColmapModel& posed, const ColmapModel& reference);
+
+}  // namespace ii
