@@ -13,6 +13,7 @@
 #include "common/stopwatch.h"
 #include "data/colmap_run.h"
 #include "data/image_ops.h"
+#include "data/scene.h"
 
 namespace ii {
 
@@ -93,41 +94,61 @@ void apply_frame(ColmapModel& model, const SceneFrame& f) {
   for (auto& [id, p] : model.points) p.xyz = f.scale * f.rotation * (p.xyz - f.centre);
 }
 
-PoseComparison compare_poses(const ColmapModel& posed, const ColmapModel& reference) {
-  auto by_stem = [](const ColmapModel& m) {
-    std::map<std::string, const ColmapImage*> out;
-    for (const auto& [id, im] : m.images) out[fs::path(im.name).stem().string()] = &im;
+std::vector<NamedPose> poses_of(const ColmapModel& model) {
+  std::vector<NamedPose> out;
+  for (const auto& [id, im] : model.images) {
+    Eigen::Matrix4d w2c = Eigen::Matrix4d::Identity();
+    w2c.topLeftCorner<3, 3>() = rotation_of(im);
+    w2c.topRightCorner<3, 1>() = im.tvec;
+    out.push_back({fs::path(im.name).stem().string(), w2c});
+  }
+  return out;
+}
+
+std::vector<NamedPose> poses_of_scene(const fs::path& scene_dir) {
+  const Scene scene = load_scene(scene_dir);
+  std::vector<NamedPose> out;
+  for (const auto* views : {&scene.views, &scene.test_views})
+    for (const View& v : *views) out.push_back({v.name, v.camera.w2c_opencv()});
+  return out;
+}
+
+PoseComparison compare_poses(const std::vector<NamedPose>& posed, const std::vector<NamedPose>& reference) {
+  auto by_name = [](const std::vector<NamedPose>& poses) {
+    std::map<std::string, const NamedPose*> out;
+    for (const NamedPose& p : poses) out[p.name] = &p;
     return out;
   };
-  const auto a = by_stem(posed), b = by_stem(reference);
-  std::vector<std::pair<const ColmapImage*, const ColmapImage*>> pairs;
-  for (const auto& [stem, im] : a)
-    if (b.count(stem)) pairs.emplace_back(im, b.at(stem));
-  if (pairs.empty() && a.size() <= b.size()) {  // frames of a video made from the reference's images in name order
+  const auto a = by_name(posed), b = by_name(reference);
+  std::vector<std::pair<const NamedPose*, const NamedPose*>> pairs;
+  for (const auto& [name, p] : a)
+    if (b.count(name)) pairs.emplace_back(p, b.at(name));
+  if (pairs.empty() && a.size() <= b.size()) {
     auto it = b.begin();
-    for (const auto& [stem, im] : a) pairs.emplace_back(im, (it++)->second);
+    for (const auto& [name, p] : a) pairs.emplace_back(p, (it++)->second);
   }
   PoseComparison c;
   c.matched = static_cast<int>(pairs.size());
   if (pairs.size() < 3) return c;
+  auto centre = [](const NamedPose& p) -> Vector3d {
+    return -p.w2c.topLeftCorner<3, 3>().transpose() * p.w2c.topRightCorner<3, 1>();
+  };
   Eigen::Matrix3Xd src(3, pairs.size()), dst(3, pairs.size());
   for (size_t i = 0; i < pairs.size(); ++i) {
-    src.col(i) = centre_of(*pairs[i].first);
-    dst.col(i) = centre_of(*pairs[i].second);
+    src.col(i) = centre(*pairs[i].first);
+    dst.col(i) = centre(*pairs[i].second);
   }
   const Eigen::Matrix4d sim = Eigen::umeyama(src, dst, true);
   const Matrix3d sr = sim.topLeftCorner<3, 3>();
-  const double s = std::cbrt(sr.determinant());
-  const Matrix3d align = sr / s;
+  const Matrix3d align = sr / std::cbrt(sr.determinant());
   double spread = 0;
   for (size_t i = 0; i < pairs.size(); ++i)
     for (size_t j = i + 1; j < pairs.size(); ++j) spread = std::max(spread, (dst.col(i) - dst.col(j)).norm());
   std::vector<double> rot, pos;
   for (size_t i = 0; i < pairs.size(); ++i) {
-    const Matrix3d c2w_posed = align * rotation_of(*pairs[i].first).transpose();
-    const Matrix3d c2w_ref = rotation_of(*pairs[i].second).transpose();
-    const double angle = Eigen::AngleAxisd(c2w_ref.transpose() * c2w_posed).angle();
-    rot.push_back(angle * 180 / M_PI);
+    const Matrix3d c2w_posed = align * pairs[i].first->w2c.topLeftCorner<3, 3>().transpose();
+    const Matrix3d c2w_ref = pairs[i].second->w2c.topLeftCorner<3, 3>().transpose();
+    rot.push_back(Eigen::AngleAxisd(c2w_ref.transpose() * c2w_posed).angle() * 180 / M_PI);
     const Vector3d moved = sr * src.col(i) + sim.topRightCorner<3, 1>();
     pos.push_back((moved - dst.col(i)).norm() / std::max(spread, 1e-12));
   }

@@ -40,14 +40,24 @@ struct SceneFrame {
 SceneFrame sensible_frame(const ColmapModel& model);
 void apply_frame(ColmapModel& model, const SceneFrame& frame);
 
+// A view's name (file stem) and world-to-camera pose (OpenCV axes).
+struct NamedPose {
+  std::string name;
+  Eigen::Matrix4d w2c;
+};
+std::vector<NamedPose> poses_of(const ColmapModel& model);
+// The views (test views too) of a scene in any format load_scene reads.
+std::vector<NamedPose> poses_of_scene(const std::filesystem::path& scene_dir);
+
 // Camera poses of `posed` against `reference` after the best similarity between their camera
-// centres (views matched by file stem, else in name order): rotation errors in degrees,
-// position errors as a fraction of the largest distance between two reference cameras.
+// centres (views matched by name, else in name order, as the frames of a video made from the
+// reference's images): rotation errors in degrees, position errors as a fraction of the
+// largest distance between two reference cameras.
 struct PoseComparison {
   int matched = 0;
   double median_rotation_deg = 0, max_rotation_deg = 0;
   double median_position = 0, max_position = 0;
 };
-PoseComparison compare_poses(const ColmapModel& posed, const ColmapModel& reference);
+PoseComparison compare_poses(const std::vector<NamedPose>& posed, const std::vector<NamedPose>& reference);
 
 }  // namespace ii

@@ -30,8 +30,8 @@ void run(const CaptureArgs& a) {
   nlohmann::json report = capture_scene(a.input, a.out, o);
   if (!a.compare.empty()) {
     const PoseComparison c =
-        compare_poses(read_colmap_model(fs::path(a.out) / "sparse" / "0"), read_colmap_model(a.compare));
-    report["compared_with"] = {{"model", a.compare},
+        compare_poses(poses_of(read_colmap_model(fs::path(a.out) / "sparse" / "0")), poses_of_scene(a.compare));
+    report["compared_with"] = {{"scene", a.compare},
                                {"matched", c.matched},
                                {"median_rotation_deg", c.median_rotation_deg},
                                {"max_rotation_deg", c.max_rotation_deg},
@@ -69,7 +69,7 @@ void add_capture_command(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "sequential", "exhaustive"}));
   cmd->add_option("--colmap", a->options.colmap, "The colmap executable")->capture_default_str();
   cmd->add_option("--compare", a->compare,
-                  "A COLMAP model of the same views (e.g. SCENE/sparse/0) to measure the recovered poses against")
+                  "A posed scene of the same views (any format) to measure the recovered poses against")
       ->check(CLI::ExistingDirectory);
   cmd->footer(
       "Examples:\n"
