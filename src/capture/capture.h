@@ -1,7 +1,7 @@
 #pragma once
 // From a video or a folder of unposed photos to a posed scene the readers load: frames picked
 // (the sharpest of each stretch of a video), posed by COLMAP, undistorted to pinhole cameras,
-// and moved into a frame that suits our cameras (centred, up = -y, cameras about 1 away).
+// and moved into a frame that suits our cameras (centred, up = -y, scaled like LLFF scenes).
 //
 //   OUT/images/, OUT/sparse/   the scene (COLMAP layout, PINHOLE cameras)
 //   OUT/capture.json           what was done: inputs, frames, registration, timings, transform
@@ -31,7 +31,8 @@ nlohmann::json capture_scene(const std::filesystem::path& input, const std::file
                              const CaptureOptions& options = {});
 
 // The similarity (x' = scale * rotation * (x - centre)) that centres a model on its points,
-// turns the cameras' mean up direction to -y and puts the cameras about 1 from the centre.
+// turns the cameras' mean up direction to -y and makes the largest distance between two
+// cameras 10 units, as in the LLFF scenes the official orbit (radius 4) was made for.
 struct SceneFrame {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();

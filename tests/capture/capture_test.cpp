@@ -89,15 +89,21 @@ TEST(Capture, TheSceneFrameCentresScalesAndTurnsUpToMinusY) {
   ColmapModel m = original;
   apply_frame(m, sensible_frame(m));
   Eigen::Vector3d up = Eigen::Vector3d::Zero();
-  std::vector<double> distances;
+  std::vector<Eigen::Vector3d> centres;
   for (const auto& [id, im] : m.images) {
     const Eigen::Matrix3d r = Eigen::Quaterniond(im.qvec[0], im.qvec[1], im.qvec[2], im.qvec[3]).toRotationMatrix();
     up += -r.transpose() * Eigen::Vector3d::UnitY();
-    distances.push_back((-r.transpose() * im.tvec).norm());
+    centres.push_back(-r.transpose() * im.tvec);
   }
   EXPECT_LT((up.normalized() + Eigen::Vector3d::UnitY()).norm(), 1e-9);
-  std::sort(distances.begin(), distances.end());
-  EXPECT_NEAR(distances[distances.size() / 2], 1.0, 1e-9);
+  double spread = 0;
+  for (const auto& a : centres)
+    for (const auto& b : centres) spread = std::max(spread, (a - b).norm());
+  EXPECT_NEAR(spread, 10.0, 1e-9);
+  // Centred on the points (all near the ring's target).
+  Eigen::Vector3d mean_point = Eigen::Vector3d::Zero();
+  for (const auto& [id, p] : m.points) mean_point += p.xyz / m.points.size();
+  EXPECT_LT(mean_point.norm(), 0.1);
   // The same views up to a similarity: no pose error.
   const PoseComparison c = compare_poses(poses_of(m), poses_of(original));
   EXPECT_EQ(c.matched, 12);
@@ -150,6 +156,11 @@ TEST(Capture, BadInputsAreClearErrors) {
   EXPECT_EQ(test::error_message([&] { capture_scene(dir / "two", dir / "out-two", o); }),
             (dir / "two").string() + ": holds 2 image(s) (png, jpg); posing needs at least 3, better 20 or more with "
                                      "much overlap");
+  write_png(dir / "three" / "a.png", checkerboard(32, 32));
+  write_png(dir / "three" / "b.png", checkerboard(32, 32));
+  write_file_atomic(dir / "three" / "c.jpg", std::string("not a JPEG"));
+  const std::string unreadable = test::error_message([&] { capture_scene(dir / "three", dir / "out-three", o); });
+  EXPECT_EQ(unreadable.rfind((dir / "three" / "c.jpg").string() + ": ", 0), 0u) << unreadable;
   write_file_atomic(dir / "notes.mp4", std::string("not a video"));
   if (have("ffmpeg")) {
     const std::string msg = test::error_message([&] { capture_scene(dir / "notes.mp4", dir / "out-notes", o); });
