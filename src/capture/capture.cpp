@@ -240,6 +240,16 @@ nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const C
   for (int r = 0; r < 3; ++r) rot.push_back({frame.rotation(r, 0), frame.rotation(r, 1), frame.rotation(r, 2)});
   report["transform"]["rotation"] = rot;
   report["points"] = model.points.size();
+  if (!o.compare.empty()) {
+    const PoseComparison c = compare_poses(poses_of(model), poses_of_scene(o.compare));
+    report["compared_with"] = {{"scene", o.compare.string()},
+                               {"matched", c.matched},
+                               {"median_rotation_deg", c.median_rotation_deg},
+                               {"max_rotation_deg", c.max_rotation_deg},
+                               {"median_position", c.median_position},
+                               {"max_position", c.max_position},
+                               {"position_unit", "largest distance between two reference cameras"}};
+  }
   timings["write_s"] = stage.ms() / 1000;
   timings["total_s"] = total.ms() / 1000;
   report["timings"] = timings;

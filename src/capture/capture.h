@@ -21,6 +21,8 @@ struct CaptureOptions {
   int max_size = 1008;              // long side of the posed images, in pixels
   std::string matcher = "auto";     // auto (sequential for a video, exhaustive for a folder) | ...
   std::string colmap = "colmap";    // the colmap executable (PATH lookup unless it has a '/')
+  std::filesystem::path compare;    // a posed scene of the same views: its poses against ours
+                                    // go into capture.json as "compared_with" (compare_poses)
   // Called at the start of each stage: (stage number from 1, stage count, what it does).
   std::function<void(int, int, const std::string&)> on_stage;
 };

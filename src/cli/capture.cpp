@@ -5,19 +5,15 @@
 
 #include "capture/capture.h"
 #include "cli/commands.h"
-#include "common/files.h"
 #include "common/stopwatch.h"
 
 namespace ii::cli {
-
-namespace fs = std::filesystem;
 
 namespace {
 
 struct CaptureArgs {
   std::string input;
   std::string out;
-  std::string compare;
   CaptureOptions options;
 };
 
@@ -27,21 +23,13 @@ void run(const CaptureArgs& a) {
   o.on_stage = [&clock](int k, int n, const std::string& what) {
     spdlog::info("[{}/{}] {} ({:.0f} s so far)", k, n, what, clock.ms() / 1000);
   };
-  nlohmann::json report = capture_scene(a.input, a.out, o);
-  if (!a.compare.empty()) {
-    const PoseComparison c =
-        compare_poses(poses_of(read_colmap_model(fs::path(a.out) / "sparse" / "0")), poses_of_scene(a.compare));
-    report["compared_with"] = {{"scene", a.compare},
-                               {"matched", c.matched},
-                               {"median_rotation_deg", c.median_rotation_deg},
-                               {"max_rotation_deg", c.max_rotation_deg},
-                               {"median_position", c.median_position},
-                               {"max_position", c.max_position},
-                               {"position_unit", "largest distance between two reference cameras"}};
-    write_file_atomic(fs::path(a.out) / "capture.json", report.dump(2) + "\n");
+  const nlohmann::json report = capture_scene(a.input, a.out, o);
+  if (report.contains("compared_with")) {
+    const nlohmann::json& c = report["compared_with"];
     fmt::print("against {} ({} views matched): rotation median {:.3f} deg (max {:.3f}), position median {:.4f} "
                "(max {:.4f}) of the camera spread\n",
-               a.compare, c.matched, c.median_rotation_deg, c.max_rotation_deg, c.median_position, c.max_position);
+               c["scene"].get<std::string>(), c["matched"].get<int>(), c["median_rotation_deg"].get<double>(),
+               c["max_rotation_deg"].get<double>(), c["median_position"].get<double>(), c["max_position"].get<double>());
   }
   fmt::print("{}: {} of {} images posed, {} points, in {:.0f} s (frames {:.0f} s, COLMAP {:.0f} s, undistortion {:.0f} s)\n",
              a.out, report["registered"].get<int>(), report["images"].get<int>(), report["points"].get<size_t>(),
@@ -68,7 +56,7 @@ void add_capture_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "sequential", "exhaustive"}));
   cmd->add_option("--colmap", a->options.colmap, "The colmap executable")->capture_default_str();
-  cmd->add_option("--compare", a->compare,
+  cmd->add_option("--compare", a->options.compare,
                   "A posed scene of the same views (any format) to measure the recovered poses against")
       ->check(CLI::ExistingDirectory);
   cmd->footer(
