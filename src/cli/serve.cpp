@@ -42,6 +42,7 @@ void run(const ServeArgs& a) {
   o.views = a.views;
   o.token = a.token;
   o.no_token = a.no_token;
+  o.reconstruct_at_start = true;
   if (a.no_token)
     spdlog::warn("--no-token: any program on this machine and any website open in its browser can drive this server");
   if (o.host != "127.0.0.1" && o.host != "localhost" && o.host != "::1")

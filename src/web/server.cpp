@@ -160,7 +160,7 @@ void send_file(const httplib::Request& req, httplib::Response& res, const fs::pa
 // The last job's state, as GET /api/job returns it.
 struct Job {
   int id = 0;
-  std::string kind;             // "masks", "edit", "video" or "eval"
+  std::string kind;             // "masks", "edit", "video", "eval" or "reconstruct"
   std::string state = "idle";   // "running", "done", "failed"
   std::string stage;
   double progress = 0;          // 0..1
@@ -176,7 +176,7 @@ struct Job {
 
 // What a job request asks for, checked before any work starts.
 struct JobRequest {
-  std::string kind;  // "masks", "edit", "video", "eval"
+  std::string kind;  // "masks", "edit", "video", "eval", "reconstruct"
   // masks, edit:
   int view = -1;
   EditMode mode = EditMode::Remove;
@@ -224,6 +224,9 @@ struct WebServer::State {
   json run_video(const JobRequest& job, const fs::path& dir, int id,
                  const std::function<void(const std::string&, double)>& stage);
   json run_eval(const JobRequest& job, const fs::path& dir, int id);
+  json run_reconstruction(const fs::path& dir, int id, const std::function<void(const std::string&, double)>& stage);
+  // Starts job `id` on the worker thread; the caller holds `mutex` and checked that none runs.
+  void launch_locked(const JobRequest& request, int id, const fs::path& dir);
   fs::path cached_view_file(int index, bool mask);
   void update(const std::function<void(Job&)>& change) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -419,6 +422,34 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   return result;
 }
 
+json WebServer::State::run_reconstruction(const fs::path& dir, int id,
+                                          const std::function<void(const std::string&, double)>& stage) {
+  SceneInputOptions input;
+  input.preprocess.height = options.height;
+  input.num_views = options.views;
+  input.keep_object = true;
+  stage("reconstructing the scene as captured (object kept)", 0.2);
+  const Prediction p = predictor->predict(*scene, input);
+  const GaussianSet gaussians = p.gaussians();
+  stage("writing the Gaussians", 0.9);
+  write_splat_ply(dir / "gaussians.ply", splats_from_gaussians(gaussians));
+  return {{"ply", fmt::format("/api/jobs/{}/gaussians.ply", id)},
+          {"gaussians", gaussians.size()},
+          {"reference_view", p.input.views.front().name}};
+}
+
+void WebServer::State::launch_locked(const JobRequest& request, int id, const fs::path& dir) {
+  next_id = std::max(next_id, id + 1);
+  fs::create_directories(dir);
+  if (worker.joinable()) worker.join();
+  job = Job();
+  job.id = id;
+  job.kind = request.kind;
+  job.state = "running";
+  job.stage = "starting";
+  worker = std::thread([this, request, dir] { run_job(request, dir); });
+}
+
 json WebServer::State::run_video(const JobRequest& job, const fs::path& dir, int id,
                                  const std::function<void(const std::string&, double)>& stage) {
   // The official orbit around the scene's cameras, in the frame of infer's PLYs.
@@ -470,6 +501,8 @@ void WebServer::State::run_job(JobRequest request, fs::path dir) {
     } else if (request.kind == "eval") {
       stage("evaluating on the scene's test views", 0.1);
       result = run_eval(request, dir, id);
+    } else if (request.kind == "reconstruct") {
+      result = run_reconstruction(dir, id, stage);
     } else {
       result = run_edit(request, dir, id, stage);
     }
@@ -522,6 +555,12 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
   for (const fs::path& p : leftovers) fs::remove(p);
   if (!leftovers.empty())
     spdlog::info("removed {} half-written file(s) of an earlier run from {}", leftovers.size(), s.out.string());
+  if (s.options.reconstruct_at_start && s.scene && s.predictor && s.options.plys.empty()) {
+    JobRequest request;
+    request.kind = "reconstruct";
+    std::lock_guard<std::mutex> lock(s.mutex);
+    s.launch_locked(request, s.next_id, s.out / "jobs" / std::to_string(s.next_id));
+  }
 
   httplib::Server& http = s.http;
   http.set_payload_max_length(s.options.max_upload_bytes);
@@ -633,15 +672,7 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
         fs::remove_all(dir, ec);
         return refuse(res, *refusal);
       }
-      ++s.next_id;
-      fs::create_directories(dir);
-      if (s.worker.joinable()) s.worker.join();
-      s.job = Job();
-      s.job.id = id;
-      s.job.kind = kind;
-      s.job.state = "running";
-      s.job.stage = "starting";
-      s.worker = std::thread([&s, request, dir] { s.run_job(request, dir); });
+      s.launch_locked(request, id, dir);
       reply(res, 202, {{"job", id}});
     };
   };

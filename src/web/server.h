@@ -22,6 +22,8 @@
 //   POST /api/video, /api/eval     ply=<a served PLY's URL>: an orbit video (a job), the
 //                                  SPIn-NeRF evaluation on the scene's test views (a job)
 //   GET  /api/job                  the current or last job: state, stage, progress, result
+//                                  (kind "reconstruct": the scene with its object, started by
+//                                  the server itself when it has a scene and no PLYs)
 //   GET  /api/jobs/<id>/<file>     what job <id> wrote: gaussians.ply, masks/<view index>.png,
 //                                  orbit.mp4, eval/report.html (and its sheets, renders)
 #include <filesystem>
@@ -50,6 +52,9 @@ struct ServeOptions {
   std::string token;
   bool no_token = false;  // serve without a token (any local program and website can then drive it)
   std::function<void(int job)> before_job;  // called on the job's thread before it works (tests)
+  // With a scene, a model and no PLYs: the first job reconstructs the scene as captured (object
+  // kept), so that the page shows it in 3D at once (serve sets it; tests choose).
+  bool reconstruct_at_start = false;
 };
 
 class WebServer {

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/image.h"
+#include "io/ply.h"
 #include "io/video.h"
 #include "synth/synth_scene.h"
 #include "synth/synth_writer.h"
@@ -353,6 +354,32 @@ TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
   const auto mask = s.client->Get(job["result"]["masks"]["view_000"].get<std::string>());
   ASSERT_EQ(mask->status, 200);
   EXPECT_EQ(mask->get_header_value("Content-Type"), "image/png");
+}
+
+// Opened on a scene alone (as `serve --scene` does), the server's first job reconstructs it with
+// its object; the page shows that PLY at once and opens the editor on the reference view.
+TEST(Serve, AScenesReconstructionIsTheFirstJob) {
+  ServeOptions o = room_options();
+  o.reconstruct_at_start = true;
+  RunningServer s(o);
+  const json info = json::parse(s.client->Get("/api/info")->body);
+  EXPECT_EQ(info["job"]["kind"], "reconstruct") << info;
+  const json job = s.finished_job();
+  ASSERT_EQ(job["state"], "done") << job;
+  EXPECT_EQ(job["result"]["ply"], "/api/jobs/" + std::to_string(job["id"].get<int>()) + "/gaussians.ply");
+  const auto ply = s.client->Get(job["result"]["ply"].get<std::string>());
+  ASSERT_EQ(ply->status, 200);
+  const fs::path file = s.out / "jobs" / std::to_string(job["id"].get<int>()) / "gaussians.ply";
+  EXPECT_EQ(ply->body.size(), fs::file_size(file));
+  EXPECT_EQ(read_splat_ply(file).opacity_logit.size(), job["result"]["gaussians"].get<size_t>());
+  const std::string reference = job["result"]["reference_view"];
+  EXPECT_EQ(reference.rfind("view_", 0), 0u) << reference;
+  // Not with PLYs to show: nothing starts.
+  ServeOptions with_ply = room_options();
+  with_ply.reconstruct_at_start = true;
+  with_ply.plys = {file};
+  RunningServer t(with_ply);
+  EXPECT_EQ(json::parse(t.client->Get("/api/info")->body)["job"]["state"], "idle");
 }
 
 TEST(Serve, OrbitVideoAndEvaluationReportOfAServedPly) {

@@ -377,13 +377,18 @@ async function startAndWait(path, body) {
     status(started.error ?? `error ${answer.status}`, true);
     return null;
   }
+  return waitForJob(started.job);
+}
+
+// Polls the job with this id until it ends, showing its progress; the job, or null if it failed.
+async function waitForJob(id) {
   $("progress").hidden = false;
   for (;;) {
     const job = await (await fetch("/api/job")).json();
     api.job = job;
     $("progress").value = job.progress;
     status(`job ${job.id}: ${job.stage}`);
-    if (job.id === started.job && job.state !== "running") {
+    if (job.id === id && job.state !== "running") {
       $("progress").hidden = true;
       if (job.state === "failed") {
         api.lastRun = job;
@@ -458,13 +463,23 @@ async function start() {
   listViews(views);
   if (viewIndex >= 0 && views[viewIndex]) jumpToView(viewIndex);
   const asked = params.get("ply") ?? "0";
-  const first = /^\/api\/jobs\/\d+\/gaussians\.ply$/.test(asked) ? { name: asked, url: asked } : info.plys[Number(asked)];
+  let first = /^\/api\/jobs\/\d+\/gaussians\.ply$/.test(asked) ? { name: asked, url: asked } : info.plys[Number(asked)];
+  // Opened on a scene alone: the server reconstructs it (object kept) at start; show it in 3D
+  // when it is ready, and open the editor on the view the network took as its reference.
+  let reconstruction = null;
+  if (!first && info.job?.kind === "reconstruct") {
+    $("hud").textContent = "reconstructing the scene ...";
+    reconstruction = await waitForJob(info.job.id);
+    if (reconstruction?.result?.ply) first = { name: "the scene as captured", url: reconstruction.result.ply };
+  }
   if (first) {
     beforeUrl = first.url;
     await showPly(first.url);
     setActive("before");
     setDownloads();
   }
+  const reference = views.findIndex((v) => v.name === reconstruction?.result?.reference_view);
+  if (reference >= 0 && !exact) selectView(reference);
   $("hud").textContent = first ? first.name : "no splats: serve --ply FILE, or run an edit";
   if (exact) $("hud").hidden = true;
 }

@@ -66,6 +66,25 @@ try {
     other.stop();
   }
 
+  // Opened on a scene alone: the server reconstructs it at start, the page shows it in 3D when
+  // ready and opens the editor on the network's reference view, ready to paint.
+  const bare = await h.serve(["--scene", scene, "--height", "64", "--out", join(dir, "serve-bare")]);
+  const bpage = await browser.newPage({ viewport: { width: 900, height: 600 } });
+  const berrors = h.collectErrors(bpage);
+  await bpage.goto(bare.url);
+  await bpage.evaluate(() => window.instainpaint.ready);
+  await h.frames(bpage, 10);
+  writeFileSync(join(dir, "page-scene-alone.png"), await bpage.screenshot());
+  const shown = await bpage.evaluate(() => ({ url: window.instainpaint.loadedUrl, hud: document.getElementById("hud").textContent,
+    editing: !document.getElementById("edit-panel").hidden, view: document.getElementById("edit-view").textContent }));
+  h.check(/^\/api\/jobs\/\d+\/gaussians\.ply$/.test(shown.url ?? ""), `the scene's reconstruction is on screen (${shown.url})`);
+  const bdrawn = await bpage.evaluate(drawnFraction);
+  h.check(bdrawn > 0.3, `and drawn (${(100 * bdrawn).toFixed(0)} % of pixels)`);
+  h.check(shown.editing && /^view_\d+$/.test(shown.view), `the editor is open on the reference view (${shown.view})`);
+  errors.push(...berrors);
+  await bpage.close();
+  bare.stop();
+
   // The interactive viewer: first frame, frames per second (software GL: a floor), bundle size.
   const viewer = await browser.newPage({ viewport: { width: 900, height: 600 } });
   const viewerErrors = h.collectErrors(viewer);
