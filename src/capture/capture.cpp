@@ -206,6 +206,7 @@ nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const C
   ColmapRunOptions colmap;
   colmap.executable = o.colmap;
   colmap.matcher = matcher;
+  colmap.progress = o.on_colmap_progress;
   const fs::path model_dir = run_colmap(work, colmap);
   const ColmapModel raw = read_colmap_model(model_dir);
   const int registered = static_cast<int>(raw.images.size());

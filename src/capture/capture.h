@@ -25,6 +25,8 @@ struct CaptureOptions {
                                     // go into capture.json as "compared_with" (compare_poses)
   // Called at the start of each stage: (stage number from 1, stage count, what it does).
   std::function<void(int, int, const std::string&)> on_stage;
+  // About once a second during COLMAP: its step, items done, items, seconds left (< 0: unknown).
+  std::function<void(const std::string&, int, int, double)> on_colmap_progress;
 };
 
 // Runs the whole capture; returns capture.json's content. Throws Error with one clear message

@@ -23,6 +23,16 @@ void run(const CaptureArgs& a) {
   o.on_stage = [&clock](int k, int n, const std::string& what) {
     spdlog::info("[{}/{}] {} ({:.0f} s so far)", k, n, what, clock.ms() / 1000);
   };
+  // COLMAP's progress every 5 seconds, and when a step starts.
+  std::string last_step;
+  Stopwatch since_shown;
+  o.on_colmap_progress = [&](const std::string& step, int done, int total, double eta_s) {
+    if (step == last_step && since_shown.ms() < 5000) return;
+    last_step = step;
+    since_shown.lap();
+    spdlog::info("      COLMAP {}: {} of {}{}", step, done, total,
+                 eta_s >= 0 ? fmt::format(", about {:.0f} s left", eta_s) : std::string());
+  };
   const nlohmann::json report = capture_scene(a.input, a.out, o);
   if (report.contains("compared_with")) {
     const nlohmann::json& c = report["compared_with"];

@@ -5,13 +5,16 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <string_view>
+#include <thread>
 
 #include "common/error.h"
-#include "common/files.h"
 
 extern char** environ;
 
@@ -43,12 +46,15 @@ fs::path find_executable(const std::string& name) {
 }
 
 std::string log_tail(const fs::path& log, int lines) {
-  std::string text;
-  try {
-    text = read_file_text(log);
-  } catch (const Error&) {
-    return "(no log)";
-  }
+  std::ifstream in(log, std::ios::binary);
+  if (!in) return "(no log)";
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  const std::streamoff from = std::max<std::streamoff>(0, size - (64 << 10));
+  in.seekg(from);
+  std::string text(static_cast<size_t>(std::max<std::streamoff>(0, size - from)), '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<size_t>(std::max<std::streamsize>(0, in.gcount())));
   size_t pos = text.size();
   while (pos > 0 && (text[pos - 1] == '\n' || text[pos - 1] == '\r')) --pos;
   const size_t end = pos;
@@ -58,7 +64,7 @@ std::string log_tail(const fs::path& log, int lines) {
 }
 
 void run_logged(const fs::path& exe, const std::vector<std::string>& args, const fs::path& log,
-                const std::string& what) {
+                const std::string& what, const std::function<void()>& poll) {
   std::vector<char*> argv;
   argv.push_back(const_cast<char*>(exe.c_str()));
   for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -74,8 +80,15 @@ void run_logged(const fs::path& exe, const std::vector<std::string>& args, const
   posix_spawn_file_actions_destroy(&actions);
   if (rc != 0) fail("{}: could not start {}: {}", what, exe.string(), std::strerror(rc));
   int status = 0;
-  while (::waitpid(pid, &status, 0) < 0)
-    if (errno != EINTR) fail("{}: waiting for the process failed: {}", what, std::strerror(errno));
+  for (int tick = 1;; ++tick) {
+    const pid_t done = ::waitpid(pid, &status, poll ? WNOHANG : 0);
+    if (done == pid) break;
+    if (done < 0 && errno != EINTR) fail("{}: waiting for the process failed: {}", what, std::strerror(errno));
+    if (done == 0) {  // still running (only with poll)
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (tick % 10 == 0) poll();
+    }
+  }
   if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return;
   const std::string how = WIFEXITED(status) ? fmt::format("exited with status {}", WEXITSTATUS(status))
                                             : fmt::format("was killed by signal {}", WTERMSIG(status));

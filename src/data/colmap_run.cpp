@@ -1,5 +1,8 @@
 #include "data/colmap_run.h"
 
+#include <algorithm>
+#include <chrono>
+#include <regex>
 #include <vector>
 
 #include "common/error.h"
@@ -9,6 +12,30 @@
 namespace ii {
 
 namespace fs = std::filesystem;
+
+namespace {
+
+std::string step_name(const std::string& command) {
+  if (command == "feature_extractor") return "features";
+  if (command == "mapper") return "mapping";
+  return "matching";
+}
+
+// The last "[i/n]" counter of a step in its log: "Processed file [i/n]" (features), "Matching
+// image [i/n]" or "Matching block [i/n, ...]" (matching), "Registering image #k (i)" (mapping,
+// of all images). {0, total} before the first.
+std::pair<int, int> step_counter(const std::string& tail, const std::string& step, int images) {
+  static const std::regex features(R"(Processed file \[(\d+)/(\d+)\])"),
+      matching(R"(Matching (?:image|block) \[(\d+)/(\d+))"), mapping(R"(Registering image #\d+ \((\d+)\))");
+  const std::regex& pattern = step == "features" ? features : step == "matching" ? matching : mapping;
+  std::pair<int, int> last{0, step == "matching" ? 0 : images};
+  for (std::sregex_iterator it(tail.begin(), tail.end(), pattern), end; it != end; ++it)
+    last = step == "mapping" ? std::pair<int, int>{std::stoi((*it)[1]), images}
+                             : std::pair<int, int>{std::stoi((*it)[1]), std::stoi((*it)[2])};
+  return last;
+}
+
+}  // namespace
 
 fs::path find_colmap(const std::string& executable) { return find_executable(executable); }
 
@@ -33,7 +60,21 @@ fs::path run_colmap(const fs::path& scene_dir, const ColmapRunOptions& options) 
   fs::remove(log);
   fs::create_directories(sparse);
   const std::string gpu = options.use_gpu ? "1" : "0";
-  auto run_step = [&](const std::vector<std::string>& args) { run_logged(exe, args, log, "colmap " + args[0]); };
+  const int images_count = static_cast<int>(std::count_if(fs::directory_iterator(images), fs::directory_iterator(),
+                                                          [](const fs::directory_entry& e) { return e.is_regular_file(); }));
+  auto run_step = [&](const std::vector<std::string>& args) {
+    std::function<void()> poll;
+    const auto started = std::chrono::steady_clock::now();
+    if (options.progress)
+      poll = [&, step = step_name(args[0]), most = 0]() mutable {
+        // The counter only goes up (the last 40 lines may hold none of it).
+        const auto [counted, total] = step_counter(log_tail(log, 40), step, images_count);
+        const int done = most = std::max(most, counted);
+        const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+        options.progress(step, done, total, done > 0 ? elapsed / done * (total - done) : -1);
+      };
+    run_logged(exe, args, log, "colmap " + args[0], poll);
+  };
   run_step({"feature_extractor", "--database_path", db.string(), "--image_path", images.string(),
             "--ImageReader.camera_model", options.camera_model, "--ImageReader.single_camera",
             options.single_camera ? "1" : "0", "--SiftExtraction.use_gpu", gpu});

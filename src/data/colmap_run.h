@@ -3,6 +3,7 @@
 // matching, incremental mapping. The result is an ordinary COLMAP scene for
 // load_colmap_scene().
 #include <filesystem>
+#include <functional>
 #include <string>
 
 namespace ii {
@@ -14,6 +15,10 @@ struct ColmapRunOptions {
   bool single_camera = true;              // one shared camera for all images (one phone/lens)
   std::string matcher = "exhaustive";     // exhaustive (small sets) | sequential (video frames)
   bool use_gpu = false;                   // SIFT on the GPU needs an OpenGL/CUDA context
+  // About once a second while a step runs, from its log: the step ("features", "matching",
+  // "mapping"), how many of its items are done and of how many, and the seconds it likely
+  // still needs (negative while unknown).
+  std::function<void(const std::string& step, int done, int total, double eta_s)> progress;
 };
 
 // The colmap executable's absolute path, or an empty path when it cannot be found.

@@ -417,12 +417,14 @@ TEST(Undistort, MaskStaysBinaryAndNoDistortionIsIdentity) {
 // ---- running colmap --------------------------------------------------------------------
 
 // A stand-in for the colmap executable: logs its arguments, fails at `fail_step`, and
-// "reconstructs" by copying a prepared model into <output_path>/0.
-fs::path fake_colmap(const fs::path& model, const std::string& fail_step = "") {
+// "reconstructs" by copying a prepared model into <output_path>/0. With `slow`, the feature
+// step logs COLMAP's counter for one of two images and takes 1.5 s (progress is polled).
+fs::path fake_colmap(const fs::path& model, const std::string& fail_step = "", bool slow = false) {
   const fs::path script = test::temp_dir("fake-colmap") / "colmap";
   write_file_atomic(script, "#!/bin/sh\n"
                             "echo \"fake colmap $*\"\n"
-                            "if [ \"$1\" = \"" + fail_step + "\" ]; then echo \"boom: no features\"; exit 3; fi\n"
+                            "if [ \"$1\" = \"" + fail_step + "\" ]; then echo \"boom: no features\"; exit 3; fi\n" +
+                            (slow ? "if [ \"$1\" = feature_extractor ]; then echo 'Processed file [1/2]'; sleep 1.5; fi\n" : "") +
                             "prev=\"\"; out=\"\"\n"
                             "for a in \"$@\"; do [ \"$prev\" = \"--output_path\" ] && out=\"$a\"; prev=\"$a\"; done\n"
                             "if [ \"$1\" = mapper ]; then mkdir -p \"$out/0\" && cp \"" + model.string() + "\"/* \"$out/0/\"; fi\n");
@@ -454,8 +456,14 @@ TEST(ColmapRun, RunsTheThreeStepsAndFindsTheModel) {
     write_png(dir / "images" / name, Image(32, 24, 3, 0.5f));
   }
   ColmapRunOptions o;
-  o.executable = fake_colmap(prepared).string();
+  o.executable = fake_colmap(prepared, "", /*slow=*/true).string();
+  std::vector<std::string> seen;
+  o.progress = [&](const std::string& step, int done, int total, double eta_s) {
+    seen.push_back(fmt::format("{} {}/{} {}", step, done, total, eta_s > 0 ? "eta" : "-"));
+  };
   EXPECT_EQ(run_colmap(dir, o), fs::absolute(dir) / "sparse" / "0");
+  ASSERT_FALSE(seen.empty());  // polled about once a second while the slow step ran
+  EXPECT_EQ(seen.front(), "features 1/2 eta");
   const std::string log = read_file_text(dir / "colmap.log");
   EXPECT_NE(log.find("fake colmap feature_extractor --database_path " + (fs::absolute(dir) / "database.db").string()),
             std::string::npos)
