@@ -94,8 +94,10 @@ Done in $(($(date +%s) - start)) s. In $OUT/:
                             baselines: OpenCV Telea, mean fill)
 (telea and mean-fill fill each test view's mask from that view's own ground truth: 2D, no 3D consistency.)
 
-The same on your own capture (LLFF/SPIn-NeRF, nerfstudio transforms.json or COLMAP; the object
-marked on one photo; that photo painted out by any 2D inpainter):
+The same on your own capture: a phone video (or photos) posed by COLMAP, then the object painted
+on one view in the browser (or marked in a file, that photo painted out by any 2D inpainter):
+  $BIN capture my_video.mp4 --out my_capture
+  $BIN serve --scene my_capture
   $BIN infer --scene my_capture --view IMG_0001 --mask object.png --reference my_inpainted_IMG_0001.png --out out/my_capture
   $BIN render --ply out/my_capture/gaussians.ply --scene my_capture --normalize --trajectory orbit --out out/video
   $BIN --help    (every command; the released official checkpoint: --checkpoint instainpaint.pth)

@@ -175,7 +175,8 @@ nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const C
   const std::string matcher = o.matcher == "auto" ? (video ? "sequential" : "exhaustive") : o.matcher;
   if (matcher != "sequential" && matcher != "exhaustive")
     fail("unknown matcher '{}' (auto, sequential or exhaustive)", o.matcher);
-  if (find_colmap(o.colmap).empty())
+  const fs::path colmap_exe = find_colmap(o.colmap);
+  if (colmap_exe.empty())
     fail("COLMAP is not installed ('{}' not found): `apt install colmap` (scripts/install-deps.sh does it) or give "
          "its path with --colmap",
          o.colmap);
@@ -221,7 +222,7 @@ nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const C
 
   begin(3, "undistorting to pinhole cameras");
   const fs::path undistorted = work / "undistorted";
-  run_logged(find_colmap(o.colmap),
+  run_logged(colmap_exe,
              {"image_undistorter", "--image_path", (work / "images").string(), "--input_path", model_dir.string(),
               "--output_path", undistorted.string(), "--output_type", "COLMAP"},
              work / "colmap.log", "colmap image_undistorter");
