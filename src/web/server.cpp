@@ -555,12 +555,6 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
   for (const fs::path& p : leftovers) fs::remove(p);
   if (!leftovers.empty())
     spdlog::info("removed {} half-written file(s) of an earlier run from {}", leftovers.size(), s.out.string());
-  if (s.options.reconstruct_at_start && s.scene && s.predictor && s.options.plys.empty()) {
-    JobRequest request;
-    request.kind = "reconstruct";
-    std::lock_guard<std::mutex> lock(s.mutex);
-    s.launch_locked(request, s.next_id, s.out / "jobs" / std::to_string(s.next_id));
-  }
 
   httplib::Server& http = s.http;
   http.set_payload_max_length(s.options.max_upload_bytes);
@@ -677,6 +671,14 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
     };
   };
   for (const char* kind : {"masks", "edit", "video", "eval"}) http.Post(std::string("/api/") + kind, start_job(kind));
+
+  // Last: nothing after it may throw while the job's thread runs.
+  if (s.options.reconstruct_at_start && s.scene && s.predictor && s.options.plys.empty()) {
+    JobRequest request;
+    request.kind = "reconstruct";
+    std::lock_guard<std::mutex> lock(s.mutex);
+    s.launch_locked(request, s.next_id, s.out / "jobs" / std::to_string(s.next_id));
+  }
 }
 
 WebServer::~WebServer() {
