@@ -5,6 +5,8 @@
 #include <cstdlib>
 #include <string>
 
+#include "common/process.h"
+
 namespace ii {
 
 namespace {
@@ -15,7 +17,7 @@ std::string shell_quote(const std::string& s) {
 }
 }  // namespace
 
-bool ffmpeg_available() { return std::system("command -v ffmpeg > /dev/null 2>&1") == 0; }
+bool ffmpeg_available() { return !find_executable("ffmpeg").empty(); }
 
 bool encode_video(const std::filesystem::path& frames_dir, const std::filesystem::path& video, int fps) {
   const std::string cmd = fmt::format(

@@ -55,12 +55,9 @@ double elapsed_s(const Stopwatch& clock) { return clock.ms() / 1000; }
 // The rotation (3, 3) and translation (3) of a rigid transform, as tensors.
 std::pair<torch::Tensor, torch::Tensor> rotation_and_translation(const Eigen::Matrix4d& m,
                                                                  const torch::TensorOptions& options) {
-  torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
-  for (int i = 0; i < 3; ++i) {
-    t[i] = m(i, 3);
-    for (int j = 0; j < 3; ++j) R[i][j] = m(i, j);
-  }
-  return {R.to(options), t.to(options)};
+  Eigen::Matrix<double, 3, 4, Eigen::RowMajor> top = m.topRows<3>();  // [R | t], row by row
+  const torch::Tensor rt = torch::from_blob(top.data(), {3, 4}, torch::kFloat64).to(options, false, /*copy=*/true);
+  return {rt.narrow(1, 0, 3), rt.select(1, 3)};
 }
 
 // Pixels (u, v) of a camera at z-depth `depth`, in the world.
