@@ -143,7 +143,19 @@ PoseComparison compare_poses(const std::vector<NamedPose>& posed, const std::vec
   }
   const Eigen::Matrix4d sim = Eigen::umeyama(src, dst, true);
   const Matrix3d sr = sim.topLeftCorner<3, 3>();
-  const Matrix3d align = sr / std::cbrt(sr.determinant());
+  // Orientations are compared after the rotation that best aligns them (the chordal mean of
+  // the per-view rotations): the similarity fitted to camera centres alone turns them by up
+  // to a degree when the cameras lie on a short arc.
+  Matrix3d sum = Matrix3d::Zero();
+  for (const auto& [posed_view, ref_view] : pairs)
+    sum += ref_view->w2c.topLeftCorner<3, 3>().transpose() * posed_view->w2c.topLeftCorner<3, 3>();
+  const Eigen::JacobiSVD<Matrix3d> svd(sum, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Matrix3d align = svd.matrixU() * svd.matrixV().transpose();
+  if (align.determinant() < 0) {
+    Matrix3d flip = Matrix3d::Identity();
+    flip(2, 2) = -1;
+    align = svd.matrixU() * flip * svd.matrixV().transpose();
+  }
   double spread = 0;
   for (size_t i = 0; i < pairs.size(); ++i)
     for (size_t j = i + 1; j < pairs.size(); ++j) spread = std::max(spread, (dst.col(i) - dst.col(j)).norm());

@@ -56,8 +56,9 @@ std::vector<NamedPose> poses_of_scene(const std::filesystem::path& scene_dir);
 
 // Camera poses of `posed` against `reference` after the best similarity between their camera
 // centres (views matched by name, else in name order, as the frames of a video made from the
-// reference's images): rotation errors in degrees, position errors as a fraction of the
-// largest distance between two reference cameras.
+// reference's images): rotation errors in degrees after the rotation that best aligns the
+// orientations, position errors as a fraction of the largest distance between two reference
+// cameras.
 struct PoseComparison {
   int matched = 0;
   double median_rotation_deg = 0, max_rotation_deg = 0;

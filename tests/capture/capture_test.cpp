@@ -9,6 +9,7 @@
 #include "capture/capture.h"
 #include "capture/frames.h"
 #include "common/files.h"
+#include "common/process.h"
 #include "data/image_ops.h"
 #include "data/scene.h"
 #include "test_support.h"
@@ -28,7 +29,7 @@ Image checkerboard(int w, int h) {
 }
 Image blurred(const Image& im) { return resize_area(resize_area(im, im.width / 8, im.height / 8), im.width, im.height); }
 
-bool have(const char* tool) { return std::system(fmt::format("command -v {} > /dev/null 2>&1", tool).c_str()) == 0; }
+bool have(const char* tool) { return !find_executable(tool).empty(); }
 
 TEST(Frames, TheSharpFrameOfABlurredAndSharpPairIsPicked) {
   const Image sharp = checkerboard(64, 48), soft = blurred(sharp);
@@ -116,7 +117,11 @@ TEST(Capture, TheSceneFrameCentresScalesAndTurnsUpToMinusY) {
   const Eigen::Quaterniond t = Eigen::Quaterniond(Eigen::AngleAxisd(2 * M_PI / 180, Eigen::Vector3d::UnitX())) * q;
   turned.images[1].qvec = Eigen::Vector4d(t.w(), t.x(), t.y(), t.z());
   turned.images[1].tvec = Eigen::AngleAxisd(2 * M_PI / 180, Eigen::Vector3d::UnitX()) * turned.images[1].tvec;
-  EXPECT_NEAR(compare_poses(poses_of(turned), poses_of(original)).max_rotation_deg, 2.0, 1e-6);
+  // After the best orientation alignment (which takes a twelfth of the turn), that view is
+  // 11/12 of 2 degrees off and the others 1/12.
+  const PoseComparison off = compare_poses(poses_of(turned), poses_of(original));
+  EXPECT_NEAR(off.max_rotation_deg, 2.0 * 11 / 12, 1e-3);
+  EXPECT_NEAR(off.median_rotation_deg, 2.0 / 12, 1e-3);
 }
 
 // COLMAP for real (Debian's colmap, CPU): 8 photos of a synthetic room (`synth`, exact poses)
