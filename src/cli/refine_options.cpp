@@ -48,9 +48,10 @@ void add_refine_options(CLI::App* cmd, RefineArgs& args) {
       ->check(CLI::Range(0.01, 10000.0));
   cmd->add_option("--refine-without", args.without,
                   "With --refine: parts of the optimisation to switch off: cover (new Gaussians where no Gaussian "
-                  "covers a view), densify (clone, split, prune), coarse-to-fine")
+                  "covers a view), densify (clone, split, prune, opacity resets), reset (the opacity resets alone), "
+                  "coarse-to-fine")
       ->delimiter(',')
-      ->check(CLI::IsMember({"cover", "densify", "coarse-to-fine"}));
+      ->check(CLI::IsMember({"cover", "densify", "reset", "coarse-to-fine"}));
 }
 
 RefineOptions refine_options(const RefineArgs& args) {
@@ -61,6 +62,7 @@ RefineOptions refine_options(const RefineArgs& args) {
   for (const std::string& part : args.without) {
     if (part == "cover") o.cover = false;
     if (part == "densify") o.densify.enabled = false;
+    if (part == "reset") o.opacity_resets.clear();
     if (part == "coarse-to-fine") o.coarse_to_fine = false;
   }
   // A terminal gets one line rewritten in place; a log file a line per tenth of the run.

@@ -11,18 +11,18 @@ torch::Tensor leaf(torch::Tensor t) { return t.detach().requires_grad_(true); }
 }  // namespace
 
 void RowAdam::add(torch::Tensor* parameter, double lr) {
-  if (!age_.defined()) age_ = torch::zeros({parameter->size(0)}, parameter->options().dtype(torch::kFloat32));
-  slots_.push_back({parameter, torch::zeros_like(*parameter), torch::zeros_like(*parameter), lr});
+  slots_.push_back({parameter, torch::zeros_like(*parameter), torch::zeros_like(*parameter),
+                    torch::zeros({parameter->size(0)}, parameter->options().dtype(torch::kFloat32)), lr});
 }
 
 void RowAdam::step() {
   torch::NoGradGuard no_grad;
-  age_.add_(1);
-  // Per row: 1 − β^age (age ≥ 1), shaped to broadcast over each parameter's other dimensions.
-  const torch::Tensor correction1 = 1 - torch::pow(kBeta1, age_), correction2 = 1 - torch::pow(kBeta2, age_);
   for (Slot& s : slots_) {
     torch::Tensor& g = s.parameter->mutable_grad();
     if (!g.defined()) continue;
+    s.age.add_(1);
+    // Per row: 1 − β^age (age ≥ 1), shaped to broadcast over the parameter's other dimensions.
+    const torch::Tensor correction1 = 1 - torch::pow(kBeta1, s.age), correction2 = 1 - torch::pow(kBeta2, s.age);
     std::vector<int64_t> shape(static_cast<size_t>(s.parameter->dim()), 1);
     shape[0] = -1;
     s.m.mul_(kBeta1).add_(g, 1 - kBeta1);
@@ -39,8 +39,8 @@ void RowAdam::keep_rows(const torch::Tensor& keep) {
     *s.parameter = leaf(s.parameter->index({keep}));
     s.m = s.m.index({keep});
     s.v = s.v.index({keep});
+    s.age = s.age.index({keep});
   }
-  age_ = age_.index({keep});
 }
 
 void RowAdam::append_rows(const std::vector<torch::Tensor>& rows) {
@@ -51,8 +51,15 @@ void RowAdam::append_rows(const std::vector<torch::Tensor>& rows) {
     *s.parameter = leaf(torch::cat({*s.parameter, r}));
     s.m = torch::cat({s.m, torch::zeros_like(r)});
     s.v = torch::cat({s.v, torch::zeros_like(r)});
+    s.age = torch::cat({s.age, torch::zeros({r.size(0)}, s.age.options())});
   }
-  if (!rows.empty()) age_ = torch::cat({age_, torch::zeros({rows[0].size(0)}, age_.options())});
+}
+
+void RowAdam::restart(size_t slot) {
+  Slot& s = slots_.at(slot);
+  s.m.zero_();
+  s.v.zero_();
+  s.age.zero_();
 }
 
 }  // namespace ii

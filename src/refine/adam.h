@@ -22,15 +22,18 @@ class RowAdam {
   void keep_rows(const torch::Tensor& keep);
   // Append rows, one tensor per parameter in the order added (moments zero).
   void append_rows(const std::vector<torch::Tensor>& rows);
+  // Forget one parameter's moments, as if its optimisation started now (after its values were
+  // reset: 3DGS's opacity reset).
+  void restart(size_t slot);
 
  private:
   struct Slot {
     torch::Tensor* parameter;
     torch::Tensor m, v;
+    torch::Tensor age;  // float (N): steps each row has taken in this slot
     double lr;
   };
   std::vector<Slot> slots_;
-  torch::Tensor age_;  // float (N): steps each row has taken; rows are shared by every slot
 };
 
 }  // namespace ii

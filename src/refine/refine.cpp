@@ -229,6 +229,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   adam.add(&means, options.position_lr * extent);
   adam.add(&log_scales, options.scale_lr);
   adam.add(&quats, options.rotation_lr);
+  constexpr size_t kOpacitySlot = 3;
   adam.add(&logits, options.opacity_lr);
   adam.add(&colours, options.colour_lr);
   if (sh) adam.add(&sh_rest, options.colour_lr / 20);
@@ -297,6 +298,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   const double initial_position_lr = options.position_lr * extent;
   double loop_start = 0;
   double views_seen = 0;  // full-resolution views' worth of pixels visited
+  size_t next_reset = 0;  // into options.opacity_resets
   Stopwatch loop_clock;
   for (int step = 0;; ++step) {
     const double now = elapsed_s(clock);
@@ -346,6 +348,14 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
     adam.step();
     if (exposure.defined()) exposure_adam.step();
     if (densifying && (step + 1) % options.densify_every == 0) densify();
+    if (options.densify.enabled && next_reset < options.opacity_resets.size() &&
+        fraction >= options.opacity_resets[next_reset]) {
+      torch::NoGradGuard no_grad;
+      logits.clamp_max_(std::log(options.reset_opacity / (1 - options.reset_opacity)));
+      adam.restart(kOpacitySlot);
+      ++next_reset;
+      ++result.opacity_resets;
+    }
 
     views_seen += std::pow(0.25, level);
     result.losses.push_back(loss.item<double>());
@@ -422,6 +432,7 @@ nlohmann::json refinement_report(const RefineResult& r, const RefineOptions& opt
                          {"cloned", r.cloned},
                          {"split", r.split},
                          {"pruned", r.pruned},
+                         {"opacity_resets", r.opacity_resets},
                          {"dropped", r.dropped},
                          {"end", r.gaussians.size()}}},
           {"dropped", r.dropped},

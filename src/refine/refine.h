@@ -87,6 +87,12 @@ struct RefineOptions {
   int start_stride = 3;
   DensifyOptions densify;  // between 5 % and 60 % of the run, every densify_every steps
   int densify_every = 50;
+  // 3DGS's opacity reset, while densifying: at these fractions of the run every opacity is
+  // lowered to at most reset_opacity (and its Adam moments forgotten); what the views need
+  // becomes opaque again within ~100 steps, floaters that only some views need stay faint and
+  // are pruned at the next densification. Empty: none.
+  std::vector<double> opacity_resets = {0.2, 0.4};
+  double reset_opacity = 0.01;
   std::function<void(const RefineProgress&)> progress;  // after each step
 };
 
@@ -109,6 +115,7 @@ struct RefineResult {
   double ms_per_step = 0;
   int64_t start_count = 0, covered = 0, cloned = 0, split = 0, pruned = 0;
   int64_t dropped = 0;  // Gaussians whose opacity ended below 1/255
+  int opacity_resets = 0;
   std::vector<std::string> views;  // that supervised (views masked everywhere say nothing)
   // Per view, with exposure: the colour map's diagonal gains and offsets (R, G, B).
   std::vector<std::pair<std::string, std::array<double, 6>>> exposure;

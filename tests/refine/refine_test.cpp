@@ -63,6 +63,7 @@ RefineOptions few_steps(int steps) {
   o.densify.enabled = false;
   o.exposure = false;
   o.coarse_to_fine = false;
+  o.opacity_resets.clear();
   return o;
 }
 
@@ -72,6 +73,8 @@ RefineOptions all_parts(int steps) {
   o.cover = o.densify.enabled = o.exposure = o.coarse_to_fine = true;
   o.densify_every = 4;
   o.densify.grad_threshold = 0.015;  // these tiny views give large gradients: a few qualify
+  o.opacity_resets = {0.3};
+  o.opacity_lr = 0.25;  // the opacities come back from the reset within ~20 steps
   return o;
 }
 
@@ -119,7 +122,7 @@ TEST(Refine, SameSeedSameGaussians) {
 }
 
 TEST(Refine, AllPartsLowerTheLossAndReportTheColourMaps) {
-  const RefineResult r = refine_gaussians(grid(0.25f), views_of(grid()), all_parts(40));
+  const RefineResult r = refine_gaussians(grid(0.25f), views_of(grid()), all_parts(80));
   // The first steps are at a coarser resolution: compared with the loss at full resolution.
   const double start = refine_gaussians(grid(0.25f), views_of(grid()), few_steps(1)).losses[0];
   EXPECT_LT(r.losses.back(), 0.5 * start);
@@ -127,7 +130,7 @@ TEST(Refine, AllPartsLowerTheLossAndReportTheColourMaps) {
   EXPECT_EQ(r.exposure[0].first, "v0");
   EXPECT_EQ(r.exposure[0].second, (std::array<double, 6>{1, 1, 1, 0, 0, 0}));  // the reference as it is
   EXPECT_NE(r.exposure[1].second, r.exposure[0].second);
-  EXPECT_EQ(r.steps, 40);
+  EXPECT_EQ(r.steps, 80);
 }
 
 // The grid's right half only: the views' left parts are not covered.
@@ -212,6 +215,17 @@ TEST(RowAdam, AnAppendedRowStepsLikeAFreshAdam) {
   adam.step();
   EXPECT_NEAR(x[0][0].item<double>(), 5 + 0.02, 1e-6);
   EXPECT_NEAR(x[0][1].item<double>(), 5 - 0.02, 1e-6);
+  // After a restart (3DGS's opacity reset) the next step is again a fresh Adam's first.
+  for (int i = 0; i < 50; ++i) {
+    x.mutable_grad() = torch::tensor({{1.f, 1.f}});
+    adam.step();
+  }
+  const torch::Tensor before = x.detach().clone();
+  adam.restart(0);
+  x.mutable_grad() = torch::tensor({{-3.f, 0.5f}});
+  adam.step();
+  EXPECT_NEAR((x - before)[0][0].item<double>(), 0.01, 1e-6);
+  EXPECT_NEAR((x - before)[0][1].item<double>(), -0.01, 1e-6);
 }
 
 TEST(Refine, DensifyingAddsGaussiansAndPruningRemovesTransparentOnes) {
@@ -228,6 +242,29 @@ TEST(Refine, DensifyingAddsGaussiansAndPruningRemovesTransparentOnes) {
   EXPECT_EQ(r.pruned, 2);
   EXPECT_EQ(r.cloned + r.split, 40 - 34);  // up to the cap once the two are gone
   EXPECT_EQ(r.gaussians.size(), 40);
+}
+
+TEST(Refine, AnOpacityResetLowersEveryOpacityAndTheViewsBringThemBack) {
+  RefineOptions o = few_steps(60);
+  o.densify.enabled = true;
+  o.densify.grad_threshold = 1e9;  // no clones or splits: the reset alone
+  o.opacity_resets = {0.25};       // after step 15 (of 0-59)
+  o.opacity_lr = 0;
+  const RefineResult frozen = refine_gaussians(grid(0.25f), views_of(grid()), o);
+  EXPECT_EQ(frozen.opacity_resets, 1);
+  ASSERT_EQ(frozen.gaussians.size(), 36);
+  EXPECT_TRUE(torch::allclose(frozen.gaussians.opacities, torch::full({36}, 0.01f), 0, 1e-6)) << frozen.gaussians.opacities;
+
+  // Mean loss over a pass of the three views: the image fades at the reset and comes back.
+  o.opacity_lr = 0.25;
+  const RefineResult r = refine_gaussians(grid(0.25f), views_of(grid()), o);
+  auto pass = [&](size_t first) { return (r.losses[first] + r.losses[first + 1] + r.losses[first + 2]) / 3; };
+  EXPECT_GT(pass(16), 3 * pass(13));
+  EXPECT_LT(pass(57), 0.3 * pass(16));
+  EXPECT_GT(r.gaussians.opacities.mean().item<double>(), 0.3);
+
+  o.opacity_resets.clear();
+  EXPECT_EQ(refine_gaussians(grid(0.25f), views_of(grid()), o).opacity_resets, 0);
 }
 
 TEST(Refine, ATimeBudgetIsKept) {
