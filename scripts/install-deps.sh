@@ -10,7 +10,7 @@ PACKAGES=(
   libtorch-dev
   libopenblas0-pthread          # without it LibTorch falls back to reference BLAS (~60x slower)
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
-  libstb-dev libzip-dev zlib1g-dev libeigen3-dev
+  libstb-dev libzip-dev zlib1g-dev libzstd-dev libwebp-dev libeigen3-dev
   libopencv-imgproc-dev libopencv-calib3d-dev libopencv-photo-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libgloo-dev

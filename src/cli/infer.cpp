@@ -14,7 +14,7 @@
 #include "common/files.h"
 #include "common/stopwatch.h"
 #include "io/image.h"
-#include "io/ply.h"
+#include "io/splat_file.h"
 #include "model/default_model.h"
 #include "model/predictor.h"
 #include "render/rasterizer.h"
@@ -39,6 +39,7 @@ struct InferArgs {
   EditArgs edit;
   RefineArgs refine;
   bool keep_unrefined = false;
+  std::vector<std::string> splats = {"gaussians.ply"};
   RuntimeOptions runtime;
 };
 
@@ -47,6 +48,7 @@ void run(const InferArgs& a) {
   if (a.keep_object && !a.edit.view.empty()) fail("--keep-object masks nothing: drop --view and --mask");
   if (a.edit.mode == "insert" && a.reference.empty())
     fail("--mode insert needs --reference: the reference view's photo with the new object painted in");
+  for (const std::string& name : a.splats) splat_format_of(name);  // a bad name fails before the work
   const Runtime runtime = apply_runtime_options(a.runtime);
   Stopwatch total, watch;
   nlohmann::json timings;
@@ -101,7 +103,11 @@ void run(const InferArgs& a) {
 
   spdlog::info("[4/4] writing {}", a.out);
   const SplatCloud cloud = splats_from_gaussians(gaussians);
-  write_splat_ply(out / "gaussians.ply", cloud);
+  nlohmann::json splat_files = nlohmann::json::array();
+  for (const std::string& name : a.splats) {
+    write_splats(out / name, cloud);
+    splat_files.push_back(name);
+  }
   nlohmann::json depth_files = nlohmann::json::array();
   for (int64_t v = 0; v < p.maps.depth.size(1); ++v) {
     const std::string file = fmt::format("depth/{}_{}.png", v, p.input.views[v].name);
@@ -127,7 +133,7 @@ void run(const InferArgs& a) {
       {"threads", torch::get_num_threads()},
       {"gaussians", cloud.size()},
       {"normalization", {{"mean", {norm.mean.x(), norm.mean.y(), norm.mean.z()}}, {"scale", norm.scale}}},
-      {"outputs", {{"ply", "gaussians.ply"}, {"depth", depth_files}}},
+      {"outputs", {{"splats", splat_files}, {"depth", depth_files}}},
       {"timings", timings}};
   for (const auto& v : p.input.views) run["context"].push_back(v.name);
   write_file_atomic(out / "run.json", run.dump(2) + "\n");
@@ -135,7 +141,8 @@ void run(const InferArgs& a) {
   fmt::print("{} Gaussians from {} views ({}, {}), network {:.0f} ms, total {:.0f} ms\n", cloud.size(),
              p.input.views.size(), precision_name(predictor.precision()), runtime.device.str(), p.network_ms,
              total.ms());
-  fmt::print("wrote {}, {}, depth/\n", (out / "gaussians.ply").string(), (out / "run.json").string());
+  for (const std::string& name : a.splats) fmt::print("wrote {}\n", (out / name).string());
+  fmt::print("wrote {}, depth/\n", (out / "run.json").string());
 }
 
 }  // namespace
@@ -169,16 +176,22 @@ void add_infer_command(CLI::App& app) {
                 "Reconstruct the scene as captured, object included (no masks, no reference): a comparison "
                 "for the inpainted result");
   cmd->add_option("--out", args->out, "Output folder")->capture_default_str();
+  cmd->add_option("--splats", args->splats,
+                  "Splat files to write in the output folder, the format following each name: .ply (standard "
+                  "3DGS), .compressed.ply (SuperSplat), .spz (Niantic; about 10x smaller)")
+      ->delimiter(',')
+      ->capture_default_str();
   add_runtime_options(cmd, args->runtime);
   cmd->footer(
-      "Writes OUT/gaussians.ply (standard 3DGS PLY), OUT/depth/*.png and OUT/run.json.\n"
+      "Writes OUT/gaussians.ply (standard 3DGS PLY; --splats for others), OUT/depth/*.png and OUT/run.json.\n"
       "Examples:\n"
       "  remove (a mask in every view):  instainpaint infer --scene ../shared/data/statue --checkpoint release.pth "
       "--reference inpainted.png --out out/statue\n"
       "  remove (one mask):  instainpaint infer --scene SCENE --view IMG_2707 --mask region.png "
       "--reference inpainted.png\n"
       "  insert:  instainpaint infer --scene SCENE --mode insert --view IMG_2707 --mask region.png "
-      "--reference with_new_object.png");
+      "--reference with_new_object.png\n"
+      "  compressed as well:  instainpaint infer --scene SCENE --splats gaussians.ply,gaussians.spz");
   cmd->callback([args] { run(*args); });
 }
 

@@ -16,11 +16,11 @@
 #include "data/scene_cameras.h"
 #include "gaussians/gaussians.h"
 #include "io/image.h"
-#include "io/ply.h"
+#include "io/splat_file.h"
 #include "io/video.h"
 #include "model/device.h"
+#include "render/frames.h"
 #include "render/rasterizer.h"
-#include "render/visualize.h"
 #include "tensor/image_tensor.h"
 
 namespace ii::cli {
@@ -104,7 +104,7 @@ void run(const RenderArgs& a) {
   if (a.background.size() != 3) fail("--background needs three values r,g,b in [0,1]");
 
   Stopwatch total;
-  const SplatCloud cloud = read_splat_ply(a.ply);
+  const SplatCloud cloud = read_splats(a.ply);
   const GaussianSet loaded = gaussians_from_splats(cloud, a.sh_degree);
   spdlog::info("{}: {} splats, SH degree {}, rendering on {}", a.ply, loaded.size(), loaded.sh_degree, device.str());
 
@@ -129,29 +129,16 @@ void run(const RenderArgs& a) {
   const GaussianSet g = loaded.to(device);
 
   const fs::path out(a.out);
-  fs::create_directories(out / "rgb");
-  if (a.depth) fs::create_directories(out / "depth");
-  if (a.alpha) fs::create_directories(out / "alpha");
   RenderOptions options;
   options.background = {a.background[0], a.background[1], a.background[2]};
-  VideoDepthColours depth_colors;
-  Stopwatch watch;
-  double render_ms = 0;
+  std::vector<Camera> cameras;
+  for (const NamedCamera& c : cams) cameras.push_back(c.camera);
   const int n = static_cast<int>(cams.size());
+  Stopwatch watch;
   progress(0, n, 0);
-  for (int i = 0; i < n; ++i) {
-    RenderCamera rc;
-    rc.camera = cams[i].camera;
-    Stopwatch frame;
-    const RenderOutput r = render(g, rc, options);
-    synchronize(device);
-    render_ms += frame.ms();
-    const std::string file = fmt::format("{:04d}.png", i);
-    write_png(out / "rgb" / file, image_from_hwc(r.rgb));
-    if (a.depth) write_png(out / "depth" / file, depth_colors(r.depth, r.alpha));
-    if (a.alpha) write_png(out / "alpha" / file, image_from_hwc(r.alpha));
-    progress(i + 1, n, watch.ms() / 1000.0);
-  }
+  const double render_ms =
+      render_frames(g, cameras, options, {out / "rgb", a.depth ? out / "depth" : fs::path(), a.alpha ? out / "alpha" : fs::path()},
+                    [&](int done, int total) { progress(done, total, watch.ms() / 1000.0); });
   write_camera_json(out / "cameras.json", cams);
 
   nlohmann::json videos = nlohmann::json::array();
@@ -188,7 +175,8 @@ void run(const RenderArgs& a) {
 void add_render_command(CLI::App& app) {
   auto a = std::make_shared<RenderArgs>();
   auto* cmd = app.add_subcommand("render", "Render a splat PLY to images and a video");
-  cmd->add_option("--ply", a->ply, "Gaussian splat PLY (standard 3DGS or SuperSplat compressed)")
+  cmd->add_option("--splats,--ply", a->ply,
+                  "Gaussian splat file: standard 3DGS PLY, SuperSplat compressed PLY or Niantic SPZ")
       ->required()
       ->check(CLI::ExistingFile);
   add_scene_options(cmd, a->scene_dir, a->scene);

@@ -83,7 +83,8 @@ void add_serve_command(CLI::App& app) {
   cmd->add_option("--hold-out-every", args->scene.hold_out_every,
                   "Hold out views 0, N, 2N, ... as test views for the evaluation report (see infer --help)")
       ->check(CLI::Range(1, 1000));
-  cmd->add_option("--ply", args->plys, "Splat PLY files to show (3DGS or SuperSplat compressed); several allowed")
+  cmd->add_option("--splats,--ply", args->plys,
+                  "Splat files to show (3DGS PLY, SuperSplat compressed PLY, Niantic SPZ); several allowed")
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", args->out, "Folder for the edits' results")->capture_default_str();
   cmd->add_option("--host", args->host, "Address to listen on (anything but loopback is reachable by others)")

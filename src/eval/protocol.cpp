@@ -25,7 +25,7 @@
 #include "eval/lpips.h"
 #include "gaussians/gaussians.h"
 #include "io/image.h"
-#include "io/ply.h"
+#include "io/splat_file.h"
 #include "model/default_model.h"
 #include "model/device.h"
 #include "model/predictor.h"
@@ -186,7 +186,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
                               json& info, json& timings) {
   Stopwatch watch;
   if (o.gaussians) {
-    const SplatCloud cloud = read_splat_ply(*o.gaussians);
+    const SplatCloud cloud = read_splats(*o.gaussians);
     info["source"] = "gaussians";
     info["ply"] = o.gaussians->string();
     timings["read_gaussians_ms"] = watch.lap();

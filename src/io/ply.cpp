@@ -533,7 +533,7 @@ SplatCloud read_splat_ply(const fs::path& path) {
   return compressed ? read_compressed(h, *vertex, bytes, path) : read_standard(*vertex, bytes, h.ascii, path);
 }
 
-void write_splat_ply(const fs::path& path, const SplatCloud& c) {
+void check_splat_cloud(const SplatCloud& c, const fs::path& path) {
   const size_t n = c.size();
   if (c.sh_rest_per_channel < 0) fail_file(path, "splat cloud has a negative SH coefficient count");
   const size_t rest = static_cast<size_t>(c.sh_rest_per_channel) * 3;
@@ -548,6 +548,12 @@ void write_splat_ply(const fs::path& path, const SplatCloud& c) {
   check(c.sh_rest, rest, "sh_rest");
   check(c.log_scales, 3, "log_scales");
   check(c.rotations, 4, "rotations");
+}
+
+void write_splat_ply(const fs::path& path, const SplatCloud& c) {
+  check_splat_cloud(c, path);
+  const size_t n = c.size();
+  const size_t rest = static_cast<size_t>(c.sh_rest_per_channel) * 3;
 
   // No comment line: some splat viewers refuse headers with comments.
   std::string header = fmt::format("ply\nformat binary_little_endian 1.0\nelement vertex {}\n", n);
@@ -582,6 +588,140 @@ void write_splat_ply(const fs::path& path, const SplatCloud& c) {
       }
       out.write(reinterpret_cast<const char*>(values.data()), static_cast<std::streamsize>(count * row * sizeof(float)));
     }
+    out.flush();
+    if (!out) fail_file(path, "write error (disk full?)");
+  });
+}
+
+}  // namespace ii
+
+namespace ii {
+
+std::vector<size_t> morton_order(const std::vector<float>& means) {
+  const size_t n = means.size() / 3;
+  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], means[i * 3 + a]);
+      hi[a] = std::max(hi[a], means[i * 3 + a]);
+    }
+  // 10 bits per axis, interleaved: neighbours in space end up near in the order.
+  auto spread = [](uint32_t v) {
+    v = (v | (v << 16)) & 0x030000ff;
+    v = (v | (v << 8)) & 0x0300f00f;
+    v = (v | (v << 4)) & 0x030c30c3;
+    return (v | (v << 2)) & 0x09249249;
+  };
+  std::vector<uint32_t> code(n);
+  for (size_t i = 0; i < n; ++i) {
+    uint32_t c = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double t = hi[a] > lo[a] ? (means[i * 3 + a] - lo[a]) / (static_cast<double>(hi[a]) - lo[a]) : 0.0;
+      c |= spread(static_cast<uint32_t>(std::clamp(t, 0.0, 1.0) * 1023)) << a;
+    }
+    code[i] = c;
+  }
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return code[a] < code[b]; });
+  return order;
+}
+
+void write_compressed_splat_ply(const fs::path& path, const SplatCloud& c) {
+  check_splat_cloud(c, path);
+  const int k = c.sh_rest_per_channel;
+  if (c.sh_degree() < 0)
+    fail_file(path, "{} SH coefficients per channel are no SH degree (3, 8 or 15 expected)", k);
+  const size_t n = c.size();
+  const size_t chunks = (n + 255) / 256;
+  std::string header = fmt::format("ply\nformat binary_little_endian 1.0\nelement chunk {}\n", chunks);
+  for (const char* bound : {"min", "max"})
+    for (const char* a : {"x", "y", "z"}) header += fmt::format("property float {}_{}\n", bound, a);
+  for (const char* bound : {"min", "max"})
+    for (const char* a : {"x", "y", "z"}) header += fmt::format("property float {}_scale_{}\n", bound, a);
+  for (const char* bound : {"min", "max"})
+    for (const char* a : {"r", "g", "b"}) header += fmt::format("property float {}_{}\n", bound, a);
+  header += fmt::format("element vertex {}\n", n);
+  for (const char* p : {"packed_position", "packed_rotation", "packed_scale", "packed_color"})
+    header += fmt::format("property uint {}\n", p);
+  if (k > 0) {
+    header += fmt::format("element sh {}\n", n);
+    for (int j = 0; j < 3 * k; ++j) header += fmt::format("property uchar f_rest_{}\n", j);
+  }
+  header += "end_header\n";
+
+  const std::vector<size_t> order = morton_order(c.means);
+  std::vector<float> chunk_table(chunks * 18);
+  std::vector<uint32_t> packed(n * 4);
+  std::vector<uint8_t> sh(n * 3 * static_cast<size_t>(k));
+  // t in [0, 1] of [lo, hi] to `bits` bits (PlayCanvas rounds the same way).
+  auto pack = [](double v, float lo, float hi, int bits) {
+    const uint32_t mask = (1u << bits) - 1;
+    const double t = hi > lo ? (v - lo) / (static_cast<double>(hi) - lo) : 0.0;
+    return static_cast<uint32_t>(std::lround(std::clamp(t, 0.0, 1.0) * mask));
+  };
+  for (size_t ci = 0; ci < chunks; ++ci) {
+    const size_t begin = ci * 256, end = std::min(n, begin + 256);
+    float lo[9], hi[9];  // position, log scale (clamped to ±20, as SuperSplat), colour
+    std::fill(lo, lo + 9, INFINITY);
+    std::fill(hi, hi + 9, -INFINITY);
+    auto colour = [&](size_t i, int a) { return static_cast<float>(0.5 + kSh0 * c.sh_dc[i * 3 + a]); };
+    auto log_scale = [&](size_t i, int a) { return std::clamp(c.log_scales[i * 3 + a], -20.f, 20.f); };
+    for (size_t s = begin; s < end; ++s) {
+      const size_t i = order[s];
+      for (int a = 0; a < 3; ++a) {
+        const float v[3] = {c.means[i * 3 + a], log_scale(i, a), colour(i, a)};
+        for (int g = 0; g < 3; ++g) {
+          lo[g * 3 + a] = std::min(lo[g * 3 + a], v[g]);
+          hi[g * 3 + a] = std::max(hi[g * 3 + a], v[g]);
+        }
+      }
+    }
+    float* row = &chunk_table[ci * 18];
+    for (int g = 0; g < 3; ++g)
+      for (int a = 0; a < 3; ++a) {
+        row[g * 6 + a] = lo[g * 3 + a];
+        row[g * 6 + 3 + a] = hi[g * 3 + a];
+      }
+    for (size_t s = begin; s < end; ++s) {
+      const size_t i = order[s];
+      uint32_t* p = &packed[s * 4];
+      const float* m = &c.means[i * 3];
+      p[0] = pack(m[0], lo[0], hi[0], 11) << 21 | pack(m[1], lo[1], hi[1], 10) << 11 | pack(m[2], lo[2], hi[2], 11);
+      // Rotation (w, x, y, z) normalised, the largest made positive and left out, the others
+      // 10 bits each over [-1/√2, 1/√2].
+      double q[4];
+      double norm = 0;
+      for (int a = 0; a < 4; ++a) norm += static_cast<double>(c.rotations[i * 4 + a]) * c.rotations[i * 4 + a];
+      norm = std::sqrt(norm);
+      for (int a = 0; a < 4; ++a) q[a] = norm > 0 && std::isfinite(norm) ? c.rotations[i * 4 + a] / norm : a == 0;
+      int largest = 0;
+      for (int a = 1; a < 4; ++a)
+        if (std::abs(q[a]) > std::abs(q[largest])) largest = a;
+      const double sign = q[largest] < 0 ? -1 : 1;
+      uint32_t r = static_cast<uint32_t>(largest);
+      for (int a = 0; a < 4; ++a)
+        if (a != largest)
+          r = r << 10 | static_cast<uint32_t>(std::lround(std::clamp(sign * q[a] / std::sqrt(2.0) + 0.5, 0.0, 1.0) * 1023));
+      p[1] = r;
+      p[2] = pack(log_scale(i, 0), lo[3], hi[3], 11) << 21 | pack(log_scale(i, 1), lo[4], hi[4], 10) << 11 |
+             pack(log_scale(i, 2), lo[5], hi[5], 11);
+      const double alpha = 1 / (1 + std::exp(-static_cast<double>(c.opacity_logit[i])));
+      p[3] = pack(colour(i, 0), lo[6], hi[6], 8) << 24 | pack(colour(i, 1), lo[7], hi[7], 8) << 16 |
+             pack(colour(i, 2), lo[8], hi[8], 8) << 8 | pack(alpha, 0, 1, 8);
+      for (int j = 0; j < 3 * k; ++j) {
+        const double t = c.sh_rest[i * 3 * k + j] / 8.0 + 0.5;
+        sh[s * 3 * k + j] = static_cast<uint8_t>(std::clamp(std::trunc(t * 256), 0.0, 255.0));
+      }
+    }
+  }
+  write_file_atomic(path, [&](const fs::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) fail_file(tmp, "cannot open for writing: {}", std::strerror(errno));
+    out.write(header.data(), static_cast<std::streamsize>(header.size()));
+    out.write(reinterpret_cast<const char*>(chunk_table.data()), static_cast<std::streamsize>(chunk_table.size() * 4));
+    out.write(reinterpret_cast<const char*>(packed.data()), static_cast<std::streamsize>(packed.size() * 4));
+    out.write(reinterpret_cast<const char*>(sh.data()), static_cast<std::streamsize>(sh.size()));
     out.flush();
     if (!out) fail_file(path, "write error (disk full?)");
   });

@@ -22,6 +22,12 @@ struct SplatCloud {
   std::vector<float> rotations;      // N*4, (w, x, y, z) = rot_0..3, not necessarily normalised
 
   size_t size() const { return opacity_logit.size(); }
+  // 0-3 from sh_rest_per_channel (0, 3, 8, 15); -1 for any other count.
+  int sh_degree() const {
+    for (int d = 0; d <= 3; ++d)
+      if ((d + 1) * (d + 1) - 1 == sh_rest_per_channel) return d;
+    return -1;
+  }
 };
 
 // Reads a binary little-endian or ASCII standard PLY (properties in any order and of any
@@ -31,8 +37,17 @@ struct SplatCloud {
 // dropped" 2+10+10+10 bits, colours to f_dc, 8-bit opacity to a logit (0 and 255 map to
 // -40 and +40), 8-bit SH to the centre of their quantisation bin.
 SplatCloud read_splat_ply(const std::filesystem::path& path);
+// Errors naming `path` when the cloud's arrays do not hold the same number of splats.
+void check_splat_cloud(const SplatCloud& cloud, const std::filesystem::path& path);
 // Binary little-endian standard layout: x y z nx ny nz f_dc_0..2 f_rest_* opacity
 // scale_0..2 rot_0..3, all float. Atomic.
 void write_splat_ply(const std::filesystem::path& path, const SplatCloud& cloud);
+// SuperSplat's compressed PLY (what read_splat_ply reads back): the splats in Morton order of
+// their positions (morton_order), in chunks of 256 with per-chunk ranges; 11/10/11-bit
+// positions and log scales, 2+3x10-bit rotations, 8-bit colours and opacity, 8-bit SH. Atomic.
+void write_compressed_splat_ply(const std::filesystem::path& path, const SplatCloud& cloud);
+// The order write_compressed_splat_ply stores splats in: by the Morton code of their position
+// (10 bits per axis within the bounding box), ties in index order.
+std::vector<size_t> morton_order(const std::vector<float>& means);
 
 }  // namespace ii

@@ -19,9 +19,10 @@
 #include "eval/protocol.h"
 #include "gaussians/gaussians.h"
 #include "io/image.h"
-#include "io/ply.h"
+#include "io/splat_file.h"
 #include "io/video.h"
 #include "refine/refine.h"
+#include "render/frames.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
 #include "web/assets.h"
@@ -195,6 +196,16 @@ const char* content_type_of(const fs::path& file) {
   return "application/octet-stream";
 }
 
+// A job's Gaussians as the standard PLY (downloads, other tools) and as SPZ (what the page
+// loads: about a tenth of the bytes); the result's URLs of both, "splats" the one to show.
+json write_job_splats(const fs::path& dir, int id, const GaussianSet& gaussians) {
+  const SplatCloud cloud = splats_from_gaussians(gaussians);
+  write_splats(dir / "gaussians.ply", cloud);
+  write_splats(dir / "gaussians.spz", cloud);
+  const std::string spz = fmt::format("/api/jobs/{}/gaussians.spz", id);
+  return {{"ply", fmt::format("/api/jobs/{}/gaussians.ply", id)}, {"spz", spz}, {"splats", spz}};
+}
+
 }  // namespace
 
 struct WebServer::State {
@@ -293,11 +304,12 @@ fs::path WebServer::State::job_file(const std::string& id, const std::string& re
 std::optional<Refusal> WebServer::State::parse_export(const httplib::Request& req, JobRequest& job) const {
   const std::string url = req.has_file("ply") ? req.get_file_value("ply").content : req.get_param_value("ply");
   std::smatch m;
-  static const std::regex served_ply(R"(/api/plys/(\d{1,6}))"), job_ply(R"(/api/jobs/(\d{1,8})/gaussians\.ply)");
+  static const std::regex served_ply(R"(/api/plys/(\d{1,6}))"),
+      job_splats(R"(/api/jobs/(\d{1,8})/(gaussians\.(ply|spz)))");
   if (std::regex_match(url, m, served_ply) && std::stoul(m[1]) < options.plys.size())
     job.ply = options.plys[std::stoul(m[1])];
-  else if (std::regex_match(url, m, job_ply))
-    job.ply = job_file(m[1], "gaussians.ply");
+  else if (std::regex_match(url, m, job_splats))
+    job.ply = job_file(m[1], m[2]);
   if (job.ply.empty()) return Refusal{400, fmt::format("ply must be the URL of a PLY this server serves, not '{}'", url)};
   if (job.kind == "eval" && scene->test_views.empty())
     return Refusal{400, "the scene has no test views to evaluate on (SPIn-NeRF test_label/, or serve --hold-out-every N)"};
@@ -415,8 +427,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
     result["refine"] = report;
   }
   stage("writing the Gaussians", 0.95);
-  write_splat_ply(dir / "gaussians.ply", splats_from_gaussians(gaussians));
-  result["ply"] = fmt::format("/api/jobs/{}/gaussians.ply", id);
+  result.update(write_job_splats(dir, id, gaussians));
   result["gaussians"] = gaussians.size();
   result["reference"] = p.input.reference_source;
   return result;
@@ -432,10 +443,10 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   const Prediction p = predictor->predict(*scene, input);
   const GaussianSet gaussians = p.gaussians();
   stage("writing the Gaussians", 0.9);
-  write_splat_ply(dir / "gaussians.ply", splats_from_gaussians(gaussians));
-  return {{"ply", fmt::format("/api/jobs/{}/gaussians.ply", id)},
-          {"gaussians", gaussians.size()},
-          {"reference_view", p.input.views.front().name}};
+  json result = write_job_splats(dir, id, gaussians);
+  result["gaussians"] = gaussians.size();
+  result["reference_view"] = p.input.views.front().name;
+  return result;
 }
 
 void WebServer::State::launch_locked(const JobRequest& request, int id, const fs::path& dir) {
@@ -460,13 +471,12 @@ json WebServer::State::run_video(const JobRequest& job, const fs::path& dir, int
   o.width = o.height = std::max(64, options.height);
   const std::vector<NamedCamera> cameras = scene_cameras(*scene, o);
   const torch::Device device = render_device(predictor ? predictor->device() : torch::Device(torch::kCPU));
-  const GaussianSet g = gaussians_from_splats(read_splat_ply(job.ply)).to(device);
-  for (size_t i = 0; i < cameras.size(); ++i) {
-    RenderCamera rc;
-    rc.camera = cameras[i].camera;
-    write_png(dir / "orbit" / fmt::format("{:04d}.png", i), image_from_hwc(render(g, rc).rgb));
-    stage(fmt::format("rendering the orbit {}/{}", i + 1, cameras.size()), 0.9 * (i + 1) / cameras.size());
-  }
+  const GaussianSet g = gaussians_from_splats(read_splats(job.ply)).to(device);
+  std::vector<Camera> orbit;
+  for (const NamedCamera& c : cameras) orbit.push_back(c.camera);
+  render_frames(g, orbit, {}, {dir / "orbit", {}, {}}, [&](int done, int total) {
+    stage(fmt::format("rendering the orbit {}/{}", done, total), 0.9 * done / total);
+  });
   if (!ffmpeg_available()) fail("ffmpeg is not installed (scripts/install-deps.sh installs it): no video");
   if (!encode_video(dir / "orbit", dir / "orbit.mp4", 24)) fail("ffmpeg failed to write the video");
   return {{"video", fmt::format("/api/jobs/{}/orbit.mp4", id)}, {"frames", cameras.size()}};
@@ -635,7 +645,7 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
     send_file(req, res, s.options.plys[index], "application/octet-stream");
   });
   // What jobs wrote: their PLY, masks, video and evaluation report (with its sheets and renders).
-  http.Get(R"(/api/jobs/(\d{1,8})/(gaussians\.ply|masks/\d{1,6}\.png|orbit\.mp4|eval/report\.html|eval/(sheets|renders)/[^/]+\.png))",
+  http.Get(R"(/api/jobs/(\d{1,8})/(gaussians\.(?:ply|spz)|masks/\d{1,6}\.png|orbit\.mp4|eval/report\.html|eval/(sheets|renders)/[^/]+\.png))",
            [&s](const httplib::Request& req, httplib::Response& res) {
              // The pattern admits no "/.." and no absolute path; job_file refuses symlinks out.
              const fs::path file = s.job_file(req.matches[1], req.matches[2]);

@@ -19,12 +19,13 @@
 //   GET  /api/plys/<i>             the i-th PLY given at start (?download=1: as an attachment)
 //   POST /api/masks                multipart view, mask[, mode]: propagate one mask (a job)
 //   POST /api/edit                 multipart view, mask[, mode, reference, refine]: edit (a job)
-//   POST /api/video, /api/eval     ply=<a served PLY's URL>: an orbit video (a job), the
+//   POST /api/video, /api/eval     ply=<a served splat file's URL>: an orbit video (a job), the
 //                                  SPIn-NeRF evaluation on the scene's test views (a job)
 //   GET  /api/job                  the current or last job: state, stage, progress, result
 //                                  (kind "reconstruct": the scene with its object, started by
 //                                  the server itself when it has a scene and no PLYs)
-//   GET  /api/jobs/<id>/<file>     what job <id> wrote: gaussians.ply, masks/<view index>.png,
+//   GET  /api/jobs/<id>/<file>     what job <id> wrote: gaussians.ply and .spz (the page loads
+//                                  the SPZ: result.splats), masks/<view index>.png,
 //                                  orbit.mp4, eval/report.html (and its sheets, renders)
 #include <filesystem>
 #include <functional>

@@ -22,7 +22,7 @@ TEST(FuzzTargets, EveryParserHasOne) {
   for (const FuzzTarget& t : targets()) names.insert(t.name);
   EXPECT_EQ(names, (std::set<std::string>{"camera_json", "colmap_binary", "colmap_text", "image", "llff",
                                           "mask_folder", "nerfstudio", "npy", "pickle", "ply", "pth",
-                                          "safetensors"}));
+                                          "safetensors", "sog", "spz"}));
 }
 
 TEST(FuzzTargets, HandMadeSeedsAreAccepted) {

@@ -13,6 +13,8 @@
 #include "io/npy.h"
 #include "io/pickle.h"
 #include "io/ply.h"
+#include "io/sog.h"
+#include "io/spz.h"
 #include "io/pth.h"
 #include "io/safetensors.h"
 
@@ -71,6 +73,7 @@ const bool ply = register_target({
       c.log_scales = {-3, -3, -3, -2, -2, -2};
       c.rotations = {1, 0, 0, 0, 0.5f, 0.5f, 0.5f, 0.5f};
       seeds.push_back(bytes_written_by([&](const fs::path& p) { write_splat_ply(p, c); }));
+      seeds.push_back(bytes_written_by([&](const fs::path& p) { write_compressed_splat_ply(p, c); }));
       seeds.push_back(
           "ply\nformat ascii 1.0\nelement vertex 1\nproperty float y\nproperty float x\nproperty float z\n"
           "property uchar red\nproperty float f_dc_0\nproperty float f_dc_1\nproperty float f_dc_2\n"
@@ -105,6 +108,54 @@ const bool ply = register_target({
       const fs::path path = scratch_dir() / "input.ply";
       write_file(path, data, size);
       read_splat_ply(path);
+    }});
+
+// ---- SPZ ----------------------------------------------------------------------------------
+
+const bool spz = register_target({
+    "spz",
+    [] {
+      // Written by the project (version 3, gzip), degrees 0 and 1.
+      std::vector<std::string> seeds;
+      for (int rest : {0, 3}) {
+        SplatCloud c;
+        c.means = {0, 1, 2, 3, 4, 5};
+        c.sh_dc = {0.1f, 0.2f, 0.3f, -0.1f, -0.2f, -0.3f};
+        c.sh_rest_per_channel = rest;
+        c.sh_rest.assign(6 * rest, 0.05f);
+        c.opacity_logit = {0.5f, -1.f};
+        c.log_scales = {-3, -3, -3, -2, -2, -2};
+        c.rotations = {1, 0, 0, 0, 0.5f, 0.5f, 0.5f, 0.5f};
+        seeds.push_back(bytes_written_by([&](const fs::path& p) { write_spz(p, c); }));
+      }
+      return seeds;
+    },
+    [](const uint8_t* data, size_t size) { decode_spz(data, size, "input.spz"); }});
+
+// ---- SOG ----------------------------------------------------------------------------------
+
+const bool sog = register_target({
+    "sog",
+    [] {
+      // Written by the project: a bundle without and with an SH palette.
+      std::vector<std::string> seeds;
+      for (int rest : {0, 3}) {
+        SplatCloud c;
+        c.means = {0, 1, 2, 3, 4, 5};
+        c.sh_dc = {0.1f, 0.2f, 0.3f, -0.1f, -0.2f, -0.3f};
+        c.sh_rest_per_channel = rest;
+        c.sh_rest.assign(6 * rest, 0.05f);
+        c.opacity_logit = {0.5f, -1.f};
+        c.log_scales = {-3, -3, -3, -2, -2, -2};
+        c.rotations = {1, 0, 0, 0, 0.5f, 0.5f, 0.5f, 0.5f};
+        seeds.push_back(bytes_written_by([&](const fs::path& p) { write_sog(p, c); }));
+      }
+      return seeds;
+    },
+    [](const uint8_t* data, size_t size) {
+      const fs::path path = scratch_dir() / "input.sog";
+      write_file(path, data, size);
+      read_sog(path);
     }});
 
 // ---- safetensors ----------------------------------------------------------------------------

@@ -602,6 +602,54 @@ TEST_F(PlyBad, BadCompressedSh) {
   EXPECT_EQ(error("six.ply", six.bytes()), "sh element has 6 properties; expected 9, 24 or 45 (SH degree 1 to 3)");
 }
 
+// The compressed writer's splats come back in Morton order, each attribute within half a
+// quantisation step of its chunk's range (the range the writer took from the splats).
+TEST(Ply, CompressedWriteRoundTripsWithinItsQuantisation) {
+  for (int rest : {0, 3, 15}) {
+    SplatCloud c = sample_cloud(700, rest);  // three chunks, the last one partial
+    for (size_t i = 0; i < c.size(); ++i) {
+      c.means[i * 3 + 1] = std::sin(0.37f * static_cast<float>(i)) * 4;  // not already in Morton order
+      for (int k = 0; k < 3 * rest; ++k) c.sh_rest[i * 3 * rest + k] = std::cos(0.1f * static_cast<float>(i + k));
+    }
+    const fs::path p = test::temp_dir("ply-c") / fmt::format("c{}.compressed.ply", rest);
+    write_compressed_splat_ply(p, c);
+    const SplatCloud d = read_splat_ply(p);
+    const std::vector<size_t> order = morton_order(c.means);
+    ASSERT_EQ(d.size(), c.size());
+    ASSERT_EQ(d.sh_rest_per_channel, rest);
+    for (size_t s = 0; s < d.size(); ++s) {
+      const size_t i = order[s], chunk = s / 256;
+      auto range = [&](const std::vector<float>& v, int a, double (*f)(double)) {
+        double lo = 1e30, hi = -1e30;
+        for (size_t t = chunk * 256; t < std::min(d.size(), chunk * 256 + 256); ++t) {
+          lo = std::min(lo, f(v[order[t] * 3 + a]));
+          hi = std::max(hi, f(v[order[t] * 3 + a]));
+        }
+        return hi - lo;
+      };
+      auto same = [](double v) { return v; };
+      auto colour = [](double dc) { return 0.5 + kSh0 * dc; };
+      for (int a = 0; a < 3; ++a) {
+        const int bits = a == 1 ? 10 : 11;
+        ASSERT_NEAR(d.means[s * 3 + a], c.means[i * 3 + a], range(c.means, a, same) / ((1 << bits) - 1) / 2 + 1e-5);
+        ASSERT_NEAR(d.log_scales[s * 3 + a], c.log_scales[i * 3 + a],
+                    range(c.log_scales, a, same) / ((1 << bits) - 1) / 2 + 1e-5);
+        ASSERT_NEAR(colour(d.sh_dc[s * 3 + a]), colour(c.sh_dc[i * 3 + a]), range(c.sh_dc, a, colour) / 255 / 2 + 1e-5);
+      }
+      const double alpha_c = 1 / (1 + std::exp(-c.opacity_logit[i])), alpha_d = 1 / (1 + std::exp(-d.opacity_logit[s]));
+      ASSERT_NEAR(alpha_d, alpha_c, 0.5 / 255 + 1e-6);
+      double dot = 0, norm = 0;
+      for (int k = 0; k < 4; ++k) {
+        dot += double(d.rotations[s * 4 + k]) * c.rotations[i * 4 + k];
+        norm += double(c.rotations[i * 4 + k]) * c.rotations[i * 4 + k];
+      }
+      ASSERT_GT(std::abs(dot) / std::sqrt(norm), std::cos(0.004 / 2)) << s;  // within 0.004 rad
+      for (int k = 0; k < 3 * rest; ++k)  // 8 bits over [-4, 4]: one bin, 8/256
+        ASSERT_NEAR(d.sh_rest[s * 3 * rest + k], c.sh_rest[i * 3 * rest + k], 8.0 / 256 + 1e-6);
+    }
+  }
+}
+
 TEST(Ply, WriteRefusesInconsistentClouds) {
   const fs::path p = test::temp_dir("ply-w") / "w.ply";
   SplatCloud c = sample_cloud(3, 3);

@@ -10,6 +10,7 @@
 
 #include "io/image.h"
 #include "io/ply.h"
+#include "io/spz.h"
 #include "io/video.h"
 #include "synth/synth_scene.h"
 #include "synth/synth_writer.h"
@@ -351,6 +352,13 @@ TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
   const auto ply = s.client->Get(job["result"]["ply"].get<std::string>());
   ASSERT_EQ(ply->status, 200);
   EXPECT_EQ(ply->body.rfind("ply\n", 0), 0u);
+  // The page loads the SPZ of the same Gaussians.
+  EXPECT_EQ(job["result"]["splats"], job["result"]["spz"]);
+  const auto spz = s.client->Get(job["result"]["spz"].get<std::string>());
+  ASSERT_EQ(spz->status, 200);
+  const SplatCloud from_spz = decode_spz(reinterpret_cast<const uint8_t*>(spz->body.data()), spz->body.size(), "spz");
+  EXPECT_EQ(from_spz.size(), job["result"]["gaussians"].get<size_t>());
+  EXPECT_LT(spz->body.size() * 3, ply->body.size());  // 68 bytes per Gaussian against about 17
   const auto mask = s.client->Get(job["result"]["masks"]["view_000"].get<std::string>());
   ASSERT_EQ(mask->status, 200);
   EXPECT_EQ(mask->get_header_value("Content-Type"), "image/png");
@@ -404,7 +412,7 @@ TEST(Serve, OrbitVideoAndEvaluationReportOfAServedPly) {
     EXPECT_NE(video.dump().find("ffmpeg is not installed"), std::string::npos) << video;
   }
 
-  r = s.client->Post("/api/eval", httplib::Params{{"ply", ply}});
+  r = s.client->Post("/api/eval", httplib::Params{{"ply", edit["result"]["spz"].get<std::string>()}});  // as the page asks
   ASSERT_EQ(r->status, 202) << r->body;
   const json eval = s.finished_job();
   ASSERT_EQ(eval["state"], "done") << eval;

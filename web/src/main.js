@@ -144,8 +144,15 @@ window.addEventListener("keydown", (e) => {
   invalidate();
 });
 
+// The splat format by name (files given to serve have no extension in their URL: their name says).
+function splatType(url) {
+  const served = url.match(/^\/api\/plys\/(\d+)$/);
+  const name = served ? api.info?.plys?.[Number(served[1])]?.name ?? "" : url;
+  return /\.spz$/i.test(name) ? "spz" : "ply";
+}
+
 async function showPly(url) {
-  const next = new SplatMesh({ url, fileType: "ply" });
+  const next = new SplatMesh({ url, fileType: splatType(url) });
   await next.initialized;
   if (mesh) {
     scene.remove(mesh);
@@ -215,9 +222,17 @@ function listPlys(plys) {
   });
 }
 
+// Downloads of the splats on screen: a job's in both formats, a served file as it is.
 function setDownloads() {
+  const url = api.loadedUrl;
   const links = [];
-  if (api.loadedUrl) links.push(`<a href="${api.loadedUrl}?download=1">download the PLY on screen</a>`);
+  const job = url?.match(/^(\/api\/jobs\/\d+\/gaussians)\.(ply|spz)$/);
+  if (job) {
+    links.push(`<a href="${job[1]}.ply?download=1">download PLY</a>`);
+    links.push(`<a href="${job[1]}.spz?download=1">download SPZ (about a tenth of the size)</a>`);
+  } else if (url) {
+    links.push(`<a href="${url}?download=1">download the splats on screen</a>`);
+  }
   $("downloads").innerHTML = links.join(" · ");
 }
 
@@ -416,8 +431,8 @@ async function runJob(path) {
   const jobSeen = performance.now();
   await drawMaskOverlays(job.result.masks ?? {});
   const masksDrawn = performance.now();
-  if (job.result.ply) {
-    afterUrl = job.result.ply;
+  if (job.result.splats) {
+    afterUrl = job.result.splats;
     await showPly(afterUrl);
     setActive("after");
     setDownloads();
@@ -427,7 +442,7 @@ async function runJob(path) {
   // over the views, loading and drawing the new splats.
   const parts = { job: jobSeen - clicked, masks: masksDrawn - jobSeen, splats: performance.now() - masksDrawn };
   api.lastRun = { ...job, clientSeconds: seconds, parts };
-  status(`job ${job.id} done: ${job.result.ply ? `${job.result.gaussians} Gaussians, ` : "masks, "}${seconds.toFixed(1)} s from the click`);
+  status(`job ${job.id} done: ${job.result.splats ? `${job.result.gaussians} Gaussians, ` : "masks, "}${seconds.toFixed(1)} s from the click`);
 }
 
 // Exports of the splats on screen: the orbit video and the evaluation report, as jobs.
@@ -463,14 +478,15 @@ async function start() {
   listViews(views);
   if (viewIndex >= 0 && views[viewIndex]) jumpToView(viewIndex);
   const asked = params.get("ply") ?? "0";
-  let first = /^\/api\/jobs\/\d+\/gaussians\.ply$/.test(asked) ? { name: asked, url: asked } : info.plys[Number(asked)];
+  let first = /^\/api\/jobs\/\d+\/gaussians\.(ply|spz)$/.test(asked) ? { name: asked, url: asked } : info.plys[Number(asked)];
   // Opened on a scene alone: the server reconstructs it (object kept) at start; show it in 3D
   // when it is ready, and open the editor on the view the network took as its reference.
   let reconstruction = null;
   if (!first && info.job?.kind === "reconstruct") {
     $("hud").textContent = "reconstructing the scene ...";
     reconstruction = await waitForJob(info.job.id);
-    if (reconstruction?.result?.ply) first = { name: "the scene as captured", url: reconstruction.result.ply };
+    if (reconstruction?.result?.splats)
+      first = { name: "the scene as captured", url: reconstruction.result.splats };
   }
   if (first) {
     beforeUrl = first.url;

@@ -47,7 +47,12 @@ try {
   const run = await page.evaluate(() => window.instainpaint.lastRun);
   h.check(run.state === "done", `the edit ran (${run.state}${run.error ? ": " + run.error : ""})`);
   h.check(/^\/api\/jobs\/\d+\/gaussians\.ply$/.test(run.result.ply), `the new PLY is served (${run.result.ply})`);
-  h.check(await page.evaluate(() => window.instainpaint.loadedUrl) === run.result.ply, "and displayed");
+  h.check(run.result.splats === run.result.spz && /^\/api\/jobs\/\d+\/gaussians\.spz$/.test(run.result.spz),
+    `and its SPZ (${run.result.spz})`);
+  h.check(await page.evaluate(() => window.instainpaint.loadedUrl) === run.result.spz, "the SPZ is displayed");
+  const downloads = await page.evaluate(() => [...document.querySelectorAll("#downloads a")].map((a) => a.getAttribute("href")));
+  h.check(downloads.includes(`${run.result.ply}?download=1`) && downloads.includes(`${run.result.spz}?download=1`),
+    `downloads offer PLY and SPZ (${downloads})`);
   console.log(`measured: Run to new splats on screen ${run.clientSeconds.toFixed(2)} s (server ${run.seconds.toFixed(2)} s; ` +
     `CPU, ${run.result.gaussians} Gaussians at 64 rows)`);
   const overlays = await page.evaluate(() => [...document.querySelectorAll("#strip canvas.overlay")].filter((c) => {

@@ -1,5 +1,6 @@
 // The viewer in headless Chromium: it loads a splat PLY, the canvas is not blank, and a frame
-// from a scene camera matches `instainpaint render` of the same PLY from that camera.
+// from a scene camera matches `instainpaint render` of the same PLY from that camera, also when
+// the page is given the SPZ written here (Spark decodes it).
 import { existsSync, writeFileSync } from "node:fs";
 import { join, resolve } from "node:path";
 import * as h from "./harness.mjs";
@@ -46,6 +47,24 @@ try {
   // ours per tile by depth), in 8-bit blending on the GPU and in cut-offs: 42 dB measured.
   h.check(psnr >= 35, `the page's frame matches instainpaint render (PSNR ${psnr.toFixed(2)} >= 35 dB)`);
 
+  // The same splats as SPZ (what the page gets from jobs): drawn like the float PLY's render.
+  const spz = join(dir, "room.spz");
+  h.run(["convert", ply, spz]);
+  const spzServer = await h.serve(["--scene", scene, "--ply", spz, "--out", join(dir, "serve-spz")]);
+  const spage = await browser.newPage({ viewport: { width: 900, height: 600 } });
+  errors.push(...h.collectErrors(spage));
+  await spage.goto(spzServer.page("view=1&exact=1"));
+  await spage.evaluate(() => window.instainpaint.ready);
+  await h.frames(spage, 10);
+  const spzShot = join(dir, "page-view_001-spz.png");
+  writeFileSync(spzShot, await spage.locator("canvas").first().screenshot());
+  const ms = JSON.parse(h.run(["metrics", spzShot, join(dir, "render", "rgb", "0000.png"), "--json"]));
+  const spzPsnr = ms.psnr === "inf" ? Infinity : ms.psnr;
+  console.log(`page (SPZ) vs render of the float PLY from view_001: PSNR ${spzPsnr.toFixed(2)} dB, SSIM ${ms.ssim.toFixed(3)}`);
+  h.check(spzPsnr >= 35, `the SPZ written here is drawn like the PLY's render (PSNR ${spzPsnr.toFixed(2)} >= 35 dB)`);
+  await spage.close();
+  spzServer.stop();
+
   const coverage = await page.evaluate(drawnFraction);
   h.check(coverage > 0.5, `the canvas is not blank (${(100 * coverage).toFixed(0)} % of pixels drawn)`);
 
@@ -64,6 +83,23 @@ try {
     errors.push(...gerrors);
     await gpage.close();
     other.stop();
+
+    // Page load to first frame of the same capture as a float PLY and as SPZ (what serve sends).
+    const firstFrame = {};
+    for (const kind of ["ply", "spz"]) {
+      const file = join(dir, `guitar.${kind}`);
+      h.run(["convert", guitar, file]);
+      const s = await h.serve(["--ply", file, "--out", join(dir, `serve-guitar-${kind}`)]);
+      const p = await browser.newPage({ viewport: { width: 640, height: 480 } });
+      errors.push(...h.collectErrors(p));
+      await p.goto(s.url);
+      await p.evaluate(() => window.instainpaint.ready);
+      firstFrame[kind] = await p.evaluate(() => window.instainpaint.firstFrameMs);
+      await p.close();
+      s.stop();
+    }
+    console.log(`measured: guitar (90,854 splats) page load to first frame: float PLY ${firstFrame.ply.toFixed(0)} ms, ` +
+      `SPZ ${firstFrame.spz.toFixed(0)} ms`);
   }
 
   // Opened on a scene alone: the server reconstructs it at start, the page shows it in 3D when
@@ -77,7 +113,7 @@ try {
   writeFileSync(join(dir, "page-scene-alone.png"), await bpage.screenshot());
   const shown = await bpage.evaluate(() => ({ url: window.instainpaint.loadedUrl, hud: document.getElementById("hud").textContent,
     editing: !document.getElementById("edit-panel").hidden, view: document.getElementById("edit-view").textContent }));
-  h.check(/^\/api\/jobs\/\d+\/gaussians\.ply$/.test(shown.url ?? ""), `the scene's reconstruction is on screen (${shown.url})`);
+  h.check(/^\/api\/jobs\/\d+\/gaussians\.spz$/.test(shown.url ?? ""), `the scene's reconstruction is on screen, as SPZ (${shown.url})`);
   const bdrawn = await bpage.evaluate(drawnFraction);
   h.check(bdrawn > 0.3, `and drawn (${(100 * bdrawn).toFixed(0)} % of pixels)`);
   h.check(shown.editing && /^view_\d+$/.test(shown.view), `the editor is open on the reference view (${shown.view})`);
