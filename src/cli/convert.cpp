@@ -47,7 +47,7 @@ void add_convert_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "convert", "Convert a checkpoint (.pth or safetensors) to safetensors with official key names, or a splat file "
                  "to another splat format");
-  cmd->add_option("IN", *in, "Input checkpoint, or splat file (.ply, .compressed.ply, .spz)")
+  cmd->add_option("IN", *in, "Input checkpoint, or splat file (.ply, .compressed.ply, .spz, .sog, meta.json)")
       ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("OUT", *out, "Output .safetensors file, or splat file (the format follows the name)")->required();
@@ -55,7 +55,8 @@ void add_convert_command(CLI::App& app) {
       "Examples:\n"
       "  instainpaint convert exp_ins+random+3d_121_multimask.pth release.safetensors\n"
       "  instainpaint convert out/gaussians.ply out/gaussians.spz\n"
-      "  instainpaint convert scene.spz scene.compressed.ply");
+      "  instainpaint convert scene.spz scene.compressed.ply\n"
+      "  instainpaint convert scene.sog scene.ply");
   cmd->callback([in, out] {
     if (is_splat_file_name(*in) || is_splat_file_name(*out))
       convert_splats(*in, *out);

@@ -131,7 +131,7 @@ void add_eval_command(CLI::App& app) {
                   "Model weights: official .pth or safetensors (default: the embedded default model)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--gaussians", a->gaussians,
-                  "Splat file (PLY, compressed PLY, SPZ) to evaluate instead of running a model, in the pose-normalised frame (as `infer` writes "
+                  "Splat file (PLY, compressed PLY, SPZ, SOG) to evaluate instead of running a model, in the pose-normalised frame (as `infer` writes "
                   "it: camera centres minus their mean over all views, divided by the largest offset)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--reference", a->reference,

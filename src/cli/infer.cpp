@@ -178,7 +178,7 @@ void add_infer_command(CLI::App& app) {
   cmd->add_option("--out", args->out, "Output folder")->capture_default_str();
   cmd->add_option("--splats", args->splats,
                   "Splat files to write in the output folder, the format following each name: .ply (standard "
-                  "3DGS), .compressed.ply (SuperSplat), .spz (Niantic; about 10x smaller)")
+                  "3DGS), .compressed.ply (SuperSplat), .spz (Niantic; about a tenth of the size), .sog (PlayCanvas)")
       ->delimiter(',')
       ->capture_default_str();
   add_runtime_options(cmd, args->runtime);

@@ -176,7 +176,7 @@ void add_render_command(CLI::App& app) {
   auto a = std::make_shared<RenderArgs>();
   auto* cmd = app.add_subcommand("render", "Render a splat PLY to images and a video");
   cmd->add_option("--splats,--ply", a->ply,
-                  "Gaussian splat file: standard 3DGS PLY, SuperSplat compressed PLY or Niantic SPZ")
+                  "Gaussian splat file: standard 3DGS PLY, SuperSplat compressed PLY, Niantic SPZ or PlayCanvas SOG")
       ->required()
       ->check(CLI::ExistingFile);
   add_scene_options(cmd, a->scene_dir, a->scene);

@@ -7,6 +7,8 @@
 
 #include "cli/commands.h"
 #include "cli/runtime.h"
+#include "common/error.h"
+#include "io/splat_file.h"
 #include "web/server.h"
 
 namespace ii::cli {
@@ -34,7 +36,12 @@ void run(const ServeArgs& a) {
   ServeOptions o;
   if (!a.scene_dir.empty()) o.scene_dir = a.scene_dir;
   o.scene = a.scene;
-  for (const std::string& p : a.plys) o.plys.emplace_back(p);
+  for (const std::string& p : a.plys) {
+    // The page's viewer (Spark) is given the file as it is.
+    if (splat_format_of(p) == SplatFormat::Sog)
+      fail("{}: the page shows PLY, compressed PLY and SPZ files: convert it first (instainpaint convert {} x.spz)", p, p);
+    o.plys.emplace_back(p);
+  }
   o.out = a.out;
   o.host = a.host;
   o.port = a.port;

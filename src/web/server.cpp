@@ -219,6 +219,7 @@ struct WebServer::State {
   int port = 0;
 
   std::mutex mutex;  // guards job, next_id, worker and the view cache
+  std::mutex sog_mutex;  // one SOG made at a time (downloads)
   Job job;
   int next_id = 1;
   std::thread worker;
@@ -652,6 +653,19 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
              if (file.empty()) return refuse(res, {404, "not found"});
              send_file(req, res, file, content_type_of(file));
            });
+
+  // A job's splats as SOG, made from its PLY on the first download (k-means codebooks and
+  // WebP images: not worth making for every edit).
+  http.Get(R"(/api/jobs/(\d{1,8})/gaussians\.sog)", [&s](const httplib::Request& req, httplib::Response& res) {
+    const fs::path ply = s.job_file(req.matches[1], "gaussians.ply");
+    if (ply.empty()) return refuse(res, {404, "not found"});
+    const fs::path sog = ply.parent_path() / "gaussians.sog";
+    {
+      std::lock_guard<std::mutex> lock(s.sog_mutex);
+      if (!fs::exists(sog)) write_splats(sog, read_splats(ply));
+    }
+    send_file(req, res, sog, "application/octet-stream");
+  });
 
   auto start_job = [&s](const std::string& kind) {
     return [&s, kind](const httplib::Request& req, httplib::Response& res) {

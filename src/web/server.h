@@ -25,7 +25,8 @@
 //                                  (kind "reconstruct": the scene with its object, started by
 //                                  the server itself when it has a scene and no PLYs)
 //   GET  /api/jobs/<id>/<file>     what job <id> wrote: gaussians.ply and .spz (the page loads
-//                                  the SPZ: result.splats), masks/<view index>.png,
+//                                  the SPZ: result.splats), gaussians.sog (made on the first
+//                                  request), masks/<view index>.png,
 //                                  orbit.mp4, eval/report.html (and its sheets, renders)
 #include <filesystem>
 #include <functional>

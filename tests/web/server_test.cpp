@@ -10,6 +10,7 @@
 
 #include "io/image.h"
 #include "io/ply.h"
+#include "io/splat_file.h"
 #include "io/spz.h"
 #include "io/video.h"
 #include "synth/synth_scene.h"
@@ -359,6 +360,14 @@ TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
   const SplatCloud from_spz = decode_spz(reinterpret_cast<const uint8_t*>(spz->body.data()), spz->body.size(), "spz");
   EXPECT_EQ(from_spz.size(), job["result"]["gaussians"].get<size_t>());
   EXPECT_LT(spz->body.size() * 3, ply->body.size());  // 68 bytes per Gaussian against about 17
+  // SOG is made on the first request.
+  const fs::path sog_file = s.out / "jobs" / std::to_string(job["id"].get<int>()) / "gaussians.sog";
+  EXPECT_FALSE(fs::exists(sog_file));
+  const auto sog = s.client->Get("/api/jobs/" + std::to_string(job["id"].get<int>()) + "/gaussians.sog");
+  ASSERT_EQ(sog->status, 200);
+  EXPECT_EQ(sog->body.size(), fs::file_size(sog_file));
+  EXPECT_EQ(read_splats(sog_file).size(), from_spz.size());
+  EXPECT_EQ(s.client->Get("/api/jobs/99/gaussians.sog")->status, 404);
   const auto mask = s.client->Get(job["result"]["masks"]["view_000"].get<std::string>());
   ASSERT_EQ(mask->status, 200);
   EXPECT_EQ(mask->get_header_value("Content-Type"), "image/png");

@@ -228,8 +228,9 @@ function setDownloads() {
   const links = [];
   const job = url?.match(/^(\/api\/jobs\/\d+\/gaussians)\.(ply|spz)$/);
   if (job) {
-    links.push(`<a href="${job[1]}.ply?download=1">download PLY</a>`);
-    links.push(`<a href="${job[1]}.spz?download=1">download SPZ (about a tenth of the size)</a>`);
+    links.push(`download: <a href="${job[1]}.ply?download=1">PLY</a>`);
+    links.push(`<a href="${job[1]}.spz?download=1">SPZ (about a tenth of the size)</a>`);
+    links.push(`<a href="${job[1]}.sog?download=1">SOG</a>`);
   } else if (url) {
     links.push(`<a href="${url}?download=1">download the splats on screen</a>`);
   }

@@ -51,8 +51,11 @@ try {
     `and its SPZ (${run.result.spz})`);
   h.check(await page.evaluate(() => window.instainpaint.loadedUrl) === run.result.spz, "the SPZ is displayed");
   const downloads = await page.evaluate(() => [...document.querySelectorAll("#downloads a")].map((a) => a.getAttribute("href")));
-  h.check(downloads.includes(`${run.result.ply}?download=1`) && downloads.includes(`${run.result.spz}?download=1`),
-    `downloads offer PLY and SPZ (${downloads})`);
+  const sog = run.result.ply.replace(/\.ply$/, ".sog");
+  h.check(downloads.includes(`${run.result.ply}?download=1`) && downloads.includes(`${run.result.spz}?download=1`) &&
+    downloads.includes(`${sog}?download=1`), `downloads offer PLY, SPZ and SOG (${downloads})`);
+  const sogBytes = await page.evaluate(async (url) => new Uint8Array(await (await fetch(url)).arrayBuffer()).slice(0, 2), sog);
+  h.check(sogBytes[0] === 0x50 && sogBytes[1] === 0x4b, "the SOG download is a zip bundle");
   console.log(`measured: Run to new splats on screen ${run.clientSeconds.toFixed(2)} s (server ${run.seconds.toFixed(2)} s; ` +
     `CPU, ${run.result.gaussians} Gaussians at 64 rows)`);
   const overlays = await page.evaluate(() => [...document.querySelectorAll("#strip canvas.overlay")].filter((c) => {
