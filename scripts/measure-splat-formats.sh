@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Compressed splat formats against the float PLY (issue 32), for splat PLYs that `infer` wrote:
-# each converted to SPZ and to compressed PLY (`instainpaint convert`: write time), converted
+# each converted to SPZ, SOG and compressed PLY (`instainpaint convert`: write time), converted
 # back (read time), its bytes per Gaussian and ratio to the PLY, and the PSNR of its renders
 # against the PLY's renders from every camera of the PLY's scene (`render --normalize`).
 #
@@ -41,7 +41,7 @@ for case in "${CASES[@]}"; do
   mkdir -p "$work"
   "$BIN" render --splats "$ply" --scene "$scene" --normalize --no-video --out "$work/render-ply" > "$work/render-ply.log" 2>&1
   ply_bytes=$(stat -c %s "$ply")
-  for format in spz compressed.ply; do
+  for format in spz sog compressed.ply; do
     file="$work/gaussians.$format"
     # "... read R ms, write W ms" from convert's summary line.
     "$BIN" convert "$ply" "$file" > "$work/write-$format.log"

@@ -25,6 +25,9 @@ constexpr uint32_t kLatestVersion = 4, kWrittenVersion = 3;
 constexpr double kColourScale = 0.15;  // SPZ's colour byte = dc * 0.15 * 255 + 127.5
 constexpr int kMaxDegree = 4;
 constexpr double kSqrtHalf = 0.70710678118654752;
+// Bits kept of each 8-bit SH coefficient: degree 1, and degrees 2-3 (the rest rounded to the
+// centre of its bucket, which gzip then compresses well).
+constexpr int kSh1Bits = 8, kShRestBits = 8;
 
 int sh_coefficients(int degree) { return (degree + 1) * (degree + 1) - 1; }  // per channel, DC excluded
 
@@ -338,10 +341,10 @@ std::vector<uint8_t> encode_spz(const SplatCloud& c, const fs::path& name) {
       packed = (packed << 10) | (sign << 9) | magnitude;
     }
     std::memcpy(stream[4] + i * 4, &packed, 4);
-    // SH: 8 bits centred at 128 (x 128), on buckets of 8 (degree 1) or 16 (higher degrees).
+    // SH: 8 bits centred at 128 (x 128), rounded to buckets of the bits kept.
     for (int j = 0; j < coefficients; ++j)
       for (int ch = 0; ch < 3; ++ch) {
-        const int bucket = j < 3 ? 8 : 16;
+        const int bucket = 1 << (8 - (j < 3 ? kSh1Bits : kShRestBits));
         int v = static_cast<int>(std::round(c.sh_rest[i * 3 * coefficients + ch * coefficients + j] * 128.0) + 128);
         v = (v + bucket / 2) / bucket * bucket;
         stream[5][(i * coefficients + j) * 3 + ch] = static_cast<uint8_t>(std::clamp(v, 0, 255));

@@ -213,8 +213,8 @@ TEST(Spz, RoundTripsWithinEachAttributesQuantisation) {
       for (int ch = 0; ch < 3; ++ch)
         for (int j = 0; j < rest; ++j) {
           const size_t k = i * 3 * rest + ch * rest + j;
-          // 5 bits for degree 1 (buckets of 8/128), 4 bits above (16/128), plus the 8-bit rounding.
-          ASSERT_NEAR(d.sh_rest[k], c.sh_rest[k], (j < 3 ? 4.5 : 8.5) / 128 + 1e-6) << i << " " << j;
+          // All 8 bits: half a step of 1/128.
+          ASSERT_NEAR(d.sh_rest[k], c.sh_rest[k], 0.5 / 128 + 1e-6) << i << " " << j;
         }
     }
   }
