@@ -26,7 +26,7 @@ using nlohmann::json;
 
 namespace {
 
-constexpr int64_t kMaxTexels = int64_t{8192} * 8192;
+constexpr int64_t kMaxSplats = int64_t{1} << 24;  // splats: 16.7 M (a 4 x 904 x 512 prediction has 1.85 M)
 constexpr int kPaletteColumns = 64;  // SH palette entries per row of shN_centroids
 constexpr int kMaxPalette = 4096;    // what the writer fits (the format allows 65536)
 
@@ -36,12 +36,14 @@ struct Texture {
   const uint8_t* texel(size_t i) const { return rgba.data() + i * 4; }
 };
 
-Texture decode_webp(const std::vector<uint8_t>& bytes, const std::string& entry, const fs::path& path) {
+// At most `max_texels` (checked before decoding: a small lossless WebP can claim a huge image).
+Texture decode_webp(const std::vector<uint8_t>& bytes, const std::string& entry, int64_t max_texels,
+                    const fs::path& path) {
   int w = 0, h = 0;
   if (!WebPGetInfo(bytes.data(), bytes.size(), &w, &h))
     fail_file(path, "SOG image {} is not a WebP image", entry);
-  if (w <= 0 || h <= 0 || int64_t{w} * h > kMaxTexels)
-    fail_file(path, "SOG image {} is {}x{}: more than {} texels", entry, w, h, kMaxTexels);
+  if (w <= 0 || h <= 0 || int64_t{w} * h > max_texels)
+    fail_file(path, "SOG image {} is {}x{}: more than the {} texels it can need", entry, w, h, max_texels);
   Texture t;
   t.width = w;
   t.height = h;
@@ -104,8 +106,9 @@ std::vector<std::string> file_names(const json& group, const char* name, size_t 
   return names;
 }
 
+// One texel per splat: about square, so at most twice the count (and a few rows) is needed.
 Texture texture(const SogFiles& files, const std::string& name, size_t count, const fs::path& path) {
-  Texture t = decode_webp(files.read(name), name, path);
+  Texture t = decode_webp(files.read(name), name, 2 * static_cast<int64_t>(count) + 65536, path);
   if (size_t(t.width) * t.height < count)
     fail_file(path, "SOG image {} has {}x{} texels for {} splats", name, t.width, t.height, count);
   return t;
@@ -131,8 +134,8 @@ SplatCloud read_sog(const fs::path& path) {
   if (!meta["version"].is_number_integer() || meta["version"].get<int64_t>() != 2)
     fail_file(path, "SOG version {} is not supported (2)", meta["version"].dump());
   const json& count_json = member(meta, "count", "", path);
-  if (!count_json.is_number_integer() || count_json.get<int64_t>() < 0 || count_json.get<int64_t>() > kMaxTexels)
-    fail_file(path, "SOG splat count {} is not a count of at most {}", count_json.dump(), kMaxTexels);
+  if (!count_json.is_number_integer() || count_json.get<int64_t>() < 0 || count_json.get<int64_t>() > kMaxSplats)
+    fail_file(path, "SOG splat count {} is not a count of at most {}", count_json.dump(), kMaxSplats);
   const size_t n = count_json.get<size_t>();
 
   const json& means = member(meta, "means", "", path);
@@ -191,7 +194,8 @@ SplatCloud read_sog(const fs::path& path) {
     const size_t palette = palette_json.get<size_t>();
     const std::vector<float> book = floats(member(sh, "codebook", "shN.", path), 256, "shN.codebook", path);
     const std::vector<std::string> sh_files = file_names(sh, "shN", 2, path);
-    const Texture centroids = decode_webp(files.read(sh_files[0]), sh_files[0], path);
+    const Texture centroids = decode_webp(files.read(sh_files[0]), sh_files[0],
+                                          int64_t{kPaletteColumns} * coefficients * (65536 / kPaletteColumns), path);
     const Texture labels = texture(files, sh_files[1], n, path);
     if (centroids.width != kPaletteColumns * coefficients ||
         size_t(centroids.height) * kPaletteColumns < palette)
@@ -313,7 +317,7 @@ void write_sog(const fs::path& path, const SplatCloud& c) {
   const int coefficients = c.sh_rest_per_channel;
   if (c.sh_degree() < 0)
     fail_file(path, "{} SH coefficients per channel are no SH degree (3, 8 or 15 expected)", coefficients);
-  if (static_cast<int64_t>(n) > kMaxTexels) fail_file(path, "{} splats are more than a SOG file holds here", n);
+  if (static_cast<int64_t>(n) > kMaxSplats) fail_file(path, "{} splats are more than a SOG file holds here", n);
   for (float v : c.means)
     if (!std::isfinite(v)) fail_file(path, "a splat position is not finite: SOG cannot store it");
   // Texture size as splat-transform makes it: about square, multiples of 4.

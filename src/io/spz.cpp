@@ -72,6 +72,34 @@ std::vector<uint8_t> gunzip(const uint8_t* data, size_t size, size_t header,
   return out;
 }
 
+// zstd-decompresses one stream that must hold `expected` bytes, the buffer growing with the
+// data (a lying size costs nothing).
+std::vector<uint8_t> unzstd(const uint8_t* data, size_t size, uint64_t expected, const fs::path& name,
+                            const char* what) {
+  struct Stream {
+    ZSTD_DStream* s = ZSTD_createDStream();
+    ~Stream() { ZSTD_freeDStream(s); }
+  } z;
+  if (!z.s) fail_file(name, "cannot start zstd decompression");
+  std::vector<uint8_t> out;
+  ZSTD_inBuffer in{data, size, 0};
+  size_t status = 1;
+  while (out.size() < expected) {
+    const size_t have = out.size();
+    out.resize(static_cast<size_t>(std::min<uint64_t>(expected, std::max<size_t>(have * 2, 1 << 16))));
+    ZSTD_outBuffer o{out.data() + have, out.size() - have, 0};
+    status = ZSTD_decompressStream(z.s, &o, &in);
+    out.resize(have + o.pos);
+    if (ZSTD_isError(status))
+      fail_file(name, "SPZ {} stream is not valid zstd data ({})", what, ZSTD_getErrorName(status));
+    if (o.pos == 0 && in.pos == in.size) break;  // no more input, no more output
+  }
+  if (out.size() < expected)
+    fail_file(name, "SPZ {} stream ends after {} of its {} bytes", what, out.size(), expected);
+  if (status != 0) fail_file(name, "SPZ {} stream holds more than the {} bytes its table of contents says", what, expected);
+  return out;
+}
+
 struct Header {
   uint32_t version = 0, points = 0;
   int degree = 0, fractional_bits = 0;
@@ -230,11 +258,7 @@ SplatCloud decode_zstd(const uint8_t* data, size_t size, const fs::path& name) {
     if (plain[k] != sizes[k])
       fail_file(name, "SPZ {} stream holds {} bytes; {} splats need {}", kNames[k], plain[k], h.points, sizes[k]);
     r.require(compressed[k], kNames[k]);
-    decoded[k].resize(plain[k]);
-    const size_t got = ZSTD_decompress(decoded[k].data(), decoded[k].size(), r.current(), compressed[k]);
-    if (ZSTD_isError(got) || got != plain[k])
-      fail_file(name, "SPZ {} stream is not valid zstd data of {} bytes ({})", kNames[k], plain[k],
-                ZSTD_isError(got) ? ZSTD_getErrorName(got) : "wrong size");
+    decoded[k] = unzstd(r.current(), compressed[k], plain[k], name, kNames[k]);
     r.skip(compressed[k], kNames[k]);
     streams[k] = decoded[k].data();
   }

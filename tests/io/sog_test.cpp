@@ -148,7 +148,7 @@ TEST_F(SogBad, EachProblemHasItsMessage) {
   EXPECT_EQ(error("v1.sog", [](auto&, json& m) { m.erase("version"); }),
             "SOG version 1 (no version in meta.json) is not supported: convert it with splat-transform");
   EXPECT_EQ(error("v3.sog", [](auto&, json& m) { m["version"] = 3; }), "SOG version 3 is not supported (2)");
-  EXPECT_EQ(error("count.sog", [](auto&, json& m) { m["count"] = -1; }), "SOG splat count -1 is not a count of at most 67108864");
+  EXPECT_EQ(error("count.sog", [](auto&, json& m) { m["count"] = -1; }), "SOG splat count -1 is not a count of at most 16777216");
   EXPECT_EQ(error("no-means.sog", [](auto&, json& m) { m.erase("means"); }), "SOG meta.json has no means");
   EXPECT_EQ(error("mins.sog", [](auto&, json& m) { m["means"]["mins"] = {1, 2}; }), "SOG meta.json means.mins must be 3 numbers");
   EXPECT_EQ(error("book.sog", [](auto&, json& m) { m["scales"]["codebook"] = {1, 2, 3}; }),
