@@ -1,5 +1,7 @@
 #include "test_support.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
@@ -77,6 +79,34 @@ int run_command(const std::string& command, const fs::path& log) {
   const std::string cmd = command + " > '" + log.string() + "' 2>&1";
   const int status = std::system(cmd.c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+SplatCloud random_splats(size_t n, int rest, uint32_t seed, float extent) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1, 1);
+  SplatCloud c;
+  c.sh_rest_per_channel = rest;
+  for (size_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      c.means.push_back(extent * u(rng));
+      c.sh_dc.push_back(1.5f * u(rng));
+      c.log_scales.push_back(-4 + 3 * u(rng));
+    }
+    for (int k = 0; k < 3 * rest; ++k) c.sh_rest.push_back(0.9f * u(rng));
+    c.opacity_logit.push_back(5 * u(rng));
+    for (int a = 0; a < 4; ++a) c.rotations.push_back(u(rng));
+  }
+  return c;
+}
+
+double rotation_angle(const float* a, const float* b) {
+  double dot = 0, na = 0, nb = 0;
+  for (int k = 0; k < 4; ++k) {
+    dot += double(a[k]) * b[k];
+    na += double(a[k]) * a[k];
+    nb += double(b[k]) * b[k];
+  }
+  return 2 * std::acos(std::min(1.0, std::abs(dot) / std::sqrt(na * nb)));
 }
 
 }  // namespace ii::test

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "io/ply.h"
+
 namespace ii::test {
 
 // Absolute path of `relative` under the shared folder (../shared beside the repository,
@@ -37,6 +39,13 @@ std::filesystem::path cli_executable();
 // Runs a shell command with stdout and stderr to `log`; returns its exit code (-1 when it
 // did not exit normally).
 int run_command(const std::string& command, const std::filesystem::path& log);
+
+// Seeded random splats for the splat-format tests: positions within ±`extent`, colours (SH DC)
+// within ±1.5, log scales in [-7, -1], `rest` SH coefficients per channel within ±0.9, logits
+// within ±5, unnormalised rotations.
+SplatCloud random_splats(size_t n, int rest, uint32_t seed, float extent);
+// The angle in radians between the rotations of two quaternions (any scale, any sign).
+double rotation_angle(const float* a, const float* b);
 
 // Runs `fn` and returns the Error message it throws; fails the test if it throws nothing
 // or something else.

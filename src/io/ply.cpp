@@ -16,6 +16,7 @@
 #include "common/error.h"
 #include "common/files.h"
 #include "io/byte_reader.h"
+#include "io/splat_quantize.h"
 
 namespace ii {
 
@@ -426,9 +427,7 @@ SplatCloud read_compressed(const Header& h, const Element& vertex, const std::ve
       const double tc[3] = {unorm(pc >> 24, 8), unorm(pc >> 16, 8), unorm(pc >> 8, 8)};
       for (int a = 0; a < 3; ++a)
         c.sh_dc[i * 3 + a] = static_cast<float>((lerp(lo[6 + a], hi[6 + a], tc[a]) - 0.5) / kSh0);
-      // 0 and 255 stand for opacities beyond the 8-bit range: PlayCanvas maps them to +-40.
-      const double alpha = unorm(pc, 8);
-      c.opacity_logit[i] = alpha <= 0 ? -40.f : alpha >= 1 ? 40.f : static_cast<float>(-std::log(1.0 / alpha - 1.0));
+      c.opacity_logit[i] = splat_quantize::opacity_logit_of_byte(static_cast<uint8_t>(pc & 0xff));
     }
   }
 
@@ -688,21 +687,12 @@ void write_compressed_splat_ply(const fs::path& path, const SplatCloud& c) {
       uint32_t* p = &packed[s * 4];
       const float* m = &c.means[i * 3];
       p[0] = pack(m[0], lo[0], hi[0], 11) << 21 | pack(m[1], lo[1], hi[1], 10) << 11 | pack(m[2], lo[2], hi[2], 11);
-      // Rotation (w, x, y, z) normalised, the largest made positive and left out, the others
-      // 10 bits each over [-1/√2, 1/√2].
-      double q[4];
-      double norm = 0;
-      for (int a = 0; a < 4; ++a) norm += static_cast<double>(c.rotations[i * 4 + a]) * c.rotations[i * 4 + a];
-      norm = std::sqrt(norm);
-      for (int a = 0; a < 4; ++a) q[a] = norm > 0 && std::isfinite(norm) ? c.rotations[i * 4 + a] / norm : a == 0;
-      int largest = 0;
-      for (int a = 1; a < 4; ++a)
-        if (std::abs(q[a]) > std::abs(q[largest])) largest = a;
-      const double sign = q[largest] < 0 ? -1 : 1;
-      uint32_t r = static_cast<uint32_t>(largest);
+      // Rotation (w, x, y, z): the three smallest, 10 bits each over [-1/√2, 1/√2].
+      const splat_quantize::SmallestThree q = splat_quantize::smallest_three(&c.rotations[i * 4]);
+      uint32_t r = static_cast<uint32_t>(q.largest);
       for (int a = 0; a < 4; ++a)
-        if (a != largest)
-          r = r << 10 | static_cast<uint32_t>(std::lround(std::clamp(sign * q[a] / std::sqrt(2.0) + 0.5, 0.0, 1.0) * 1023));
+        if (a != q.largest)
+          r = r << 10 | static_cast<uint32_t>(std::lround(std::clamp(q.q[a] / std::sqrt(2.0) + 0.5, 0.0, 1.0) * 1023));
       p[1] = r;
       p[2] = pack(log_scale(i, 0), lo[3], hi[3], 11) << 21 | pack(log_scale(i, 1), lo[4], hi[4], 10) << 11 |
              pack(log_scale(i, 2), lo[5], hi[5], 11);

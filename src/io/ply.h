@@ -22,6 +22,16 @@ struct SplatCloud {
   std::vector<float> rotations;      // N*4, (w, x, y, z) = rot_0..3, not necessarily normalised
 
   size_t size() const { return opacity_logit.size(); }
+  // Room for n splats with `rest` SH coefficients per channel (normals left empty).
+  void resize(size_t n, int rest) {
+    means.resize(n * 3);
+    sh_dc.resize(n * 3);
+    sh_rest_per_channel = rest;
+    sh_rest.resize(n * 3 * static_cast<size_t>(rest));
+    opacity_logit.resize(n);
+    log_scales.resize(n * 3);
+    rotations.resize(n * 4);
+  }
   // 0-3 from sh_rest_per_channel (0, 3, 8, 15); -1 for any other count.
   int sh_degree() const {
     for (int d = 0; d <= 3; ++d)

@@ -17,6 +17,7 @@
 
 #include "common/error.h"
 #include "common/files.h"
+#include "io/splat_quantize.h"
 #include "io/zip_archive.h"
 
 namespace ii {
@@ -153,11 +154,7 @@ SplatCloud read_sog(const fs::path& path) {
   const Texture colours = texture(files, file_names(sh0, "sh0", 1, path)[0], n, path);
 
   SplatCloud c;
-  c.means.resize(n * 3);
-  c.sh_dc.resize(n * 3);
-  c.log_scales.resize(n * 3);
-  c.rotations.resize(n * 4);
-  c.opacity_logit.resize(n);
+  c.resize(n, 0);
   for (size_t i = 0; i < n; ++i) {
     const uint8_t *l = means_l.texel(i), *u = means_u.texel(i), *q = quats.texel(i), *s = scale_labels.texel(i),
                   *k = colours.texel(i);
@@ -167,9 +164,7 @@ SplatCloud read_sog(const fs::path& path) {
       c.log_scales[i * 3 + a] = scale_book[s[a]];
       c.sh_dc[i * 3 + a] = colour_book[k[a]];
     }
-    // 0 and 255 stand for opacities beyond the 8-bit range: ±40, as for compressed PLY.
-    const double alpha = k[3] / 255.0;
-    c.opacity_logit[i] = k[3] == 0 ? -40.f : k[3] == 255 ? 40.f : static_cast<float>(std::log(alpha / (1 - alpha)));
+    c.opacity_logit[i] = splat_quantize::opacity_logit_of_byte(k[3]);
     if (q[3] < 252) fail_file(path, "SOG splat {} has no rotation (quats alpha {}, expected 252-255)", i, q[3]);
     const int largest = q[3] - 252;
     double sum = 0;
@@ -202,8 +197,7 @@ SplatCloud read_sog(const fs::path& path) {
       fail_file(path, "SOG image {} is {}x{}: {} palette entries of {} coefficients need {} columns and {} rows",
                 sh_files[0], centroids.width, centroids.height, palette, coefficients, kPaletteColumns * coefficients,
                 (palette + kPaletteColumns - 1) / kPaletteColumns);
-    c.sh_rest_per_channel = coefficients;
-    c.sh_rest.resize(n * 3 * coefficients);
+    c.resize(n, coefficients);
     for (size_t i = 0; i < n; ++i) {
       const uint8_t* t = labels.texel(i);
       const size_t label = t[0] | (t[1] << 8);
@@ -349,20 +343,13 @@ void write_sog(const fs::path& path, const SplatCloud& c) {
       means_l[s * 4 + a] = v & 0xff;
       means_u[s * 4 + a] = v >> 8;
     }
-    // Rotation (w, x, y, z) normalised, the largest made positive and left out.
-    double q[4], norm = 0;
-    for (int a = 0; a < 4; ++a) norm += double(c.rotations[i * 4 + a]) * c.rotations[i * 4 + a];
-    norm = std::sqrt(norm);
-    for (int a = 0; a < 4; ++a) q[a] = norm > 0 && std::isfinite(norm) ? c.rotations[i * 4 + a] / norm : a == 0;
-    int largest = 0;
-    for (int a = 1; a < 4; ++a)
-      if (std::abs(q[a]) > std::abs(q[largest])) largest = a;
-    const double sign = q[largest] < 0 ? -1 : 1;
+    // Rotation (w, x, y, z): the three smallest × √2, 8 bits each, and 252 + the largest's index.
+    const splat_quantize::SmallestThree q = splat_quantize::smallest_three(&c.rotations[i * 4]);
     for (int a = 0, o = 0; a < 4; ++a)
-      if (a != largest)
+      if (a != q.largest)
         quats[s * 4 + o++] =
-            static_cast<uint8_t>(std::lround(std::clamp(sign * q[a] * std::sqrt(2.0) * 0.5 + 0.5, 0.0, 1.0) * 255));
-    quats[s * 4 + 3] = static_cast<uint8_t>(252 + largest);
+            static_cast<uint8_t>(std::lround(std::clamp(q.q[a] * std::sqrt(2.0) * 0.5 + 0.5, 0.0, 1.0) * 255));
+    quats[s * 4 + 3] = static_cast<uint8_t>(252 + q.largest);
   }
   meta["means"] = {{"mins", {lo[0], lo[1], lo[2]}}, {"maxs", {hi[0], hi[1], hi[2]}},
                    {"files", {"means_l.webp", "means_u.webp"}}};

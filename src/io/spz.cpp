@@ -13,6 +13,7 @@
 #include "common/error.h"
 #include "common/files.h"
 #include "io/byte_reader.h"
+#include "io/splat_quantize.h"
 
 namespace ii {
 
@@ -127,16 +128,10 @@ float half_to_float(uint16_t h) {
 SplatCloud unpack(const Header& h, const std::array<const uint8_t*, 6>& streams, const fs::path& name) {
   const size_t n = h.points;
   const auto [positions, alphas, colours, scales, rotations, sh] = streams;
-  SplatCloud c;
-  c.means.resize(n * 3);
-  c.sh_dc.resize(n * 3);
-  c.log_scales.resize(n * 3);
-  c.rotations.resize(n * 4);
-  c.opacity_logit.resize(n);
   const int file_coefficients = sh_coefficients(h.degree);
   const int kept = std::min(file_coefficients, sh_coefficients(3));
-  c.sh_rest_per_channel = kept;
-  c.sh_rest.resize(n * 3 * static_cast<size_t>(kept));
+  SplatCloud c;
+  c.resize(n, kept);
 
   const float unit = std::ldexp(1.f, -h.fractional_bits);
   for (size_t i = 0; i < n * 3; ++i) {
@@ -155,9 +150,7 @@ SplatCloud unpack(const Header& h, const std::array<const uint8_t*, 6>& streams,
     c.log_scales[i] = scales[i] / 16.f - 10.f;
   }
   for (size_t i = 0; i < n; ++i) {
-    // 0 and 255 stand for opacities beyond the 8-bit range: ±40, as for compressed PLY.
-    const double a = alphas[i] / 255.0;
-    c.opacity_logit[i] = alphas[i] == 0 ? -40.f : alphas[i] == 255 ? 40.f : static_cast<float>(std::log(a / (1 - a)));
+    c.opacity_logit[i] = splat_quantize::opacity_logit_of_byte(alphas[i]);
     float q[4];  // x, y, z, w
     if (h.version >= 3) {
       const uint8_t* r = rotations + i * 4;
@@ -342,27 +335,16 @@ std::vector<uint8_t> encode_spz(const SplatCloud& c, const fs::path& name) {
       stream[3][i * 3 + a] = to_byte((c.log_scales[i * 3 + a] + 10) * 16);
     }
     stream[1][i] = to_byte(255 / (1 + std::exp(-static_cast<double>(c.opacity_logit[i]))));
-    // PLY's (w, x, y, z) to SPZ's (x, y, z, w), normalised; the largest component is left out
-    // (made positive, so its sign need not be stored), the others as sign + 9 bits of |q| / √½.
-    const float* rot = &c.rotations[i * 4];
-    double q[4] = {rot[1], rot[2], rot[3], rot[0]};
-    const double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    if (!(norm > 0) || !std::isfinite(norm)) {
-      q[0] = q[1] = q[2] = 0;
-      q[3] = 1;
-    } else {
-      for (double& v : q) v /= norm;
-    }
-    int largest_k = 0;
-    for (int k = 1; k < 4; ++k)
-      if (std::abs(q[k]) > std::abs(q[largest_k])) largest_k = k;
-    const bool negate = q[largest_k] < 0;
-    uint32_t packed = static_cast<uint32_t>(largest_k);
+    // PLY's (w, x, y, z) to SPZ's (x, y, z, w); the largest component left out, the others as
+    // sign + 9 bits of |q| / √½.
+    const splat_quantize::SmallestThree q = splat_quantize::smallest_three(&c.rotations[i * 4]);
+    const int largest = (q.largest + 3) % 4;  // in x, y, z, w
+    uint32_t packed = static_cast<uint32_t>(largest);
     for (int k = 0; k < 4; ++k) {
-      if (k == largest_k) continue;
-      const uint32_t sign = (q[k] < 0) != negate ? 1u : 0u;
-      const uint32_t magnitude = std::min<uint32_t>(511, static_cast<uint32_t>(511 * std::abs(q[k]) / kSqrtHalf + 0.5));
-      packed = (packed << 10) | (sign << 9) | magnitude;
+      if (k == largest) continue;
+      const double v = q.q[(k + 1) % 4];
+      const uint32_t magnitude = std::min<uint32_t>(511, static_cast<uint32_t>(511 * std::abs(v) / kSqrtHalf + 0.5));
+      packed = (packed << 10) | (v < 0 ? 1u << 9 : 0u) | magnitude;
     }
     std::memcpy(stream[4] + i * 4, &packed, 4);
     // SH: 8 bits centred at 128 (x 128), rounded to buckets of the bits kept.

@@ -59,19 +59,25 @@ const bool npy = register_target({
 
 // ---- PLY ----------------------------------------------------------------------------------
 
+// Two splats with `rest` SH coefficients per channel: what the splat writers make seeds of.
+SplatCloud two_splats(int rest) {
+  SplatCloud c;
+  c.means = {0, 1, 2, 3, 4, 5};
+  c.normals.assign(6, 0.f);
+  c.sh_dc = {0.1f, 0.2f, 0.3f, -0.1f, -0.2f, -0.3f};
+  c.sh_rest_per_channel = rest;
+  c.sh_rest.assign(6 * rest, 0.05f);
+  c.opacity_logit = {0.5f, -1.f};
+  c.log_scales = {-3, -3, -3, -2, -2, -2};
+  c.rotations = {1, 0, 0, 0, 0.5f, 0.5f, 0.5f, 0.5f};
+  return c;
+}
+
 const bool ply = register_target({
     "ply",
     [] {
       std::vector<std::string> seeds;
-      SplatCloud c;
-      c.means = {0, 1, 2, 3, 4, 5};
-      c.normals.assign(6, 0.f);
-      c.sh_dc = {0.1f, 0.2f, 0.3f, -0.1f, -0.2f, -0.3f};
-      c.sh_rest_per_channel = 3;
-      c.sh_rest.assign(18, 0.05f);
-      c.opacity_logit = {0.5f, -1.f};
-      c.log_scales = {-3, -3, -3, -2, -2, -2};
-      c.rotations = {1, 0, 0, 0, 0.5f, 0.5f, 0.5f, 0.5f};
+      const SplatCloud c = two_splats(3);
       seeds.push_back(bytes_written_by([&](const fs::path& p) { write_splat_ply(p, c); }));
       seeds.push_back(bytes_written_by([&](const fs::path& p) { write_compressed_splat_ply(p, c); }));
       seeds.push_back(
@@ -118,14 +124,7 @@ const bool spz = register_target({
       // Written by the project (version 3, gzip), degrees 0 and 1.
       std::vector<std::string> seeds;
       for (int rest : {0, 3}) {
-        SplatCloud c;
-        c.means = {0, 1, 2, 3, 4, 5};
-        c.sh_dc = {0.1f, 0.2f, 0.3f, -0.1f, -0.2f, -0.3f};
-        c.sh_rest_per_channel = rest;
-        c.sh_rest.assign(6 * rest, 0.05f);
-        c.opacity_logit = {0.5f, -1.f};
-        c.log_scales = {-3, -3, -3, -2, -2, -2};
-        c.rotations = {1, 0, 0, 0, 0.5f, 0.5f, 0.5f, 0.5f};
+        const SplatCloud c = two_splats(rest);
         seeds.push_back(bytes_written_by([&](const fs::path& p) { write_spz(p, c); }));
       }
       return seeds;
@@ -140,14 +139,7 @@ const bool sog = register_target({
       // Written by the project: a bundle without and with an SH palette.
       std::vector<std::string> seeds;
       for (int rest : {0, 3}) {
-        SplatCloud c;
-        c.means = {0, 1, 2, 3, 4, 5};
-        c.sh_dc = {0.1f, 0.2f, 0.3f, -0.1f, -0.2f, -0.3f};
-        c.sh_rest_per_channel = rest;
-        c.sh_rest.assign(6 * rest, 0.05f);
-        c.opacity_logit = {0.5f, -1.f};
-        c.log_scales = {-3, -3, -3, -2, -2, -2};
-        c.rotations = {1, 0, 0, 0, 0.5f, 0.5f, 0.5f, 0.5f};
+        const SplatCloud c = two_splats(rest);
         seeds.push_back(bytes_written_by([&](const fs::path& p) { write_sog(p, c); }));
       }
       return seeds;

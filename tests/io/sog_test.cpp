@@ -21,37 +21,9 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-SplatCloud random_cloud(size_t n, int rest, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-1, 1);
-  SplatCloud c;
-  c.sh_rest_per_channel = rest;
-  for (size_t i = 0; i < n; ++i) {
-    for (int a = 0; a < 3; ++a) {
-      c.means.push_back(8 * u(rng));
-      c.sh_dc.push_back(1.5f * u(rng));
-      c.log_scales.push_back(-4 + 3 * u(rng));
-    }
-    for (int k = 0; k < 3 * rest; ++k) c.sh_rest.push_back(0.9f * u(rng));
-    c.opacity_logit.push_back(5 * u(rng));
-    for (int a = 0; a < 4; ++a) c.rotations.push_back(u(rng));
-  }
-  return c;
-}
-
-double angle_between(const float* a, const float* b) {
-  double dot = 0, na = 0, nb = 0;
-  for (int k = 0; k < 4; ++k) {
-    dot += double(a[k]) * b[k];
-    na += double(a[k]) * a[k];
-    nb += double(b[k]) * b[k];
-  }
-  return 2 * std::acos(std::min(1.0, std::abs(dot) / std::sqrt(na * nb)));
-}
-
 TEST(Sog, RoundTripsWithinItsQuantisation) {
   for (int rest : {0, 3, 15}) {
-    const SplatCloud c = random_cloud(700, rest, 11 + rest);
+    const SplatCloud c = test::random_splats(700, rest, 11 + rest, 8.f);
     const fs::path p = test::temp_dir("sog") / fmt::format("round-{}.sog", rest);
     write_splats(p, c);
     const SplatCloud d = read_splats(p);
@@ -70,7 +42,7 @@ TEST(Sog, RoundTripsWithinItsQuantisation) {
       }
       const double alpha_c = 1 / (1 + std::exp(-c.opacity_logit[i])), alpha_d = 1 / (1 + std::exp(-d.opacity_logit[s]));
       ASSERT_NEAR(alpha_d, alpha_c, 0.5 / 255 + 1e-6);
-      ASSERT_LT(angle_between(&d.rotations[s * 4], &c.rotations[i * 4]), 0.02) << s;  // 8 bits per component
+      ASSERT_LT(test::rotation_angle(&d.rotations[s * 4], &c.rotations[i * 4]), 0.02) << s;  // 8 bits per component
       // 700 splats, a palette of 700: every set is its own entry, each value within the codebook's half gap.
       for (int k = 0; k < 3 * rest; ++k)
         ASSERT_NEAR(d.sh_rest[s * 3 * rest + k], c.sh_rest[i * 3 * rest + k], 0.01) << s << " " << k;
@@ -82,7 +54,7 @@ TEST(Sog, ALargePaletteIsFittedNotCopied) {
   // 6000 splats of SH degree 1 drawn around 20 sets: the 4096-entry palette finds them.
   std::mt19937 rng(4);
   std::normal_distribution<float> noise(0, 0.01f);
-  SplatCloud c = random_cloud(6000, 3, 5);
+  SplatCloud c = test::random_splats(6000, 3, 5, 8.f);
   std::vector<float> sets(20 * 9);
   for (float& v : sets) v = std::uniform_real_distribution<float>(-0.8f, 0.8f)(rng);
   for (size_t i = 0; i < c.size(); ++i)
@@ -122,7 +94,7 @@ class SogBad : public ::testing::Test {
   std::map<std::string, std::vector<uint8_t>> good;
   json meta;
   void SetUp() override {
-    write_sog(dir / "good.sog", random_cloud(50, 3, 2));
+    write_sog(dir / "good.sog", test::random_splats(50, 3, 2, 8.f));
     good = entries_of(dir / "good.sog");
     meta = json::parse(good["meta.json"].begin(), good["meta.json"].end());
   }
@@ -171,7 +143,7 @@ TEST_F(SogBad, EachProblemHasItsMessage) {
 
 TEST(Sog, TheFolderFormReadsLikeTheBundle) {
   const fs::path dir = test::temp_dir("sog-folder");
-  write_sog(dir / "x.sog", random_cloud(30, 0, 3));
+  write_sog(dir / "x.sog", test::random_splats(30, 0, 3, 8.f));
   for (const auto& [name, bytes] : entries_of(dir / "x.sog"))
     test::write_bytes(dir / name, std::string(bytes.begin(), bytes.end()));
   const SplatCloud a = read_splats(dir / "x.sog"), b = read_splats(dir / "meta.json");

@@ -165,37 +165,9 @@ TEST(Spz, Version4DecodesExactly) {
   EXPECT_EQ(d.means, c.means);
 }
 
-SplatCloud random_cloud(size_t n, int rest, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-1, 1);
-  SplatCloud c;
-  c.sh_rest_per_channel = rest;
-  for (size_t i = 0; i < n; ++i) {
-    for (int a = 0; a < 3; ++a) {
-      c.means.push_back(20 * u(rng));
-      c.sh_dc.push_back(1.5f * u(rng));
-      c.log_scales.push_back(-4 + 3 * u(rng));
-    }
-    for (int k = 0; k < 3 * rest; ++k) c.sh_rest.push_back(0.9f * u(rng));
-    c.opacity_logit.push_back(5 * u(rng));
-    for (int a = 0; a < 4; ++a) c.rotations.push_back(u(rng));
-  }
-  return c;
-}
-
-double angle_between(const float* a, const float* b) {
-  double dot = 0, na = 0, nb = 0;
-  for (int k = 0; k < 4; ++k) {
-    dot += double(a[k]) * b[k];
-    na += double(a[k]) * a[k];
-    nb += double(b[k]) * b[k];
-  }
-  return 2 * std::acos(std::min(1.0, std::abs(dot) / std::sqrt(na * nb)));
-}
-
 TEST(Spz, RoundTripsWithinEachAttributesQuantisation) {
   for (int rest : {0, 3, 8, 15}) {
-    const SplatCloud c = random_cloud(500, rest, 7 + rest);
+    const SplatCloud c = test::random_splats(500, rest, 7 + rest, 20.f);
     const fs::path p = test::temp_dir("spz") / fmt::format("round-{}.spz", rest);
     write_splats(p, c);
     const SplatCloud d = read_splats(p);
@@ -209,7 +181,7 @@ TEST(Spz, RoundTripsWithinEachAttributesQuantisation) {
       }
       const double sigmoid_c = 1 / (1 + std::exp(-c.opacity_logit[i])), sigmoid_d = 1 / (1 + std::exp(-d.opacity_logit[i]));
       ASSERT_NEAR(sigmoid_d, sigmoid_c, 0.5 / 255 + 1e-6);
-      ASSERT_LT(angle_between(&d.rotations[i * 4], &c.rotations[i * 4]), 0.004) << i;  // radians
+      ASSERT_LT(test::rotation_angle(&d.rotations[i * 4], &c.rotations[i * 4]), 0.004) << i;  // radians
       for (int ch = 0; ch < 3; ++ch)
         for (int j = 0; j < rest; ++j) {
           const size_t k = i * 3 * rest + ch * rest + j;
@@ -221,7 +193,7 @@ TEST(Spz, RoundTripsWithinEachAttributesQuantisation) {
 }
 
 TEST(Spz, FarPositionsGetFewerFractionalBits) {
-  SplatCloud c = random_cloud(4, 0, 3);
+  SplatCloud c = test::random_splats(4, 0, 3, 20.f);
   c.means[0] = 3000.25f;  // beyond 2^23 / 4096 = 2048: 11 bits
   const std::vector<uint8_t> bytes = encode_spz(c, "far.spz");
   const SplatCloud d = decode_spz(bytes.data(), bytes.size(), "far.spz");
