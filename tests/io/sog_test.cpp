@@ -122,12 +122,12 @@ TEST_F(SogBad, EachProblemHasItsMessage) {
   EXPECT_EQ(error("v3.sog", [](auto&, json& m) { m["version"] = 3; }), "SOG version 3 is not supported (2)");
   EXPECT_EQ(error("count.sog", [](auto&, json& m) { m["count"] = -1; }), "SOG splat count -1 is not a count of at most 16777216");
   EXPECT_EQ(error("no-means.sog", [](auto&, json& m) { m.erase("means"); }), "SOG meta.json has no means");
-  EXPECT_EQ(error("mins.sog", [](auto&, json& m) { m["means"]["mins"] = {1, 2}; }), "SOG meta.json means.mins must be 3 numbers");
-  EXPECT_EQ(error("book.sog", [](auto&, json& m) { m["scales"]["codebook"] = {1, 2, 3}; }),
+  EXPECT_EQ(error("mins.sog", [](auto&, json& m) { m["means"]["mins"] = json::array({1, 2}); }), "SOG meta.json means.mins must be 3 numbers");
+  EXPECT_EQ(error("book.sog", [](auto&, json& m) { m["scales"]["codebook"] = json::array({1, 2, 3}); }),
             "SOG meta.json scales.codebook must be 256 numbers");
   EXPECT_EQ(error("files.sog", [](auto&, json& m) { m["quats"]["files"] = json::array(); }),
             "SOG meta.json quats.files must name 1 file");
-  EXPECT_EQ(error("path.sog", [](auto&, json& m) { m["quats"]["files"] = {"../quats.webp"}; }),
+  EXPECT_EQ(error("path.sog", [](auto&, json& m) { m["quats"]["files"] = json::array({"../quats.webp"}); }),
             "SOG file name '../quats.webp' is not a plain file name");
   EXPECT_EQ(error("missing.sog", [](auto& e, json&) { e.erase("quats.webp"); }), "SOG bundle has no quats.webp");
   EXPECT_EQ(error("not-webp.sog", [](auto& e, json&) { e["quats.webp"] = bytes_of("RIFF1234WEBPxxxx"); }),
