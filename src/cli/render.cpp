@@ -131,13 +131,11 @@ void run(const RenderArgs& a) {
   const fs::path out(a.out);
   RenderOptions options;
   options.background = {a.background[0], a.background[1], a.background[2]};
-  std::vector<Camera> cameras;
-  for (const NamedCamera& c : cams) cameras.push_back(c.camera);
   const int n = static_cast<int>(cams.size());
   Stopwatch watch;
   progress(0, n, 0);
   const double render_ms =
-      render_frames(g, cameras, options, {out / "rgb", a.depth ? out / "depth" : fs::path(), a.alpha ? out / "alpha" : fs::path()},
+      render_frames(g, cams, options, {out / "rgb", a.depth ? out / "depth" : fs::path(), a.alpha ? out / "alpha" : fs::path()},
                     [&](int done, int total) { progress(done, total, watch.ms() / 1000.0); });
   write_camera_json(out / "cameras.json", cams);
 

@@ -9,7 +9,7 @@
 
 namespace ii {
 
-double render_frames(const GaussianSet& gaussians, const std::vector<Camera>& cameras, const RenderOptions& options,
+double render_frames(const GaussianSet& gaussians, const std::vector<NamedCamera>& cameras, const RenderOptions& options,
                      const FrameFolders& folders, const std::function<void(int, int)>& progress) {
   for (const auto* folder : {&folders.rgb, &folders.depth, &folders.alpha})
     if (!folder->empty()) std::filesystem::create_directories(*folder);
@@ -18,7 +18,7 @@ double render_frames(const GaussianSet& gaussians, const std::vector<Camera>& ca
   const int n = static_cast<int>(cameras.size());
   for (int i = 0; i < n; ++i) {
     RenderCamera rc;
-    rc.camera = cameras[i];
+    rc.camera = cameras[i].camera;
     Stopwatch frame;
     const RenderOutput r = render(gaussians, rc, options);
     const Image rgb = image_from_hwc(r.rgb);  // on the CPU: the frame is done

@@ -5,7 +5,7 @@
 #include <functional>
 #include <vector>
 
-#include "camera/camera.h"
+#include "camera/trajectory.h"
 #include "gaussians/gaussians.h"
 #include "render/rasterizer.h"
 
@@ -20,7 +20,7 @@ struct FrameFolders {
 // Renders every camera in order on the Gaussians' device and writes its frames (folders made
 // as needed); `progress(done, total)` after each. Returns the milliseconds spent rendering
 // (each frame until its image is on the CPU), without the PNG writing.
-double render_frames(const GaussianSet& gaussians, const std::vector<Camera>& cameras, const RenderOptions& options,
+double render_frames(const GaussianSet& gaussians, const std::vector<NamedCamera>& cameras, const RenderOptions& options,
                      const FrameFolders& folders, const std::function<void(int, int)>& progress = {});
 
 }  // namespace ii

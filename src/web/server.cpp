@@ -473,9 +473,7 @@ json WebServer::State::run_video(const JobRequest& job, const fs::path& dir, int
   const std::vector<NamedCamera> cameras = scene_cameras(*scene, o);
   const torch::Device device = render_device(predictor ? predictor->device() : torch::Device(torch::kCPU));
   const GaussianSet g = gaussians_from_splats(read_splats(job.ply)).to(device);
-  std::vector<Camera> orbit;
-  for (const NamedCamera& c : cameras) orbit.push_back(c.camera);
-  render_frames(g, orbit, {}, {dir / "orbit", {}, {}}, [&](int done, int total) {
+  render_frames(g, cameras, {}, {dir / "orbit", {}, {}}, [&](int done, int total) {
     stage(fmt::format("rendering the orbit {}/{}", done, total), 0.9 * done / total);
   });
   if (!ffmpeg_available()) fail("ffmpeg is not installed (scripts/install-deps.sh installs it): no video");

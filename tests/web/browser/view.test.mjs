@@ -1,6 +1,6 @@
 // The viewer in headless Chromium: it loads a splat PLY, the canvas is not blank, and a frame
 // from a scene camera matches `instainpaint render` of the same PLY from that camera, also when
-// the page is given the SPZ written here (Spark decodes it).
+// the page is given the SPZ or compressed PLY written here (Spark decodes them).
 import { existsSync, writeFileSync } from "node:fs";
 import { join, resolve } from "node:path";
 import * as h from "./harness.mjs";
@@ -47,23 +47,26 @@ try {
   // ours per tile by depth), in 8-bit blending on the GPU and in cut-offs: 42 dB measured.
   h.check(psnr >= 35, `the page's frame matches instainpaint render (PSNR ${psnr.toFixed(2)} >= 35 dB)`);
 
-  // The same splats as SPZ (what the page gets from jobs): drawn like the float PLY's render.
-  const spz = join(dir, "room.spz");
-  h.run(["convert", ply, spz]);
-  const spzServer = await h.serve(["--scene", scene, "--ply", spz, "--out", join(dir, "serve-spz")]);
-  const spage = await browser.newPage({ viewport: { width: 900, height: 600 } });
-  errors.push(...h.collectErrors(spage));
-  await spage.goto(spzServer.page("view=1&exact=1"));
-  await spage.evaluate(() => window.instainpaint.ready);
-  await h.frames(spage, 10);
-  const spzShot = join(dir, "page-view_001-spz.png");
-  writeFileSync(spzShot, await spage.locator("canvas").first().screenshot());
-  const ms = JSON.parse(h.run(["metrics", spzShot, join(dir, "render", "rgb", "0000.png"), "--json"]));
-  const spzPsnr = ms.psnr === "inf" ? Infinity : ms.psnr;
-  console.log(`page (SPZ) vs render of the float PLY from view_001: PSNR ${spzPsnr.toFixed(2)} dB, SSIM ${ms.ssim.toFixed(3)}`);
-  h.check(spzPsnr >= 35, `the SPZ written here is drawn like the PLY's render (PSNR ${spzPsnr.toFixed(2)} >= 35 dB)`);
-  await spage.close();
-  spzServer.stop();
+  // The same splats as SPZ (what the page gets from jobs) and as compressed PLY, both written
+  // here: drawn like the float PLY's render.
+  for (const file of ["room.spz", "room.compressed.ply"]) {
+    const compressed = join(dir, file);
+    h.run(["convert", ply, compressed]);
+    const other = await h.serve(["--scene", scene, "--ply", compressed, "--out", join(dir, `serve-${file}`)]);
+    const cpage = await browser.newPage({ viewport: { width: 900, height: 600 } });
+    errors.push(...h.collectErrors(cpage));
+    await cpage.goto(other.page("view=1&exact=1"));
+    await cpage.evaluate(() => window.instainpaint.ready);
+    await h.frames(cpage, 10);
+    const cshot = join(dir, `page-view_001-${file}.png`);
+    writeFileSync(cshot, await cpage.locator("canvas").first().screenshot());
+    const mc = JSON.parse(h.run(["metrics", cshot, join(dir, "render", "rgb", "0000.png"), "--json"]));
+    const cpsnr = mc.psnr === "inf" ? Infinity : mc.psnr;
+    console.log(`page (${file}) vs render of the float PLY from view_001: PSNR ${cpsnr.toFixed(2)} dB, SSIM ${mc.ssim.toFixed(3)}`);
+    h.check(cpsnr >= 35, `${file} written here is drawn like the PLY's render (PSNR ${cpsnr.toFixed(2)} >= 35 dB)`);
+    await cpage.close();
+    other.stop();
+  }
 
   const coverage = await page.evaluate(drawnFraction);
   h.check(coverage > 0.5, `the canvas is not blank (${(100 * coverage).toFixed(0)} % of pixels drawn)`);
