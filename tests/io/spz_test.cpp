@@ -192,6 +192,14 @@ TEST(Spz, RoundTripsWithinEachAttributesQuantisation) {
   }
 }
 
+TEST(Spz, NoSplatsReadAsNoSplats) {
+  SplatCloud none;
+  none.sh_rest_per_channel = 3;
+  const std::vector<uint8_t> bytes = encode_spz(none, "none.spz");
+  EXPECT_EQ(decode_spz(bytes.data(), bytes.size(), "none.spz").size(), 0u);
+  EXPECT_EQ(read_spz(write("none-v4.spz", version4({"", "", "", "", "", ""}, 0, 1))).size(), 0u);
+}
+
 TEST(Spz, FarPositionsGetFewerFractionalBits) {
   SplatCloud c = test::random_splats(4, 0, 3, 20.f);
   c.means[0] = 3000.25f;  // beyond 2^23 / 4096 = 2048: 11 bits
