@@ -172,7 +172,7 @@ void run(const RenderArgs& a) {
 
 void add_render_command(CLI::App& app) {
   auto a = std::make_shared<RenderArgs>();
-  auto* cmd = app.add_subcommand("render", "Render a splat PLY to images and a video");
+  auto* cmd = app.add_subcommand("render", "Render a splat file (PLY, compressed PLY, SPZ, SOG) to images and a video");
   cmd->add_option("--splats,--ply", a->ply,
                   "Gaussian splat file: standard 3DGS PLY, SuperSplat compressed PLY, Niantic SPZ or PlayCanvas SOG")
       ->required()
