@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <optional>
 
 #include "common/error.h"
 #include "io/sog.h"
@@ -20,17 +21,22 @@ bool ends_with(const std::string& s, const std::string& tail) {
 }
 }  // namespace
 
-bool is_splat_file_name(const std::filesystem::path& path) {
-  const std::string name = lower_name(path);
-  return ends_with(name, ".ply") || ends_with(name, ".spz") || ends_with(name, ".sog") || name == "meta.json";
-}
-
-SplatFormat splat_format_of(const std::filesystem::path& path) {
+namespace {
+// The format a name says, if any: the one list of suffixes both functions below read.
+std::optional<SplatFormat> format_by_name(const std::filesystem::path& path) {
   const std::string name = lower_name(path);
   if (ends_with(name, ".compressed.ply")) return SplatFormat::CompressedPly;
   if (ends_with(name, ".ply")) return SplatFormat::Ply;
   if (ends_with(name, ".spz")) return SplatFormat::Spz;
   if (ends_with(name, ".sog") || name == "meta.json") return SplatFormat::Sog;
+  return std::nullopt;
+}
+}  // namespace
+
+bool is_splat_file_name(const std::filesystem::path& path) { return format_by_name(path).has_value(); }
+
+SplatFormat splat_format_of(const std::filesystem::path& path) {
+  if (const std::optional<SplatFormat> format = format_by_name(path)) return *format;
   fail_file(path,
             "not a splat file name: use .ply (3DGS), .compressed.ply (SuperSplat), .spz (Niantic) or .sog (PlayCanvas)");
 }
