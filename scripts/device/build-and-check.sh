@@ -10,7 +10,7 @@
 #   5. times the network: release model, 4 x 512² and 4 x 512 x 904, fast path, CUDA graph and
 #      the official code's way of computing in the same run;
 #   6. times `eval` end to end on a synthetic room with 40 test views at 904 x 512;
-#   7. refines the statue on the GPU (every 8th view held out, preset fast) for ms per step.
+#   7. refines the statue on the GPU (every 8th view held out, $REFINE: default preset fast) for ms per step.
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
 #   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared"], timeout_s=600)
 # STEPS="training ..." adds a training-throughput probe; STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
@@ -19,6 +19,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}
 STEPS=${STEPS:-"tests bench eval refine"}
+REFINE=${REFINE:-fast}
 BUILD=build-gpu
 mkdir -p "$OUT"
 exec > >(tee -a "$OUT/build-and-check.log") 2>&1
@@ -34,7 +35,9 @@ source scripts/device/deps.sh
 device_deps_from_debs
 
 step "configure and build ($BUILD): the recipe of make test-gpu-build, with this machine's PyTorch"
-if ! JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build "$BUILD" --cuda-arch 9.0 > "$OUT/build.log" 2>&1; then
+targets=()  # without the tests, the program alone
+[[ " $STEPS " == *" tests "* ]] || targets=(--target instainpaint)
+if ! JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build "$BUILD" --cuda-arch 9.0 "${targets[@]}" > "$OUT/build.log" 2>&1; then
   tail -60 "$OUT/build.log"
   echo "build failed (whole log: build.log)"
   exit 1
@@ -98,8 +101,8 @@ print(', '.join(f'{k} {v:.0f}' for k, v in t.items()))" "/tmp/ii-eval-$model/met
   done
 fi
 if [[ " $STEPS " == *" refine "* ]]; then
-  step "refinement on the GPU: statue, every 8th view held out, 256 high, preset fast"
-  "$BIN" eval --device cuda --scene .device/shared/data/statue --hold-out-every 8 --height 256 --refine fast \
+  step "refinement on the GPU: statue, every 8th view held out, 256 high, --refine $REFINE"
+  "$BIN" eval --device cuda --scene .device/shared/data/statue --hold-out-every 8 --height 256 --refine "$REFINE" \
     --no-report --out /tmp/ii-refine-statue > "$OUT/refine-statue.log" 2>&1 || tail -20 "$OUT/refine-statue.log"
   python3 -c "import json, sys; m = json.load(open(sys.argv[1])); r = m['prediction']['after_prediction']['refine']
 print('outside the mask: PSNR %.2f SSIM %.3f; %d steps, %.1f ms/step, %.1f s' % (m['mean']['outside_psnr'],

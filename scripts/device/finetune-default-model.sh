@@ -1,0 +1,63 @@
+#!/usr/bin/env bash
+# Run ON a lent GPU machine: continues training the embedded default model (preset `mini`,
+# models/default.safetensors) in bf16, first at 128 x 128 (the model card's rooms), then at
+# 256 x 256 (where the statue is judged and `mini` never trained). Starting from the embedded
+# model, a short call can only add to it; a 10 M `medium` model from scratch needed far more
+# than one call (session 12, docs/benchmarks.md). Data as the model card's: synthetic rooms
+# (seed 1001), the validation rooms (seed 777001), and the real fern and statue (fox is left
+# out to fit the 64 MiB a call carries). The judging happens afterwards on any machine
+# (scripts/measure-refinement.sh --steps 0 with --checkpoint). Writes to $OUT:
+#   model-128.safetensors, model-256.safetensors  each phase's model (the 256 one updated while it trains)
+#   train.log, log-128.jsonl, log-256.jsonl
+# Here, before: scripts/device/prepare.sh; then
+#   run(command="bash scripts/device/finetune-default-model.sh",
+#       carry=[".device/debs", ".device/shared/data/statue", ".device/scenes/fern"], timeout_s=590)
+# Environment: STEPS_128, STEPS_256 (steps of each phase), SECONDS_128, SECONDS_256 (each phase is
+# stopped after this long; its last checkpoint counts), ROOMS, WORKERS.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+OUT=${OUT:-$PWD/device-out}
+STEPS_128=${STEPS_128:-250}
+STEPS_256=${STEPS_256:-450}
+SECONDS_128=${SECONDS_128:-110}
+SECONDS_256=${SECONDS_256:-140}
+ROOMS=${ROOMS:-64}
+WORKERS=${WORKERS:-12}
+WORK=/tmp/ii-finetune
+mkdir -p "$OUT" "$WORK"
+exec > >(tee -a "$OUT/train.log") 2>&1
+step() { printf '\n== %s (%s)\n' "$*" "$(date +%T)"; }
+
+step "build (the program alone)"
+source scripts/device/deps.sh
+device_deps_from_debs
+JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build build-gpu --cuda-arch 9.0 \
+  --target instainpaint > "$OUT/build.log" 2>&1 || { tail -40 "$OUT/build.log"; exit 1; }
+BIN=build-gpu/instainpaint
+nvidia-smi --query-gpu=name,memory.total --format=csv,noheader || true
+
+step "training rooms ($ROOMS, seed 1001) and validation rooms (6, seed 777001) at 256 x 256"
+"$BIN" synth --out "$WORK/train" --scenes "$ROOMS" --seed 1001 --views 20 --test-views 4 --width 256 \
+  --height 256 --degrade mixed --threads "$(nproc)" 2>&1 | tail -1
+"$BIN" synth --out "$WORK/val" --scenes 6 --seed 777001 --views 20 --test-views 4 --width 256 --height 256 \
+  --degrade mixed --threads "$(nproc)" 2>&1 | tail -1
+
+# The phase's model goes to $OUT while it trains: a call cut short still brings one back.
+phase() {  # size batch steps seconds lr init
+  local size=$1 batch=$2 steps=$3 seconds=$4 lr=$5 init=$6 run="$WORK/run-$1"
+  step "phase at $size x $size: $steps steps, batch $batch, peak lr $lr, at most $seconds s"
+  ( while sleep 15; do [ -f "$run/model.safetensors" ] && cp "$run/model.safetensors" "$OUT/model-$size.safetensors.tmp" &&
+      mv "$OUT/model-$size.safetensors.tmp" "$OUT/model-$size.safetensors"; done ) &
+  local copier=$!
+  timeout "$seconds" "$BIN" train --scenes "$WORK/train,.device/scenes/fern,.device/shared/data/statue" \
+    --val-scenes "$WORK/val" --out "$run" --stage inpaint --init "$init" --width "$size" --height "$size" \
+    --inputs 4 --targets 4 --batch "$batch" --steps "$steps" --lr "$lr" --warmup 30 --depth-weight 0.2 \
+    --device cuda --precision bf16 --workers "$WORKERS" --val-every 100000 --val-samples 12 --save-every 50 \
+    --log-every 25 || echo "phase $size stopped early (status $?)"
+  kill "$copier" || true
+  cp "$run/model.safetensors" "$OUT/model-$size.safetensors"
+  cp "$run/log.jsonl" "$OUT/log-$size.jsonl"
+}
+phase 128 16 "$STEPS_128" "$SECONDS_128" 3e-4 models/default.safetensors
+phase 256 8 "$STEPS_256" "$SECONDS_256" 2e-4 "$WORK/run-128/model.safetensors"
+step "done"
