@@ -18,6 +18,8 @@ device_deps_from_debs() {
   # Debian's OpenCV loads BLAS/LAPACK through alternatives that dpkg-deb -x does not set up.
   export LD_LIBRARY_PATH="$libs:$libs/openblas-pthread:$DEPS/lib/x86_64-linux-gnu${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
   export CMAKE_PREFIX_PATH="$DEPS/usr${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
+  # libraries linked by name (-lzstd, -lwebp, -lz) are found by the compiler driver here
+  export LIBRARY_PATH="$libs${LIBRARY_PATH:+:$LIBRARY_PATH}"
   export PKG_CONFIG=$DEPS/usr/bin/pkgconf
   export PKG_CONFIG_LIBDIR="$libs/pkgconfig:$DEPS/usr/share/pkgconfig" PKG_CONFIG_SYSROOT_DIR=$DEPS
 }

@@ -23,6 +23,7 @@ PACKAGES=(
   libgloo-dev  # Gloo's headers (CPU data-parallel training), which the machines' PyTorch lacks
   libgtest-dev libgmock-dev libbenchmark-dev libbenchmark1debian
   libcpp-httplib-dev libcpp-httplib0.11 libbrotli1 libssl3
+  libwebp-dev libwebp7 libwebpmux3 libwebpdemux2 libzstd-dev libzstd1  # SPZ (zstd) and SOG (webp)
   pkgconf pkgconf-bin libpkgconf3  # the build finds cpp-httplib through pkg-config,
   libssl-dev zlib1g-dev libbrotli-dev  # whose .pc file requires theirs
   # what Debian's OpenCV 4.6 loads
