@@ -572,7 +572,9 @@ json run_evaluation(const EvalOptions& o) {
   int working_width = 0, working_height = 0;
   // The CPU work around the renders runs beside them: the next views are decoded ahead, and
   // the renders' PNGs are encoded and written behind (on a GPU it is most of the wall time).
-  const size_t cpu_threads = static_cast<size_t>(std::max(2, at::get_num_threads()));
+  // Each side gets half the cores: the main thread launches the renders and needs one too
+  // (with all cores on each side, a 16-core GPU machine's renders and metrics slowed 2-3x).
+  const size_t cpu_threads = static_cast<size_t>(std::max(2, at::get_num_threads() / 2));
   std::deque<std::future<PreparedView>> decoding;
   size_t next_to_decode = 0;
   auto decode_ahead = [&] {
@@ -630,22 +632,41 @@ json run_evaluation(const EvalOptions& o) {
     };
     {
       torch::NoGradGuard no_grad;
+      // The view's metrics come back in one transfer: on a GPU each value read waits for the device.
+      std::vector<std::string> keys;
+      std::vector<torch::Tensor> values;
+      auto later = [&](const char* key, const torch::Tensor& value) {
+        keys.emplace_back(key);
+        values.push_back(value.reshape({}).to(torch::kDouble));
+      };
       if (pv.mask) {
         // Held-out views show the object the prediction removed: only the rest compares.
         const torch::Tensor outside = (m <= 0.5).to(m.dtype());
-        put("outside_psnr", masked_psnr(a, b, outside)[0].item<double>());
-        put("outside_ssim", masked_ssim(a, b, outside)[0].item<double>());
-        v["mask_pixels"] = (m > 0.5).sum().item<int64_t>();
+        later("outside_psnr", masked_psnr(a, b, outside)[0]);
+        later("outside_ssim", masked_ssim(a, b, outside)[0]);
+        later("mask_pixels", (m > 0.5).sum());
       }
       if (!view.shows_object) {
-        put("psnr", psnr(a, b)[0].item<double>());
-        put("ssim", ssim(a, b)[0].item<double>());
+        later("psnr", psnr(a, b)[0]);
+        later("ssim", ssim(a, b)[0]);
         if (pv.mask) {
-          put("masked_psnr", masked_psnr(a, b, m)[0].item<double>());
-          put("masked_ssim", masked_ssim(a, b, m)[0].item<double>());
-          put("box_psnr", box_psnr(a, b, m));
-          put("box_ssim", box_ssim(a, b, m));
+          later("masked_psnr", masked_psnr(a, b, m)[0]);
+          later("masked_ssim", masked_ssim(a, b, m)[0]);
         }
+      }
+      if (!values.empty()) {
+        const torch::Tensor read = torch::stack(values).to(torch::kCPU);
+        for (size_t i = 0; i < keys.size(); ++i) {
+          const double value = read[static_cast<int64_t>(i)].item<double>();
+          if (keys[i] == "mask_pixels")
+            v["mask_pixels"] = static_cast<int64_t>(value);
+          else
+            put(keys[i], value);
+        }
+      }
+      if (!view.shows_object && pv.mask) {
+        put("box_psnr", box_psnr(a, b, m));
+        put("box_ssim", box_ssim(a, b, m));
       }
       image_metrics_ms += step.lap();
 
