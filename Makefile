@@ -1,6 +1,7 @@
 # The two commands of the README. Both install missing Debian packages first.
 #   make demo   build, then run the main job and write demo-out/
-#   make test   build everything and run every test (plus the sanitizer build of the parsers)
+#   make test   build everything and run every test (plus the sanitizer build of the parsers
+#               and the Python package's tests)
 #   make test-gpu-build   the same against PyPI's LibTorch 2.x with the CUDA code compiled
 #               (scripts/gpu/build.sh; tests that need a GPU skip themselves without one)
 JOBS ?= $(shell nproc)
@@ -14,7 +15,7 @@ SHARED ?= ../shared
 
 FUZZ_SECONDS ?= 60
 
-.PHONY: all deps build demo test test-main san-build test-asan test-gpu-build fuzz bench clean
+.PHONY: all deps build demo test test-main san-build test-asan test-python python test-gpu-build fuzz bench clean
 
 all: build
 
@@ -28,7 +29,7 @@ build: deps
 demo: build
 	@bash scripts/demo.sh $(BUILD)/instainpaint
 
-test: test-main test-asan
+test: test-main test-asan test-python
 
 test-main: build
 	@cd $(BUILD) && OMP_NUM_THREADS=$(TEST_THREADS) ctest --output-on-failure -j $(JOBS)
@@ -43,6 +44,13 @@ san-build: deps
 test-asan: san-build
 	@cd $(SAN_BUILD) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 ctest --output-on-failure -j $(JOBS)
 
+# The Python package (pip install . into the project-local .venv-py) and its tests.
+python: build
+	@bash scripts/python-package.sh
+
+test-python: build
+	@OMP_NUM_THREADS=$(TEST_THREADS) bash scripts/python-package.sh --test
+
 # PyPI's torch + NVIDIA's CUDA compiler in the project-local .venv-gpu (pinned in
 # scripts/gpu/requirements.txt), the CUDA code compiled, every test run.
 test-gpu-build: deps
@@ -56,4 +64,4 @@ bench: build
 	@$(BUILD)/instainpaint bench
 
 clean:
-	rm -rf $(BUILD) $(SAN_BUILD) $(GPU_BUILD) demo-out fuzz-findings
+	rm -rf $(BUILD) $(SAN_BUILD) $(GPU_BUILD) demo-out fuzz-findings .venv-py

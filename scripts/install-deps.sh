@@ -18,12 +18,12 @@ PACKAGES=(
   colmap                        # capture: poses photos and video frames (CPU SIFT and mapping)
   libcpp-httplib-dev            # serve
   chromium                      # the browser tests of serve's page (headless, software WebGL)
+  python3-dev python3-venv      # the Python package (pip install .; its tests in .venv-py)
+  python3-numpy python3-torch   # ... its arrays, and Debian's torch on the same LibTorch, side by side
 )
 # Node.js and npm bundle the page (web/); a machine that has them (e.g. from NodeSource) keeps its own.
 command -v node > /dev/null || PACKAGES+=(nodejs)
 command -v npm > /dev/null || PACKAGES+=(npm)
-# `make test-gpu-build` makes a virtual environment; Debian's python3 needs python3-venv for that.
-python3 -c 'import ensurepip, venv' 2> /dev/null || PACKAGES+=(python3-venv)
 
 missing=()
 for p in "${PACKAGES[@]}"; do

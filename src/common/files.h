@@ -41,4 +41,18 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view bytes
 // Whether `file` is the temporary of a write_file_atomic that a killed process left behind.
 bool is_atomic_write_leftover(const std::filesystem::path& file);
 
+// A fresh folder of its own in the system's temporary folder ($TMPDIR), removed with all it
+// holds when the object goes.
+class TemporaryFolder {
+ public:
+  explicit TemporaryFolder(const std::string& prefix);
+  ~TemporaryFolder();
+  TemporaryFolder(const TemporaryFolder&) = delete;
+  TemporaryFolder& operator=(const TemporaryFolder&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
 }  // namespace ii

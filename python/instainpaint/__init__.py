@@ -1,0 +1,202 @@
+"""instainpaint: remove, replace or insert an object in a 3D scene from one edited photo.
+
+A thin layer over the C++ library that the `instainpaint` command uses (same code, same
+results, byte for byte). A scene's few posed photos, its object masks and one photo edited
+by any 2D inpainter go through a transformer that predicts one 3D Gaussian per input pixel;
+the Gaussians render the edited scene from any camera.
+
+    import instainpaint as ii
+
+    scene = ii.load_scene("statue", hold_out_every=8)      # LLFF/SPIn-NeRF, nerfstudio, COLMAP
+    predictor = ii.Predictor()                              # the built-in model; or checkpoint="x.pth"
+    gaussians = predictor.predict(scene, reference="inpainted.png")
+    gaussians = gaussians.refine(scene, preset="fast", progress=print)
+    gaussians.save("statue.spz")                            # .ply, .compressed.ply, .spz, .sog
+    rgb = gaussians.render(scene.camera(scene.test_views[0], height=256))  # H x W x 3 float32
+
+Arrays come out as NumPy arrays over the library's memory, without a copy; hand them to
+torch.from_dlpack (or JAX, CuPy) for a tensor over the same memory. Arrays go in as anything
+with the buffer protocol or DLPack (NumPy, torch, ...), float in [0, 1] or uint8.
+Errors raise `instainpaint.Error` (a RuntimeError) with the library's message. Long calls
+release the GIL.
+"""
+from __future__ import annotations
+
+import json
+import os
+from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple, Union
+
+from . import _core
+from ._core import Camera, Error, Scene
+
+__all__ = [
+    "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
+    "masks_from_one",
+]
+__version__ = "0.1.0"
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def _path(p: Optional[PathLike]) -> Optional[str]:
+    return None if p is None else os.fspath(p)
+
+
+def load_scene(path: PathLike, *, masks: Optional[PathLike] = None, hold_out_every: int = 0,
+               keep_object: bool = False, format: str = "auto", images: str = "") -> Scene:
+    """Reads a scene folder: LLFF/SPIn-NeRF, nerfstudio or COLMAP (detected when format="auto").
+
+    masks: a folder of object masks, matched to the views by file stem (else the scene's own).
+    hold_out_every: N > 0 holds input views 0, N, 2N, ... out as test views (3DGS's protocol).
+    keep_object: with hold_out_every, a reconstruction (held-out views are compared whole).
+    images: the image sub-folder to read (e.g. "images_4"); empty = the format's default.
+    """
+    return _core._load_scene(os.fspath(path), format, images, _path(masks), hold_out_every, keep_object)
+
+
+ProgressCallback = Callable[[Dict[str, Any]], Any]
+
+
+class Gaussians:
+    """3D Gaussians: one per input pixel from a prediction, or read from a splat file.
+
+    Attributes (NumPy arrays over the library's memory): means (N, 3), quats (N, 4; w, x, y, z),
+    scales (N, 3), opacities (N,), colors (N, 3) RGB or (N, K, 3) spherical harmonics.
+    A prediction lives in the frame the network normalised the scene's poses to; render()
+    takes the scene's own cameras and save() writes that frame, as `instainpaint infer` does.
+    """
+
+    def __init__(self, core: "_core.Gaussians"):
+        self._g = core
+
+    def __len__(self) -> int:
+        return len(self._g)
+
+    def __repr__(self) -> str:
+        return f"Gaussians({len(self)} on {self.device}, sh_degree={self.sh_degree})"
+
+    means = property(lambda self: self._g.means, doc="(N, 3) positions")
+    quats = property(lambda self: self._g.quats, doc="(N, 4) rotations as quaternions (w, x, y, z)")
+    scales = property(lambda self: self._g.scales, doc="(N, 3) standard deviations")
+    opacities = property(lambda self: self._g.opacities, doc="(N,) opacities in (0, 1)")
+    colors = property(lambda self: self._g.colors, doc="(N, 3) RGB, or (N, K, 3) SH coefficients")
+    sh_degree = property(lambda self: self._g.sh_degree, doc="-1 for RGB colours, else the SH degree")
+    device = property(lambda self: self._g.device, doc='"cpu" or "cuda:N"')
+    context = property(lambda self: list(self._g.context),
+                       doc="the views the network saw, reference first (empty for a file)")
+
+    @property
+    def refine_report(self) -> Optional[dict]:
+        """What the refinement that made these did (steps, time, loss, densification), or None."""
+        text = self._g._refine_report
+        return json.loads(text) if text else None
+
+    def save(self, path: PathLike) -> None:
+        """Writes a splat file, the format by name: .ply, .compressed.ply, .spz, .sog or meta.json."""
+        self._g.save(os.fspath(path))
+
+    def render(self, camera: Camera, *, background: Sequence[float] = (1.0, 1.0, 1.0), depth: bool = False):
+        """Renders the Gaussians seen by `camera` (in the scene's frame): H x W x 3 float32 RGB;
+        with depth=True also the H x W expected depth (0 where nothing was hit)."""
+        rgb, z = self._g._render(camera, tuple(float(c) for c in background))
+        return (rgb, z) if depth else rgb
+
+    def render_video(self, scene: Scene, path: PathLike, *, trajectory: str = "orbit", frames: int = 48,
+                     height: int = 256, fps: int = 24, progress: Optional[Callable[[int, int], Any]] = None) -> None:
+        """Renders a camera path around `scene` to an MP4 video (ffmpeg): "orbit" (the official
+        orbit around the scene's cameras, square frames), "path" (a smooth path through the
+        views) or "views" (the views' own cameras). progress(done, total) after each frame."""
+        self._g._render_video(scene, os.fspath(path), trajectory, frames, height, fps, progress)
+
+    def refine(self, scene: Scene, *, preset: str = "balanced", sh_degree: int = 0,
+               position_rate: Optional[float] = None, exposure: bool = False,
+               progress: Optional[ProgressCallback] = None) -> "Gaussians":
+        """Optimises a prediction against every view of its scene (3DGS-style, with densification)
+        and returns the refined Gaussians; these stay as they are.
+
+        preset: "fast" (1 minute), "balanced" (5), "best" (10), a time ("90s", "2m") or a step count.
+        progress: called after each step with {"step", "fraction", "loss", "eta_s", "gaussians"};
+        an exception it raises stops the refinement and propagates.
+        """
+        call = None
+        if progress is not None:
+            def call(step, fraction, loss, eta_s, count):
+                progress({"step": step, "fraction": fraction, "loss": loss, "eta_s": eta_s, "gaussians": count})
+        return Gaussians(self._g._refine(scene, str(preset), sh_degree, position_rate, exposure, call))
+
+
+def load_gaussians(path: PathLike) -> Gaussians:
+    """Reads a splat file (.ply, .compressed.ply, .spz, .sog or meta.json) in its own frame."""
+    return Gaussians(_core._read_splats(os.fspath(path)))
+
+
+class Predictor:
+    """A model loaded once, predicting as often as needed.
+
+    checkpoint: the released InstaInpaint .pth, a safetensors file, or None for the model built
+    into the library. device: "auto" (a GPU when there is one), "cpu", "cuda", "cuda:N".
+    precision: "auto" (bf16 on a GPU and on CPUs with native bf16), "fp32" or "bf16".
+    """
+
+    def __init__(self, checkpoint: Optional[PathLike] = None, *, device: str = "auto", precision: str = "auto"):
+        self._p = _core.Predictor(_path(checkpoint) or "", device, precision)
+
+    model = property(lambda self: self._p.model, doc="the checkpoint's file, or the built-in model's name")
+    device = property(lambda self: self._p.device)
+    precision = property(lambda self: self._p.precision)
+
+    @property
+    def config(self) -> dict:
+        """The model's configuration (layers, widths, patch size, ...)."""
+        return json.loads(self._p._describe)["config"]
+
+    def __repr__(self) -> str:
+        return f"Predictor({self.model!r}, device={self.device!r}, precision={self.precision!r})"
+
+    def predict(self, scene: Scene, *, context: Sequence[str] = (), views: int = 4,
+                reference: Union[PathLike, Any, None] = None, reference_view: str = "", height: int = 256,
+                masks: Optional[Mapping[str, Any]] = None, keep_object: bool = False) -> Gaussians:
+        """Predicts the inpainted scene's Gaussians in one forward pass.
+
+        context: view names, reference first (default: `views` views chosen around the reference).
+        reference: the 2D-inpainted reference photo, a file or an H x W x 3 array (default: OpenCV's
+        Telea inpainting of the reference view, a stand-in for a real 2D inpainter).
+        height: the working height in pixels (a multiple of the patch size after scaling).
+        masks: object masks by view name (H x W arrays at the photos' size), instead of the scene's.
+        keep_object: reconstruct the scene as captured (no masks, the reference's own photo).
+        """
+        if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
+            reference = os.fspath(reference)
+        return Gaussians(self._p._predict(scene, list(context), views, reference, reference_view, height,
+                                          keep_object, dict(masks or {})))
+
+
+def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,
+                   predictor: Optional[Predictor] = None, height: int = 256,
+                   views: int = 4) -> Tuple[Dict[str, Any], dict]:
+    """Masks for every view of the scene from one region marked on one view (`instainpaint masks`).
+
+    region: a mask file or an H x W array at the view's photo size (> 0.5 = marked).
+    The region is lifted to 3D with the scene's COLMAP points when it has them, else with the
+    predictor's depth (pass one). Returns ({view name: H x W float32 mask}, a report of how).
+    """
+    if isinstance(region, str) or hasattr(region, "__fspath__"):
+        region = os.fspath(region)
+    masks, report = _core._masks_from_one(scene, view, region, predictor._p if predictor else None, height, views)
+    return masks, json.loads(report)
+
+
+def evaluate(scene: PathLike, out: PathLike, *, method: str = "model", checkpoint: Optional[PathLike] = None,
+             gaussians: Optional[PathLike] = None, reference: Optional[PathLike] = None, context: Sequence[str] = (),
+             views: int = 4, height: int = 512, hold_out_every: int = 0, keep_object: bool = False,
+             refine: str = "", device: str = "auto", report: bool = True) -> dict:
+    """The evaluation protocol of `instainpaint eval`: renders every test view, writes `out`
+    (renders, metrics.json, a report) and returns metrics.json's content.
+
+    method: "model" (the network: `checkpoint`, None = built-in; or `gaussians`, a splat file),
+    "telea" or "mean-fill" (2D baselines). refine: a --refine setting ("fast", "90s", ...).
+    """
+    text = _core._evaluate(os.fspath(scene), os.fspath(out), method, _path(checkpoint), _path(gaussians),
+                           _path(reference), list(context), views, height, hold_out_every, keep_object, str(refine),
+                           device, report)
+    return json.loads(text)

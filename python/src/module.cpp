@@ -1,0 +1,433 @@
+// The Python module `instainpaint._core`: a thin layer over the library, like the CLI. Python's
+// own conveniences (docstrings of the package, dicts from JSON, path handling) live in
+// python/instainpaint/__init__.py; everything here is a call into the library.
+//
+// Arrays: attributes, renders and depth leave as NumPy arrays over the library's own memory
+// (no copy; they keep it alive), which any DLPack consumer (torch.from_dlpack, jax, cupy)
+// takes without a copy either; on a GPU they leave as DLPack-capable arrays on the device.
+// Arrays in (images, masks) may be anything with the buffer protocol or DLPack, float in [0, 1]
+// or uint8; they are copied into the library's images.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/function.h>
+#include <nanobind/stl/map.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/pair.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <memory>
+
+#include "common/error.h"
+#include "common/files.h"
+#include "data/scene_cameras.h"
+#include "io/video.h"
+#include "render/frames.h"
+#include "common/torch.h"
+#include "edit/scene_masks.h"
+#include "eval/protocol.h"
+#include "io/image.h"
+#include "io/splat_file.h"
+#include "model/device.h"
+#include "model/predictor.h"
+#include "refine/refine.h"
+#include "render/rasterizer.h"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace ii::python {
+namespace {
+
+// ---- arrays --------------------------------------------------------------------------------
+
+// A float32 tensor as an array sharing its memory; the capsule keeps the tensor alive.
+nb::object array_of(torch::Tensor t) {
+  t = t.contiguous();
+  if (t.scalar_type() != torch::kFloat) t = t.to(torch::kFloat);
+  auto* kept = new torch::Tensor(t);
+  nb::capsule owner(kept, [](void* p) noexcept { delete static_cast<torch::Tensor*>(p); });
+  std::vector<size_t> shape(t.sizes().begin(), t.sizes().end());
+  if (t.is_cuda()) {
+    return nb::cast(nb::ndarray<float>(t.data_ptr<float>(), shape.size(), shape.data(), owner, nullptr,
+                                       nb::dtype<float>(), nb::device::cuda::value, t.get_device()));
+  }
+  return nb::cast(nb::ndarray<nb::numpy, float>(t.data_ptr<float>(), shape.size(), shape.data(), owner));
+}
+
+using AnyArray = nb::ndarray<nb::ro, nb::device::cpu>;
+
+// An image from an H x W (x C) array: float in [0, 1] (any float type) or uint8 in [0, 255].
+Image image_of(const AnyArray& a, const char* what, int channels) {
+  if (a.ndim() != 2 && a.ndim() != 3) fail("{}: expected an H x W{} array, got {} dimensions", what,
+                                           channels == 1 ? "" : " x 3", a.ndim());
+  const int h = static_cast<int>(a.shape(0)), w = static_cast<int>(a.shape(1));
+  const int c = a.ndim() == 3 ? static_cast<int>(a.shape(2)) : 1;
+  if (c != channels) fail("{}: expected {} channel{}, got an array of shape ({}, {}, {})", what, channels,
+                          channels == 1 ? "" : "s", h, w, c);
+  if (h == 0 || w == 0) fail("{}: the array is empty", what);
+  // As a tensor over the caller's memory (strides honoured), then one copy into the image.
+  std::vector<int64_t> shape{h, w, c}, strides{a.stride(0), a.stride(1), a.ndim() == 3 ? a.stride(2) : 1};
+  torch::ScalarType type;
+  if (a.dtype() == nb::dtype<uint8_t>()) type = torch::kByte;
+  else if (a.dtype() == nb::dtype<float>()) type = torch::kFloat;
+  else if (a.dtype() == nb::dtype<double>()) type = torch::kDouble;
+  else if (a.dtype() == nb::dtype<bool>()) type = torch::kBool;
+  else fail("{}: unsupported element type (use float32, float64, uint8 or bool)", what);
+  torch::Tensor t = torch::from_blob(const_cast<void*>(a.data()), shape, strides, torch::TensorOptions(type));
+  t = type == torch::kByte ? t.to(torch::kFloat) / 255.0 : t.to(torch::kFloat);
+  t = t.contiguous();
+  Image image(w, h, c);
+  std::memcpy(image.pixels.data(), t.data_ptr<float>(), image.pixels.size() * sizeof(float));
+  return image;
+}
+
+nb::object array_of(const Image& image) {
+  torch::Tensor t = torch::from_blob(const_cast<float*>(image.pixels.data()), {image.height, image.width, image.channels},
+                                     torch::kFloat)
+                        .clone();
+  if (image.channels == 1) t = t.squeeze(2);
+  return array_of(t);
+}
+
+// ---- cameras -------------------------------------------------------------------------------
+
+Eigen::Matrix4d matrix_of(const std::vector<std::vector<double>>& rows) {
+  if (rows.size() != 4) fail("c2w: expected 4 rows, got {}", rows.size());
+  Eigen::Matrix4d m;
+  for (int r = 0; r < 4; ++r) {
+    if (rows[r].size() != 4) fail("c2w: row {} has {} numbers, expected 4", r, rows[r].size());
+    for (int c = 0; c < 4; ++c) m(r, c) = rows[r][c];
+  }
+  return m;
+}
+
+std::vector<std::vector<double>> rows_of(const Eigen::Matrix4d& m) {
+  std::vector<std::vector<double>> rows(4, std::vector<double>(4));
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) rows[r][c] = m(r, c);
+  return rows;
+}
+
+const View& view_of(const Scene& scene, const std::string& name) {
+  const View* v = scene.find(name);
+  if (!v) fail("{}: no view named '{}'", scene.root.string(), name);
+  return *v;
+}
+
+// ---- what Python holds ---------------------------------------------------------------------
+
+// Gaussians with what they came from: the frame they live in (the prediction's pose
+// normalisation), and for a prediction what refinement needs (the prediction and its input).
+struct PyGaussians {
+  GaussianSet set;
+  PoseNormalization normalization;
+  std::shared_ptr<const Prediction> prediction;
+  std::shared_ptr<const SceneInputOptions> input;
+  std::string refine_report;  // JSON of the refinement that made these, if one did
+};
+
+SceneInputOptions input_options(const std::vector<std::string>& context, int views, const nb::object& reference,
+                                const std::string& reference_view, int height, bool keep_object,
+                                const std::map<std::string, AnyArray>& masks) {
+  SceneInputOptions o;
+  o.context = context;
+  o.num_views = views;
+  o.reference_view = reference_view;
+  o.preprocess.height = height;
+  o.keep_object = keep_object;
+  if (!reference.is_none()) {
+    if (nb::isinstance<nb::str>(reference) || nb::hasattr(reference, "__fspath__"))
+      o.reference = std::filesystem::path(nb::cast<std::string>(nb::str(reference)));
+    else
+      o.reference_image = image_of(nb::cast<AnyArray>(reference), "reference", 3);
+  }
+  for (const auto& [name, mask] : masks) o.masks[name] = image_of(mask, ("mask of " + name).c_str(), 1);
+  return o;
+}
+
+// A progress callback from Python, called with the GIL held; its exceptions stop the work.
+template <typename... Args>
+std::function<void(Args...)> with_gil(const std::function<void(Args...)>& f) {
+  if (!f) return {};
+  return [f](Args... args) {
+    nb::gil_scoped_acquire gil;
+    f(args...);
+  };
+}
+
+}  // namespace
+
+NB_MODULE(_core, m) {
+  m.doc() = "instainpaint's library (see the package `instainpaint` for documentation).";
+  nb::exception<Error>(m, "Error", PyExc_RuntimeError);
+
+  m.def("_set_up", [](const std::string& device, int threads, const std::string& precision) {
+    const Runtime r = set_up_runtime(device, threads, precision);
+    return std::make_pair(r.device.str(), std::string(precision_name(r.precision)));
+  });
+
+  nb::class_<Camera>(m, "Camera")
+      .def("__init__",
+           [](Camera* c, int width, int height, double fx, double fy, double cx, double cy,
+              const std::vector<std::vector<double>>& c2w) {
+             new (c) Camera();
+             if (width <= 0 || height <= 0) fail("Camera: width and height must be positive, got {}x{}", width, height);
+             c->K = Intrinsics{width, height, fx, fy, cx, cy};
+             c->c2w = matrix_of(c2w);
+           },
+           "width"_a, "height"_a, "fx"_a, "fy"_a, "cx"_a, "cy"_a, "c2w"_a)
+      .def_prop_ro("width", [](const Camera& c) { return c.K.width; })
+      .def_prop_ro("height", [](const Camera& c) { return c.K.height; })
+      .def_prop_ro("fx", [](const Camera& c) { return c.K.fx; })
+      .def_prop_ro("fy", [](const Camera& c) { return c.K.fy; })
+      .def_prop_ro("cx", [](const Camera& c) { return c.K.cx; })
+      .def_prop_ro("cy", [](const Camera& c) { return c.K.cy; })
+      .def_prop_ro("c2w", [](const Camera& c) { return rows_of(c.c2w); })
+      .def("resized", &Camera::resized, "width"_a, "height"_a)
+      .def("__repr__", [](const Camera& c) {
+        return fmt::format("Camera({}x{}, fx={:.1f}, centre=({:.3f}, {:.3f}, {:.3f}))", c.K.width, c.K.height, c.K.fx,
+                           c.center().x(), c.center().y(), c.center().z());
+      });
+
+  nb::class_<Scene>(m, "Scene")
+      .def_prop_ro("root", [](const Scene& s) { return s.root.string(); })
+      .def_prop_ro("format", [](const Scene& s) { return s.format; })
+      .def_prop_ro("views", [](const Scene& s) {
+        std::vector<std::string> names;
+        for (const View& v : s.views) names.push_back(v.name);
+        return names;
+      })
+      .def_prop_ro("test_views", [](const Scene& s) {
+        std::vector<std::string> names;
+        for (const View& v : s.test_views) names.push_back(v.name);
+        return names;
+      })
+      .def_prop_ro("warnings", [](const Scene& s) { return s.warnings; })
+      .def("camera",
+           [](const Scene& s, const std::string& name, std::optional<int> height) {
+             Camera c = view_of(s, name).camera;
+             if (height) {
+               if (*height <= 0) fail("camera: height must be positive, got {}", *height);
+               const int width = static_cast<int>(std::lround(static_cast<double>(c.K.width) * *height / c.K.height));
+               c = c.resized(width, *height);
+             }
+             return c;
+           },
+           "view"_a, "height"_a.none() = nb::none(),
+           "The camera of a view (input or test), at its photo's size or scaled to `height` rows.")
+      .def("image", [](const Scene& s, const std::string& name) { return array_of(load_view_image(view_of(s, name))); },
+           "view"_a, "The view's photo as an H x W x 3 float32 array in [0, 1].")
+      .def("mask",
+           [](const Scene& s, const std::string& name) -> nb::object {
+             const std::optional<Image> mask = load_view_mask(view_of(s, name));
+             return mask ? array_of(*mask) : nb::none();
+           },
+           "view"_a, "The view's object mask (H x W float32, 1 = object), or None.")
+      .def("__repr__", [](const Scene& s) {
+        return fmt::format("Scene('{}', format='{}', {} views, {} test views)", s.root.string(), s.format,
+                           s.views.size(), s.test_views.size());
+      })
+      .def("__len__", [](const Scene& s) { return s.views.size(); });
+
+  m.def("_load_scene",
+        [](const std::string& path, const std::string& format, const std::string& images,
+           const std::optional<std::string>& masks, int hold_out_every, bool keep_object) {
+          SceneOptions o;
+          o.format = format;
+          o.image_folder = images;
+          if (masks) o.mask_dir = *masks;
+          o.hold_out_every = hold_out_every;
+          o.hold_out_whole = keep_object;
+          nb::gil_scoped_release release;
+          return load_scene(path, o);
+        });
+
+  nb::class_<PyGaussians>(m, "Gaussians")
+      .def("__len__", [](const PyGaussians& g) { return g.set.size(); })
+      .def_prop_ro("means", [](const PyGaussians& g) { return array_of(g.set.means); })
+      .def_prop_ro("quats", [](const PyGaussians& g) { return array_of(g.set.quats); })
+      .def_prop_ro("scales", [](const PyGaussians& g) { return array_of(g.set.scales); })
+      .def_prop_ro("opacities", [](const PyGaussians& g) { return array_of(g.set.opacities.reshape({-1})); })
+      .def_prop_ro("colors", [](const PyGaussians& g) { return array_of(g.set.colors); })
+      .def_prop_ro("sh_degree", [](const PyGaussians& g) { return g.set.sh_degree; })
+      .def_prop_ro("device", [](const PyGaussians& g) { return g.set.means.device().str(); })
+      .def_prop_ro("_normalization", [](const PyGaussians& g) {
+        const auto& n = g.normalization;
+        return std::make_pair(std::vector<double>{n.mean.x(), n.mean.y(), n.mean.z()}, n.scale);
+      })
+      .def_prop_ro("_refine_report", [](const PyGaussians& g) { return g.refine_report; })
+      .def_prop_ro("context", [](const PyGaussians& g) {
+        std::vector<std::string> names;  // the views the network saw, reference first
+        if (g.prediction)
+          for (const PreparedView& v : g.prediction->input.views) names.push_back(v.name);
+        return names;
+      })
+      .def("save", [](const PyGaussians& g, const std::string& path) {
+        nb::gil_scoped_release release;
+        write_splats(path, splats_from_gaussians(g.set.to(torch::kCPU)));
+      }, "path"_a)
+      .def("_render",
+           [](const PyGaussians& g, const Camera& camera, std::array<float, 3> background) {
+             RenderCamera rc;
+             rc.camera = g.normalization.apply(camera);
+             RenderOptions ro;
+             ro.background = background;
+             RenderOutput out;
+             {
+               nb::gil_scoped_release release;
+               torch::NoGradGuard no_grad;
+               out = render(g.set, rc, ro);
+             }
+             return std::make_pair(array_of(out.rgb), array_of(out.depth.squeeze(2)));
+           },
+           "camera"_a, "background"_a)
+      .def("_render_video",
+           [](const PyGaussians& g, const Scene& scene, const std::string& path, const std::string& trajectory,
+              int frames, int height, int fps, const std::function<void(int, int)>& progress) {
+             if (frames < 2 || height < 8 || fps < 1) fail("render_video: needs frames >= 2, height >= 8, fps >= 1");
+             if (!ffmpeg_available()) fail("render_video: ffmpeg is not installed (scripts/install-deps.sh installs it)");
+             SceneCameraOptions o;
+             o.normalize = true;  // the frame of a prediction (and of infer's splat files)
+             o.trajectory = trajectory == "views" ? "" : trajectory;
+             o.frames = frames;
+             o.height = height;
+             o.width = trajectory == "orbit" ? height : 0;
+             nb::gil_scoped_release release;
+             std::vector<NamedCamera> cameras = scene_cameras(scene, o);
+             if (trajectory == "views")  // the views' own cameras at `height` rows
+               for (NamedCamera& c : cameras)
+                 c.camera = c.camera.resized(static_cast<int>(std::lround(double(c.camera.K.width) * height / c.camera.K.height)), height);
+             const TemporaryFolder frames_dir("instainpaint-video");
+             render_frames(g.set, cameras, {}, {frames_dir.path(), {}, {}}, with_gil(progress));
+             if (!encode_video(frames_dir.path(), path, fps)) fail("render_video: ffmpeg failed to write {}", path);
+           },
+           "scene"_a, "path"_a, "trajectory"_a, "frames"_a, "height"_a, "fps"_a, "progress"_a.none())
+      .def("_refine",
+           [](const PyGaussians& g, const Scene& scene, const std::string& setting, int sh_degree,
+              std::optional<double> position_rate, bool exposure,
+              const std::function<void(int, double, double, double, int64_t)>& progress) {
+             if (!g.prediction) fail("refine: these Gaussians were not predicted from a scene (loaded from a file?)");
+             RefineOptions o = refine_setting(setting);
+             o.sh_degree = sh_degree;
+             o.exposure = exposure;
+             if (position_rate) o.position_lr = *position_rate * kGaussianSplattingPositionLr;
+             if (progress) {
+               auto call = with_gil(progress);
+               o.progress = [call](const RefineProgress& p) { call(p.step, p.fraction, p.loss, p.eta_s, p.gaussians); };
+             }
+             PyGaussians out;
+             nlohmann::json report;
+             {
+               nb::gil_scoped_release release;
+               out.set = refine_prediction(scene, *g.prediction, *g.input, g.set, o, report);
+             }
+             out.normalization = g.normalization;
+             out.prediction = g.prediction;
+             out.input = g.input;
+             out.refine_report = report.dump();
+             return out;
+           });
+
+  m.def("_read_splats", [](const std::string& path) {
+    PyGaussians g;
+    nb::gil_scoped_release release;
+    g.set = gaussians_from_splats(read_splats(path));
+    return g;
+  });
+
+  nb::class_<Predictor>(m, "Predictor")
+      .def("__init__",
+           [](Predictor* p, const std::string& checkpoint, const std::string& device, const std::string& precision) {
+             nb::gil_scoped_release release;
+             const Runtime r = set_up_runtime(device, 0, precision);
+             new (p) Predictor(checkpoint, r.device, r.precision);
+           },
+           "checkpoint"_a, "device"_a, "precision"_a)
+      .def_prop_ro("model", &Predictor::model_name)
+      .def_prop_ro("device", [](const Predictor& p) { return p.device().str(); })
+      .def_prop_ro("precision", [](const Predictor& p) { return std::string(precision_name(p.precision())); })
+      .def_prop_ro("_describe", [](const Predictor& p) { return p.describe().dump(); })
+      .def("_predict",
+           [](const Predictor& p, const Scene& scene, const std::vector<std::string>& context, int views,
+              const nb::object& reference, const std::string& reference_view, int height, bool keep_object,
+              const std::map<std::string, AnyArray>& masks) {
+             auto input = std::make_shared<SceneInputOptions>(
+                 input_options(context, views, reference, reference_view, height, keep_object, masks));
+             PyGaussians g;
+             {
+               nb::gil_scoped_release release;
+               auto prediction = std::make_shared<const Prediction>(p.predict(scene, *input));
+               g.set = prediction->gaussians();
+               g.normalization = prediction->input.normalization;
+               g.prediction = std::move(prediction);
+             }
+             g.input = std::move(input);
+             return g;
+           },
+           "scene"_a, "context"_a, "views"_a, "reference"_a.none(), "reference_view"_a, "height"_a, "keep_object"_a,
+           "masks"_a);
+
+  m.def("_masks_from_one",
+        [](const Scene& scene, const std::string& view, const nb::object& region, const Predictor* predictor,
+           int height, int views) {
+          const View* v = &view_of(scene, view);
+          OneMask request;
+          request.view = view;
+          if (nb::isinstance<nb::str>(region) || nb::hasattr(region, "__fspath__"))
+            request.region = read_region_mask(nb::cast<std::string>(nb::str(region)), *v);
+          else
+            request.region = image_of(nb::cast<AnyArray>(region), "region", 1);
+          SceneInputOptions options;
+          options.preprocess.height = height;
+          options.num_views = views;
+          SceneMasks masks;
+          {
+            nb::gil_scoped_release release;
+            masks = masks_from_one(scene, request, [predictor]() -> const Predictor& {
+              if (!predictor) fail("masks_from_one: the scene has no COLMAP points; pass predictor= for the network's depth");
+              return *predictor;
+            }, options);
+          }
+          std::map<std::string, nb::object> out;
+          for (const auto& [name, mask] : masks.masks) out[name] = array_of(mask);
+          return std::make_pair(out, masks.describe(request).dump());
+        },
+        "scene"_a, "view"_a, "region"_a, "predictor"_a.none(), "height"_a, "views"_a);
+
+  m.def("_evaluate",
+        [](const std::string& scene, const std::string& out, const std::string& method,
+           const std::optional<std::string>& checkpoint, const std::optional<std::string>& gaussians,
+           const std::optional<std::string>& reference, const std::vector<std::string>& context, int views,
+           int height, int hold_out_every, bool keep_object, const std::string& refine, const std::string& device,
+           bool report) {
+          EvalOptions o;
+          o.scene_dir = scene;
+          o.out = out;
+          o.method = parse_eval_method(method);
+          if (gaussians) o.gaussians = *gaussians;
+          else if (o.method == EvalMethod::model) o.checkpoint = checkpoint.value_or("");
+          if (reference) o.reference = *reference;
+          o.context = context;
+          o.num_views = views;
+          o.height = height;
+          o.scene.hold_out_every = hold_out_every;
+          o.keep_object = keep_object;
+          o.scene.hold_out_whole = keep_object;
+          o.write_report = report;
+          const Runtime r = set_up_runtime(device, 0, "auto");
+          o.device = r.device;
+          o.precision = r.precision;
+          const RefineOptions refine_options = refine_setting(refine.empty() ? "0" : refine);
+          if (refine_requested(refine_options))
+            o.after_prediction = [refine_options](const Scene& s, const Prediction& p, const SceneInputOptions& input,
+                                                  GaussianSet g, nlohmann::json& report) {
+              report["refine"] = nlohmann::json::object();
+              return refine_prediction(s, p, input, g, refine_options, report["refine"]);
+            };
+          nb::gil_scoped_release release;
+          return run_evaluation(o).dump();
+        });
+}
+
+}  // namespace ii::python

@@ -1,0 +1,41 @@
+"""Shared fixtures: the real statue scene from ../shared and the CLI of the same build."""
+import os
+import pathlib
+
+import pytest
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="session")
+def shared() -> pathlib.Path:
+    path = pathlib.Path(os.environ.get("INSTAINPAINT_SHARED", REPO.parent / "shared"))
+    if not (path / "data" / "statue").is_dir():
+        pytest.fail(f"the shared data is missing: {path}/data/statue (set INSTAINPAINT_SHARED)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def statue_dir(shared) -> pathlib.Path:
+    return shared / "data" / "statue"
+
+
+@pytest.fixture(scope="session")
+def cli() -> pathlib.Path:
+    path = pathlib.Path(os.environ.get("INSTAINPAINT_CLI", REPO / "build" / "instainpaint"))
+    if not path.is_file():
+        pytest.fail(f"the command-line program is missing: {path} (make build, or set INSTAINPAINT_CLI)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def statue(statue_dir):
+    import instainpaint
+    return instainpaint.load_scene(statue_dir)
+
+
+@pytest.fixture(scope="session")
+def predictor():
+    import instainpaint
+    # fp32: the same numbers on every CPU (bf16 depends on the CPU's instructions)
+    return instainpaint.Predictor(device="cpu", precision="fp32")

@@ -1,0 +1,203 @@
+"""The Python package against the library's own behaviour: the CLI's bytes, zero-copy arrays,
+clear errors, no leaks, progress, the GIL released."""
+import gc
+import json
+import os
+import pathlib
+import resource
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+import instainpaint as ii
+
+HEIGHT = 64  # small, so that each prediction takes a fraction of a second on 2 cores
+
+
+def test_prediction_saved_from_python_equals_the_clis_bytes(tmp_path, cli, statue_dir, statue, predictor):
+    subprocess.run([str(cli), "infer", "--scene", str(statue_dir), "--height", str(HEIGHT), "--device", "cpu",
+                    "--precision", "fp32", "--splats", "gaussians.ply,gaussians.spz", "--out", str(tmp_path / "cli")],
+                   check=True, capture_output=True)
+    g = predictor.predict(statue, height=HEIGHT)
+    g.save(tmp_path / "python.ply")
+    g.save(tmp_path / "python.spz")
+    assert (tmp_path / "python.ply").read_bytes() == (tmp_path / "cli" / "gaussians.ply").read_bytes()
+    assert (tmp_path / "python.spz").read_bytes() == (tmp_path / "cli" / "gaussians.spz").read_bytes()
+    run = json.loads((tmp_path / "cli" / "run.json").read_text())
+    assert g.context == [view["name"] for view in run["context"]]
+
+
+def test_attributes_are_arrays_over_the_librarys_memory(statue, predictor):
+    g = predictor.predict(statue, height=HEIGHT)
+    n = len(g)
+    photo = statue.camera(statue.views[0])
+    assert n == 4 * HEIGHT * (photo.width * HEIGHT // photo.height // 8 * 8)  # one per pixel of 4 views
+    for name, shape in [("means", (n, 3)), ("quats", (n, 4)), ("scales", (n, 3)), ("opacities", (n,)),
+                        ("colors", (n, 3))]:
+        a = getattr(g, name)
+        assert isinstance(a, np.ndarray) and a.dtype == np.float32 and a.shape == shape, name
+        assert np.isfinite(a).all(), name
+    # Two reads are two views of the same memory: nothing was copied.
+    assert np.shares_memory(g.means, g.means)
+    assert g.means.ctypes.data == g.means.ctypes.data
+    assert g.sh_degree == -1 and g.device == "cpu"
+
+
+def test_arrays_go_to_torch_without_a_copy(statue, predictor):
+    torch = pytest.importorskip("torch")  # Debian's python3-torch: the same LibTorch, side by side
+    g = predictor.predict(statue, height=HEIGHT)
+    means = g.means
+    t = torch.from_dlpack(means)
+    assert t.data_ptr() == means.ctypes.data and tuple(t.shape) == means.shape
+    rgb = g.render(statue.camera(statue.views[0], height=HEIGHT))
+    assert torch.from_dlpack(rgb).data_ptr() == rgb.ctypes.data
+    # ... and tensors come in: a reference image as a torch tensor, uint8 or float.
+    image = statue.image(statue.views[0])
+    as_uint8 = torch.from_numpy(np.round(image * 255).astype(np.uint8))
+    a = predictor.predict(statue, height=HEIGHT, reference=as_uint8)
+    b = predictor.predict(statue, height=HEIGHT, reference=np.round(image * 255) / 255)
+    np.testing.assert_array_equal(a.colors, b.colors)
+
+
+def test_render_of_a_saved_and_reloaded_prediction(tmp_path, statue, predictor):
+    g = predictor.predict(statue, height=HEIGHT)
+    camera = statue.camera(statue.views[1], height=HEIGHT)
+    rgb, depth = g.render(camera, depth=True)
+    assert rgb.shape == (camera.height, camera.width, 3) and depth.shape == (camera.height, camera.width)
+    assert 0 <= rgb.min() and rgb.max() <= 1 and depth.max() > 0
+    g.save(tmp_path / "g.ply")
+    loaded = ii.load_gaussians(tmp_path / "g.ply")
+    assert len(loaded) == len(g) and loaded.context == []
+    # The file holds the prediction's frame; a loaded set renders the same from that frame's camera.
+    np.testing.assert_allclose(loaded.means, g.means, atol=1e-6)
+
+
+def test_bad_arguments_raise_clear_errors(tmp_path, statue, predictor):
+    with pytest.raises(ii.Error, match="does-not-exist"):
+        ii.load_scene(tmp_path / "does-not-exist")
+    with pytest.raises(ii.Error, match="no view named 'nope'"):
+        statue.camera("nope")
+    with pytest.raises(ii.Error, match="nope"):
+        predictor.predict(statue, context=["nope"], height=HEIGHT)
+    with pytest.raises(ii.Error, match=r"reference: expected 3 channels, got an array of shape \(4, 4, 1\)"):
+        predictor.predict(statue, reference=np.zeros((4, 4, 1), np.float32), height=HEIGHT)
+    with pytest.raises(ii.Error, match="unsupported element type"):
+        predictor.predict(statue, reference=np.zeros((4, 4, 3), np.int64), height=HEIGHT)
+    with pytest.raises(ii.Error, match="c2w: expected 4 rows, got 3"):
+        ii.Camera(8, 8, 10, 10, 4, 4, [[1, 0, 0, 0]] * 3)
+    with pytest.raises(TypeError):
+        predictor.predict("not a scene")
+    with pytest.raises(ii.Error, match="were not predicted from a scene"):
+        g = predictor.predict(statue, height=HEIGHT)
+        g.save(tmp_path / "g.ply")
+        ii.load_gaussians(tmp_path / "g.ply").refine(statue, preset="2")
+    with pytest.raises(ii.Error, match="unknown.ply"):
+        ii.Predictor(tmp_path / "unknown.ply")
+    assert issubclass(ii.Error, RuntimeError)
+
+
+def test_refine_reports_progress_and_stops_on_the_callbacks_exception(statue, predictor):
+    g = predictor.predict(statue, height=HEIGHT)
+    seen = []
+    refined = g.refine(statue, preset="4", progress=seen.append)
+    assert [p["step"] for p in seen] == [1, 2, 3, 4]
+    assert all(p["loss"] > 0 for p in seen) and seen[-1]["fraction"] == pytest.approx(1.0)
+    assert refined.refine_report["steps"] == 4 and g.refine_report is None
+    assert refined.sh_degree == -1 and len(refined) > 0
+
+    def stop(progress):
+        raise KeyboardInterrupt("stopped by the user")
+    with pytest.raises(KeyboardInterrupt, match="stopped by the user"):
+        g.refine(statue, preset="50", progress=stop)
+
+
+def test_masks_from_one_region(statue):
+    view = statue.views[2]
+    region = statue.mask(view)
+    masks, report = ii.masks_from_one(statue, view, region)
+    assert set(masks) == set(statue.views)
+    np.testing.assert_array_equal(masks[view], region)
+    assert report["depth_source"] == "colmap points"
+    # The statue's own masks are a good answer: the propagated ones overlap them.
+    other = statue.views[5]
+    own, propagated = statue.mask(other) > 0.5, masks[other] > 0.5
+    assert (own & propagated).sum() / (own | propagated).sum() > 0.5
+
+
+def test_evaluate_writes_what_the_cli_writes(tmp_path, cli, statue_dir):
+    args = ["--hold-out-every", "8", "--height", str(HEIGHT), "--device", "cpu", "--no-report"]
+    subprocess.run([str(cli), "eval", "--scene", str(statue_dir), "--out", str(tmp_path / "cli"), *args],
+                   check=True, capture_output=True)
+    m = ii.evaluate(statue_dir, tmp_path / "py", hold_out_every=8, height=HEIGHT, device="cpu", report=False)
+    cli_m = json.loads((tmp_path / "cli" / "metrics.json").read_text())
+    assert m["mean"] == cli_m["mean"]
+    assert sorted(os.listdir(tmp_path / "py" / "renders")) == sorted(os.listdir(tmp_path / "cli" / "renders"))
+    for name in os.listdir(tmp_path / "py" / "renders"):
+        assert (tmp_path / "py" / "renders" / name).read_bytes() == (tmp_path / "cli" / "renders" / name).read_bytes()
+
+
+def rss_mb() -> float:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * resource.getpagesize() / 2**20
+
+
+def test_no_leak_over_100_predictions(statue, predictor):
+    def predict_and_read():
+        g = predictor.predict(statue, height=HEIGHT)
+        return float(g.means.sum() + g.render(statue.camera(statue.views[0], height=32)).sum())
+
+    for _ in range(10):
+        predict_and_read()
+    gc.collect()
+    before = rss_mb()
+    for _ in range(100):
+        predict_and_read()
+    gc.collect()
+    grown = rss_mb() - before
+    # One prediction's Gaussians are ~3 MB here: 100 kept would be hundreds of MB.
+    assert grown < 40, f"RSS grew by {grown:.0f} MB over 100 predictions"
+
+
+def test_long_calls_release_the_gil(statue, predictor):
+    ticks = 0
+    done = threading.Event()
+
+    def count():
+        nonlocal ticks
+        while not done.is_set():
+            ticks += 1
+    counter = threading.Thread(target=count)
+    counter.start()
+    try:
+        before = ticks
+        predictor.predict(statue, height=128)
+        during = ticks - before
+    finally:
+        done.set()
+        counter.join()
+    assert during > 1000, f"the counting thread ran {during} times during the prediction"
+
+
+def test_help_reads_well():
+    assert "one forward pass" in ii.Predictor.predict.__doc__
+    assert "Telea" in ii.Predictor.predict.__doc__
+    assert ii.load_scene.__doc__.startswith("Reads a scene folder")
+    assert "from_dlpack" in ii.__doc__
+    stub = pathlib.Path(ii._core.__file__).with_name("_core.pyi")
+    assert stub.is_file() and "class Predictor" in stub.read_text()
+
+
+def test_the_example_removes_the_statue_and_writes_a_video(tmp_path, statue_dir):
+    example = pathlib.Path(__file__).resolve().parents[2] / "examples" / "remove_object.py"
+    subprocess.run([sys.executable, str(example), str(statue_dir), str(tmp_path), "--height", str(HEIGHT),
+                    "--refine", "3", "--frames", "6"], check=True, capture_output=True)
+    assert (tmp_path / "gaussians.spz").stat().st_size > 1000
+    video = tmp_path / "orbit.mp4"
+    assert video.stat().st_size > 1000
+    probe = subprocess.run(["ffprobe", "-v", "error", "-count_frames", "-select_streams", "v:0", "-show_entries",
+                            "stream=nb_read_frames", "-of", "csv=p=0", str(video)], capture_output=True, text=True,
+                           check=True)
+    assert int(probe.stdout.strip()) == 6
