@@ -9,6 +9,7 @@
 // or uint8; they are copied into the library's images.
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/array.h>
 #include <nanobind/stl/function.h>
 #include <nanobind/stl/map.h>
 #include <nanobind/stl/optional.h>
@@ -241,7 +242,8 @@ NB_MODULE(_core, m) {
           o.hold_out_whole = keep_object;
           nb::gil_scoped_release release;
           return load_scene(path, o);
-        });
+        },
+        "path"_a, "format"_a, "images"_a, "masks"_a.none(), "hold_out_every"_a, "keep_object"_a);
 
   nb::class_<PyGaussians>(m, "Gaussians")
       .def("__len__", [](const PyGaussians& g) { return g.set.size(); })
@@ -327,7 +329,8 @@ NB_MODULE(_core, m) {
              out.input = g.input;
              out.refine_report = report.dump();
              return out;
-           });
+           },
+           "scene"_a, "setting"_a, "sh_degree"_a, "position_rate"_a.none(), "exposure"_a, "progress"_a.none());
 
   m.def("_read_splats", [](const std::string& path) {
     PyGaussians g;
@@ -384,10 +387,9 @@ NB_MODULE(_core, m) {
           SceneMasks masks;
           {
             nb::gil_scoped_release release;
-            masks = masks_from_one(scene, request, [predictor]() -> const Predictor& {
-              if (!predictor) fail("masks_from_one: the scene has no COLMAP points; pass predictor= for the network's depth");
-              return *predictor;
-            }, options);
+            PredictorSource source;  // none: the library's error says which depth sources were missing
+            if (predictor) source = [predictor]() -> const Predictor& { return *predictor; };
+            masks = masks_from_one(scene, request, source, options);
           }
           std::map<std::string, nb::object> out;
           for (const auto& [name, mask] : masks.masks) out[name] = array_of(mask);
@@ -427,7 +429,9 @@ NB_MODULE(_core, m) {
             };
           nb::gil_scoped_release release;
           return run_evaluation(o).dump();
-        });
+        },
+        "scene"_a, "out"_a, "method"_a, "checkpoint"_a.none(), "gaussians"_a.none(), "reference"_a.none(),
+        "context"_a, "views"_a, "height"_a, "hold_out_every"_a, "keep_object"_a, "refine"_a, "device"_a, "report"_a);
 }
 
 }  // namespace ii::python

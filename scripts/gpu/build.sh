@@ -135,4 +135,14 @@ if [ "$run_tests" = 1 ]; then
   # One core's share per test (more oversubscribes, and time-budget tests miss their budget).
   cd "$build" && OMP_NUM_THREADS=${OMP_NUM_THREADS:-$(( $(nproc) / jobs > 1 ? $(nproc) / jobs : 1 ))} \
     ctest --output-on-failure -j "$jobs"
+  # The Python package against this torch, imported beside it (only in our own environment:
+  # a given --python may have no package index to install the build tools from).
+  if [ -n "${venv:-}" ]; then
+    say "the Python package: pip install . into $venv, built in $build, against torch $torch_version"
+    build_dir=$(pwd)
+    cd "$repo"
+    "$python" -m pip install --quiet --disable-pip-version-check -r python/requirements-dev.txt
+    "$python" -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps -C build-dir="$build_dir" .
+    (cd python/tests && INSTAINPAINT_CLI="$build_dir/instainpaint" "$python" -m pytest -q .)
+  fi
 fi
