@@ -2,8 +2,8 @@
 # Builds and installs the Python package `instainpaint` into the project-local environment
 # .venv-py (made here: Debian's python3 with its system packages visible, for python3-numpy and
 # python3-torch, plus the pinned tools of python/requirements-dev.txt), the way a user would:
-# pip install . (scikit-build-core; the module is built in build/, beside `make build`'s
-# libraries, so only the module itself is compiled). Then, with --test, runs its tests.
+# pip install . (scikit-build-core, without build isolation, in `make build`'s folder build/,
+# so only the module itself is compiled). Then, with --test, runs its tests.
 #   scripts/python-package.sh [--test] [pytest arguments]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,9 +21,11 @@ if ! cmp -s python/requirements-dev.txt "$stamp"; then
   "$VENV/bin/pip" install --quiet --disable-pip-version-check -r python/requirements-dev.txt
   cp python/requirements-dev.txt "$stamp"
 fi
-say "pip install . (the module in build/)"
-# No build isolation: the pinned tools above build it, and the build folder stays the same.
-"$VENV/bin/pip" install --quiet --disable-pip-version-check --no-build-isolation --no-deps . 
+say "pip install . (the module in build/, beside make build's libraries)"
+# No build isolation: the pinned tools above build it, in make build's folder (an isolated build
+# would find a cache from another environment there and start the folder afresh).
+"$VENV/bin/pip" install --quiet --disable-pip-version-check --no-build-isolation --no-deps \
+  --config-settings=build-dir=build .
 if [ "${1:-}" = "--test" ]; then
   shift
   say "tests (python/tests)"

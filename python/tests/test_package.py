@@ -8,6 +8,7 @@ import resource
 import subprocess
 import sys
 import threading
+import zipfile
 
 import numpy as np
 import pytest
@@ -204,3 +205,17 @@ def test_the_example_removes_the_statue_and_writes_a_video(tmp_path, statue_dir)
                             "stream=nb_read_frames", "-of", "csv=p=0", str(video)], capture_output=True, text=True,
                            check=True)
     assert int(probe.stdout.strip()) == 6
+
+
+def test_a_wheel_builds(tmp_path):
+    # In the build folder the installed package came from (its libraries are built already).
+    repo = pathlib.Path(__file__).resolve().parents[2]
+    build = os.environ.get("INSTAINPAINT_BUILD_DIR", str(repo / "build"))
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--disable-pip-version-check",
+                    "--no-build-isolation", "--no-deps", f"--config-settings=build-dir={build}", "-w", str(tmp_path), str(repo)],
+                   check=True, capture_output=True)
+    wheels = list(tmp_path.glob("instainpaint-0.1.0-*.whl"))
+    assert len(wheels) == 1
+    names = zipfile.ZipFile(wheels[0]).namelist()
+    assert "instainpaint/__init__.py" in names and "instainpaint/py.typed" in names
+    assert any(n.startswith("instainpaint/_core") and n.endswith(".so") for n in names)

@@ -28,19 +28,9 @@ mkdir -p "$OUT" "$WORK"
 exec > >(tee -a "$OUT/train.log") 2>&1
 step() { printf '\n== %s (%s)\n' "$*" "$(date +%T)"; }
 
-step "build (the program alone)"
 source scripts/device/deps.sh
 device_deps_from_debs
-JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build build-gpu --cuda-arch 9.0 \
-  --target instainpaint > "$OUT/build.log" 2>&1 || { tail -40 "$OUT/build.log"; exit 1; }
-BIN=build-gpu/instainpaint
-nvidia-smi --query-gpu=name,memory.total --format=csv,noheader || true
-
-step "training rooms ($ROOMS, seed 1001) and validation rooms (6, seed 777001) at 256 x 256"
-"$BIN" synth --out "$WORK/train" --scenes "$ROOMS" --seed 1001 --views 20 --test-views 4 --width 256 \
-  --height 256 --degrade mixed --threads "$(nproc)" 2>&1 | tail -1
-"$BIN" synth --out "$WORK/val" --scenes 6 --seed 777001 --views 20 --test-views 4 --width 256 --height 256 \
-  --degrade mixed --threads "$(nproc)" 2>&1 | tail -1
+device_build_program_and_rooms "$OUT" "$WORK" "$ROOMS" 256
 
 # The phase's model goes to $OUT while it trains: a call cut short still brings one back.
 phase() {  # size batch steps seconds lr init

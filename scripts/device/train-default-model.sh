@@ -31,17 +31,7 @@ step() { printf '\n== %s (%s)\n' "$*" "$(date +%T)"; }
 
 source scripts/device/deps.sh
 device_deps_from_debs
-JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build build-gpu --cuda-arch 9.0 \
-  --target instainpaint > "$OUT/build.log" 2>&1 || { tail -40 "$OUT/build.log"; exit 1; }
-BIN=build-gpu/instainpaint
-nvidia-smi --query-gpu=name,memory.total --format=csv,noheader || true
-"$BIN" --version
-
-step "training rooms ($ROOMS, seed 1001) and validation rooms (6, seed 777001) at $SIZE x $SIZE"
-"$BIN" synth --out "$WORK/train" --scenes "$ROOMS" --seed 1001 --views 20 --test-views 4 --width "$SIZE" \
-  --height "$SIZE" --degrade mixed --threads "$(nproc)" 2>&1 | tail -1
-"$BIN" synth --out "$WORK/val" --scenes 6 --seed 777001 --views 20 --test-views 4 --width "$SIZE" --height "$SIZE" \
-  --degrade mixed --threads "$(nproc)" 2>&1 | tail -1
+device_build_program_and_rooms "$OUT" "$WORK" "$ROOMS" "$SIZE"
 SCENES="$WORK/train,.device/scenes/fern,.device/scenes/fox"
 common=(--scenes "$SCENES" --val-scenes "$WORK/val" --width "$SIZE" --height "$SIZE" --inputs 4 --targets 4
   --batch "$BATCH" --device cuda --precision bf16 --workers "$WORKERS" --val-every 250 --val-samples 12

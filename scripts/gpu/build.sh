@@ -142,7 +142,8 @@ if [ "$run_tests" = 1 ]; then
     build_dir=$(pwd)
     cd "$repo"
     "$python" -m pip install --quiet --disable-pip-version-check -r python/requirements-dev.txt
-    "$python" -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps -C build-dir="$build_dir" .
-    (cd python/tests && INSTAINPAINT_CLI="$build_dir/instainpaint" "$python" -m pytest -q .)
+    "$python" -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps --config-settings=build-dir="$build_dir" .
+    (cd python/tests && INSTAINPAINT_CLI="$build_dir/instainpaint" INSTAINPAINT_BUILD_DIR="$build_dir" \
+      "$python" -m pytest -q .)
   fi
 fi
