@@ -147,26 +147,11 @@ SceneInputOptions input_options(const std::vector<std::string>& context, int vie
   return o;
 }
 
-// A progress callback from Python, called with the GIL held; its exceptions stop the work.
-template <typename... Args>
-std::function<void(Args...)> with_gil(const std::function<void(Args...)>& f) {
-  if (!f) return {};
-  return [f](Args... args) {
-    nb::gil_scoped_acquire gil;
-    f(args...);
-  };
-}
-
 }  // namespace
 
 NB_MODULE(_core, m) {
   m.doc() = "instainpaint's library (see the package `instainpaint` for documentation).";
   nb::exception<Error>(m, "Error", PyExc_RuntimeError);
-
-  m.def("_set_up", [](const std::string& device, int threads, const std::string& precision) {
-    const Runtime r = set_up_runtime(device, threads, precision);
-    return std::make_pair(r.device.str(), std::string(precision_name(r.precision)));
-  });
 
   nb::class_<Camera>(m, "Camera")
       .def("__init__",
@@ -295,13 +280,13 @@ NB_MODULE(_core, m) {
              o.frames = frames;
              o.height = height;
              o.width = trajectory == "orbit" ? height : 0;
-             nb::gil_scoped_release release;
+             nb::gil_scoped_release release;  // a Python callback takes the GIL back (nanobind's wrapper)
              std::vector<NamedCamera> cameras = scene_cameras(scene, o);
              if (trajectory == "views")  // the views' own cameras at `height` rows
                for (NamedCamera& c : cameras)
                  c.camera = c.camera.resized(static_cast<int>(std::lround(double(c.camera.K.width) * height / c.camera.K.height)), height);
              const TemporaryFolder frames_dir("instainpaint-video");
-             render_frames(g.set, cameras, {}, {frames_dir.path(), {}, {}}, with_gil(progress));
+             render_frames(g.set, cameras, {}, {frames_dir.path(), {}, {}}, progress);
              if (!encode_video(frames_dir.path(), path, fps)) fail("render_video: ffmpeg failed to write {}", path);
            },
            "scene"_a, "path"_a, "trajectory"_a, "frames"_a, "height"_a, "fps"_a, "progress"_a.none())
@@ -314,10 +299,11 @@ NB_MODULE(_core, m) {
              o.sh_degree = sh_degree;
              o.exposure = exposure;
              if (position_rate) o.position_lr = *position_rate * kGaussianSplattingPositionLr;
-             if (progress) {
-               auto call = with_gil(progress);
-               o.progress = [call](const RefineProgress& p) { call(p.step, p.fraction, p.loss, p.eta_s, p.gaussians); };
-             }
+             // nanobind's wrapper of a Python callable takes the GIL to call, copy or drop it.
+             if (progress)
+               o.progress = [progress](const RefineProgress& p) {
+                 progress(p.step, p.fraction, p.loss, p.eta_s, p.gaussians);
+               };
              PyGaussians out;
              nlohmann::json report;
              {

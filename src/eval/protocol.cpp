@@ -572,8 +572,9 @@ json run_evaluation(const EvalOptions& o) {
   int working_width = 0, working_height = 0;
   // The CPU work around the renders runs beside them: the next views are decoded ahead, and
   // the renders' PNGs are encoded and written behind (on a GPU it is most of the wall time).
-  // Each side gets half the cores: the main thread launches the renders and needs one too
-  // (with all cores on each side, a 16-core GPU machine's renders and metrics slowed 2-3x).
+  // Each side gets half the cores, for the main thread launches the renders and needs one too
+  // (with all cores on each side, renders and metrics on a 16-core GPU machine took 2-3x longer
+  // than before the background threads; docs/benchmarks.md, session 16).
   const size_t cpu_threads = static_cast<size_t>(std::max(2, at::get_num_threads() / 2));
   std::deque<std::future<PreparedView>> decoding;
   size_t next_to_decode = 0;
