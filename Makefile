@@ -46,10 +46,10 @@ test-asan: san-build
 
 # The Python package (pip install . into the project-local .venv-py) and its tests.
 python: build
-	@bash scripts/python-package.sh
+	@BUILD=$(BUILD) bash scripts/python-package.sh
 
 test-python: build
-	@OMP_NUM_THREADS=$(TEST_THREADS) bash scripts/python-package.sh --test
+	@BUILD=$(BUILD) OMP_NUM_THREADS=$(TEST_THREADS) bash scripts/python-package.sh --test
 
 # PyPI's torch + NVIDIA's CUDA compiler in the project-local .venv-gpu (pinned in
 # scripts/gpu/requirements.txt), the CUDA code compiled, every test run.
@@ -64,4 +64,4 @@ bench: build
 	@$(BUILD)/instainpaint bench
 
 clean:
-	rm -rf $(BUILD) $(SAN_BUILD) $(GPU_BUILD) demo-out fuzz-findings .venv-py
+	rm -rf $(BUILD) $(SAN_BUILD) $(GPU_BUILD) build-pip demo-out fuzz-findings .venv-py

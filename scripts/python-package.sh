@@ -8,6 +8,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 VENV=${PYTHON_VENV:-.venv-py}
+BUILD=${BUILD:-build}  # make build's folder
 PYTHON=${PYTHON:-/usr/bin/python3}
 say() { printf 'python-package: %s\n' "$*"; }
 
@@ -25,10 +26,12 @@ say "pip install . (the module in build/, beside make build's libraries)"
 # No build isolation: the pinned tools above build it, in make build's folder (an isolated build
 # would find a cache from another environment there and start the folder afresh).
 "$VENV/bin/pip" install --quiet --disable-pip-version-check --no-build-isolation --no-deps \
-  --config-settings=build-dir=build .
+  --config-settings=build-dir="$BUILD" .
 if [ "${1:-}" = "--test" ]; then
   shift
   say "tests (python/tests)"
   # From outside the source tree, so that `import instainpaint` is the installed package.
-  cd python/tests && exec "../../$VENV/bin/python" -m pytest -q "$@" .
+  build_dir=$(cd "$BUILD" && pwd)
+  cd python/tests && INSTAINPAINT_CLI="$build_dir/instainpaint" INSTAINPAINT_BUILD_DIR="$build_dir" \
+    exec "../../$VENV/bin/python" -m pytest -q "$@" .
 fi
