@@ -18,7 +18,8 @@ Arrays come out as NumPy arrays over the library's memory, without a copy; hand 
 torch.from_dlpack (or JAX, CuPy) for a tensor over the same memory. Arrays go in as anything
 with the buffer protocol or DLPack (NumPy, torch, ...), float in [0, 1] or uint8.
 Errors raise `instainpaint.Error` (a RuntimeError) with the library's message. Long calls
-release the GIL.
+release the GIL. The library logs its progress to standard output; set_log_level("warning")
+quiets it.
 """
 from __future__ import annotations
 
@@ -27,11 +28,11 @@ import os
 from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple, Union
 
 from . import _core
-from ._core import Camera, Error, Scene
+from ._core import Camera, Error, Scene, set_log_level
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
-    "masks_from_one",
+    "masks_from_one", "set_log_level",
 ]
 __version__ = "0.1.0"
 

@@ -19,6 +19,8 @@
 
 #include <memory>
 
+#include <spdlog/spdlog.h>
+
 #include "common/error.h"
 #include "common/files.h"
 #include "data/scene_cameras.h"
@@ -152,6 +154,18 @@ SceneInputOptions input_options(const std::vector<std::string>& context, int vie
 NB_MODULE(_core, m) {
   m.doc() = "instainpaint's library (see the package `instainpaint` for documentation).";
   nb::exception<Error>(m, "Error", PyExc_RuntimeError);
+
+  m.def("set_log_level",
+        [](const std::string& level) {
+          const auto parsed = spdlog::level::from_str(level);
+          // from_str answers "off" for any name it does not know
+          if (parsed == spdlog::level::off && level != "off")
+            fail("set_log_level: '{}' is not one of trace, debug, info, warning, error, critical, off", level);
+          spdlog::set_level(parsed);
+        },
+        "level"_a,
+        "How much the library prints to standard output: trace, debug, info (default), warning, error, "
+        "critical or off.");
 
   nb::class_<Camera>(m, "Camera")
       .def("__init__",

@@ -185,6 +185,20 @@ def test_long_calls_release_the_gil(statue, predictor):
     assert during > 1000, f"the counting thread ran {during} times during the prediction"
 
 
+def test_log_level_quiets_the_library(capfd, statue, predictor):
+    try:
+        ii.set_log_level("warning")
+        predictor.predict(statue, height=HEIGHT)
+        assert "Telea" in capfd.readouterr().out  # predict warns that no reference was given
+        ii.set_log_level("error")
+        predictor.predict(statue, height=HEIGHT)
+        assert capfd.readouterr().out == ""
+        with pytest.raises(ii.Error, match="'loud' is not one of trace, debug, info"):
+            ii.set_log_level("loud")
+    finally:
+        ii.set_log_level("info")
+
+
 def test_help_reads_well():
     assert "one forward pass" in ii.Predictor.predict.__doc__
     assert "Telea" in ii.Predictor.predict.__doc__
