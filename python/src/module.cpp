@@ -35,6 +35,7 @@
 #include "model/predictor.h"
 #include "refine/refine.h"
 #include "render/rasterizer.h"
+#include "tensor/image_tensor.h"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -78,11 +79,7 @@ Image image_of(const AnyArray& a, const char* what, int channels) {
   else if (a.dtype() == nb::dtype<bool>()) type = torch::kBool;
   else fail("{}: unsupported element type (use float32, float64, uint8 or bool)", what);
   torch::Tensor t = torch::from_blob(const_cast<void*>(a.data()), shape, strides, torch::TensorOptions(type));
-  t = type == torch::kByte ? t.to(torch::kFloat) / 255.0 : t.to(torch::kFloat);
-  t = t.contiguous();
-  Image image(w, h, c);
-  std::memcpy(image.pixels.data(), t.data_ptr<float>(), image.pixels.size() * sizeof(float));
-  return image;
+  return image_from_hwc(type == torch::kByte ? t.to(torch::kFloat) / 255.0 : t);
 }
 
 nb::object array_of(const Image& image) {
