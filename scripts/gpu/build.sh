@@ -118,7 +118,7 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_PREFIX_PATH="$torch_root" \
   -DCMAKE_CUDA_COMPILER="$cuda_root/bin/nvcc" -DCUDAToolkit_ROOT="$cuda_root" -DCUDA_TOOLKIT_ROOT_DIR="$cuda_root" \
   -DTORCH_CUDA_ARCH_LIST="$archs" -DINSTAINPAINT_REQUIRE_CUDA=ON \
-  -DCMAKE_EXE_LINKER_FLAGS="-Wl,--as-needed" \
+  -DCMAKE_EXE_LINKER_FLAGS="-Wl,--as-needed" -DCMAKE_MODULE_LINKER_FLAGS="-Wl,--as-needed" \
   "${launcher[@]}" > "$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 1; }
 grep -E "^-- (CUDA|LibTorch|Default model|Web page)" "$build/configure.log" || true
 say "building ($jobs jobs)"
@@ -143,6 +143,11 @@ if [ "$run_tests" = 1 ]; then
     cd "$repo"
     "$python" -m pip install --quiet --disable-pip-version-check -r python/requirements-dev.txt
     "$python" -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps --config-settings=build-dir="$build_dir" .
+    module=$(ls "$build_dir"/python/instainpaint/_core*.so)
+    if readelf -d "$module" | grep -q 'libcuda\.so'; then
+      say "$module needs libcuda.so: it would not import without a driver"
+      exit 1
+    fi
     (cd python/tests && INSTAINPAINT_CLI="$build_dir/instainpaint" INSTAINPAINT_BUILD_DIR="$build_dir" \
       "$python" -m pytest -q .)
   fi
