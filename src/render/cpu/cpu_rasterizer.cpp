@@ -2,7 +2,9 @@
 
 #include <ATen/Parallel.h>
 
+#include "common/cpu_features.h"
 #include "common/parallel.h"
+#include "render/cpu/raster_tiles.h"
 
 #include <algorithm>
 #include <atomic>
@@ -146,10 +148,9 @@ void bin_tiles(const CameraParams& cam, const Splat2D<float>* sf, const Splat2D<
   });
 }
 
-struct TileBounds {
-  int x0, y0, x1, y1;
-  int64_t start, end;
-};
+// The tile loops for float on CPUs with AVX2 (raster_tiles.h); the scalar ones otherwise.
+bool vectorised_tiles() { return cpu_features().has(CpuIsa::Avx2); }
+
 TileBounds tile_bounds(const CameraParams& cam, const int64_t* off, int64_t tile) {
   const int tw = cam.tiles_x();
   TileBounds b;
@@ -172,6 +173,13 @@ void raster_forward(const CameraParams& cam, const Splat2D<S>* splats, const Pix
   const S bg[3] = {S(cam.background[0]), S(cam.background[1]), S(cam.background[2])};
   const S t_min = S(splat::kTransmittanceMin);
   const int64_t tiles = st.tile_offsets.numel() - 1;
+  if constexpr (std::is_same_v<S, float>) {
+    if (vectorised_tiles()) {
+      const TileForwardIo io{splats, boxes, list, cam.width, {bg[0], bg[1], bg[2]}, rgb, alpha, depth, final_T, last_out};
+      parallel_dynamic(tiles, [&](int64_t tile) { forward_tile_avx2(io, tile_bounds(cam, off, tile)); });
+      return;
+    }
+  }
 
   parallel_dynamic(tiles, [&](int64_t tile) {
     const TileBounds tb = tile_bounds(cam, off, tile);
@@ -274,6 +282,14 @@ void raster_backward(const CameraParams& cam, const Splat2D<S>* splats, const Pi
   const S* final_T = st.final_T.data_ptr<S>();
   const S bg[3] = {S(cam.background[0]), S(cam.background[1]), S(cam.background[2])};
   const int64_t tiles = st.tile_offsets.numel() - 1;
+  if constexpr (std::is_same_v<S, float>) {
+    if (vectorised_tiles()) {
+      const TileBackwardIo io{splats, boxes, list, cam.width, {bg[0], bg[1], bg[2]}, alpha_out, depth_out, final_T,
+                              last_in, g_rgb, g_alpha, g_depth, entry_grads};
+      parallel_dynamic(tiles, [&](int64_t tile) { backward_tile_avx2(io, tile_bounds(cam, off, tile)); });
+      return;
+    }
+  }
 
   parallel_dynamic(tiles, [&](int64_t tile) {
     const TileBounds tb = tile_bounds(cam, off, tile);
