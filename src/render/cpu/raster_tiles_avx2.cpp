@@ -201,7 +201,8 @@ void backward_tile_avx2(const TileBackwardIo& io, const TileBounds& tile) {
         const AlphaLanes l = alpha_lanes(sl, x0, dy_s, _mm256_and_ps(reached, columns_in(x0, o.c0, o.c1)));
         if (!any(l.ok)) continue;
         const __m256 ra = _mm256_div_ps(one, V::sub(one, l.alpha));
-        const __m256 t = V::mul(V::load(T + p), ra);  // transmittance in front of this splat
+        const __m256 t_behind = V::load(T + p);
+        const __m256 t = V::mul(t_behind, ra);  // transmittance in front of this splat
         const __m256 w = V::mul(l.alpha, t);
         const __m256 wm = mask_and(l.ok, w);
         __m256 v_alpha = V::mul(V::mul(V::load(g_a + p), V::load(T_end + p)), ra);
@@ -216,7 +217,7 @@ void backward_tile_avx2(const TileBackwardIo& io, const TileBounds& tile) {
         channel(behind_g, g_g, g, v_g);
         channel(behind_b, g_b, b, v_b);
         channel(behind_d, g_d, d, v_d);
-        V::store(T + p, _mm256_blendv_ps(V::load(T + p), t, l.ok));
+        V::store(T + p, _mm256_blendv_ps(t_behind, t, l.ok));
         // Alpha not clamped at 0.999: gradients to opacity and the conic.
         const __m256 unclamped = _mm256_and_ps(l.ok, _mm256_cmp_ps(l.raw, raw_max, _CMP_LE_OQ));
         v_opacity = V::add(v_opacity, mask_and(unclamped, V::mul(v_alpha, l.vis)));
