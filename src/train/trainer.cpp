@@ -152,7 +152,10 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
   params_.bind(network_);  // with autograd history back to the trainable tensors
   network_current_ = false;
 
-  double loss_sum = 0, mse_sum = 0, perceptual_sum = 0, depth_sum = 0;
+  // The logged terms are summed where they are computed and read once at the end: reading each
+  // view's would make the CPU wait for the GPU before it could queue the next view's render.
+  torch::Tensor sums = torch::zeros({4}, torch::TensorOptions().dtype(torch::kFloat64).device(options_.device));
+  enum { kLoss, kMse, kPerceptual, kDepth };
   int64_t targets = 0, depth_samples = 0;
   Stopwatch clock;
   double forward_ms = 0, render_ms = 0;
@@ -186,7 +189,7 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
         const torch::Tensor& depth_leaf = leaves.back();
         const torch::Tensor d = depth_loss(depth_leaf[static_cast<int64_t>(b)], s.input_depths.to(options_.device));
         (d * (depth_weight / static_cast<double>(batch.size()))).backward();
-        depth_sum += d.item<double>();
+        sums[kDepth] += d.detach().to(torch::kFloat64);
         ++depth_samples;
       }
       const GaussianSet set = gaussians_from_maps(slice(detached, static_cast<int64_t>(b)));
@@ -195,9 +198,7 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
         const RenderOutput r = render(set, RenderCamera{s.target_cameras[m]});
         const LossTerms t = loss_(to_signed_image(r.rgb), target_images[static_cast<int64_t>(m)].unsqueeze(0));
         (t.total * weight).backward();
-        loss_sum += t.total.item<double>();
-        mse_sum += t.mse.item<double>();
-        perceptual_sum += t.perceptual.item<double>();
+        sums.narrow(0, kLoss, 3) += torch::stack({t.total, t.mse, t.perceptual}).detach().to(torch::kFloat64);
       }
     }
     std::vector<torch::Tensor> grads;
@@ -206,6 +207,9 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
     torch::autograd::backward(roots, grads);
   }
 
+  const torch::Tensor read = sums.cpu();
+  const double* sum = read.data_ptr<double>();
+  const double loss_sum = sum[kLoss], mse_sum = sum[kMse], perceptual_sum = sum[kPerceptual], depth_sum = sum[kDepth];
   StepStats stats;
   stats.mse = mse_sum / targets;
   stats.perceptual = perceptual_sum / targets;
