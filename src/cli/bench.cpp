@@ -17,6 +17,7 @@
 #include "model/attention.h"
 #include "model/cuda_graph.h"
 #include "model/device.h"
+#include "model/fp8_attention.h"
 #include "model/network.h"
 
 namespace ii::cli {
@@ -145,7 +146,7 @@ double full_attention_gb(int64_t heads, int64_t tokens) {
 // One attention call (q, k, v strided as the network makes them) in each form that runs here.
 void run_attention(const BenchArgs& a, const Runtime& rt) {
   const int repeat = a.repeat > 0 ? a.repeat : 3;
-  const auto dtype = rt.precision == Precision::BFloat16 ? torch::kBFloat16 : torch::kFloat32;
+  const auto dtype = rt.precision == Precision::Float32 ? torch::kFloat32 : torch::kBFloat16;
   torch::manual_seed(0);
   const torch::Tensor qkv =
       torch::randn({1, a.tokens, 3, a.heads, a.head_dim}).to(rt.device, dtype).permute({2, 0, 3, 1, 4});
@@ -178,6 +179,21 @@ void run_attention(const BenchArgs& a, const Runtime& rt) {
     row("LibTorch scaled_dot_product_attention", [&] { return compat::fused_sdpa(q, k, v); });
   else
     skipped("LibTorch scaled_dot_product_attention", "not in LibTorch " TORCH_VERSION);
+  const std::string fp8_refusal = cudnn_fp8_attention_refusal(q, k, v);
+  if (fp8_refusal.empty())
+    row("cuDNN FP8 (E4M3, per-tensor scales)", [&] { return cudnn_fp8_attention(q, k, v); });
+  else
+    skipped("cuDNN FP8", fp8_refusal);
+  if (rt.precision == Precision::Fp8Attention) {
+    // FP8's error on these inputs, beside bf16's.
+    auto f32 = [](const torch::Tensor& t) { return t.to(torch::kFloat32); };
+    const torch::Tensor exact = chunked_attention(f32(q), f32(k), f32(v));
+    auto error = [&](const torch::Tensor& t) { return (f32(t) - exact).abs().max().item<double>(); };
+    fmt::print("largest difference from float32 (outputs up to {:.3f}): bf16 {:.5f}, FP8 emulated {:.5f}", 
+               exact.abs().max().item<double>(), error(chunked_attention(q, k, v)), error(fp8_emulated_attention(q, k, v)));
+    if (fp8_refusal.empty()) fmt::print(", cuDNN FP8 {:.5f}", error(cudnn_fp8_attention(q, k, v)));
+    fmt::print("\n");
+  }
   const double full_gb = full_attention_gb(a.heads, a.tokens);
   if (full_gb > a.baseline_max_gb)
     skipped("full score matrix", fmt::format("skipped (needs {:.0f} GB, --baseline-max-gb {:.0f})", full_gb,
@@ -243,7 +259,10 @@ void run(const BenchArgs& a) {
       } else if (baseline != "none") {
         reset_peak_memory(rt.device);
         net.set_execution(baseline_execution(baseline));
-        const Precision p = baseline == "textbook" ? Precision::Float32 : rt.precision;
+        // The official code runs bf16 (or float32) attention, whatever ours runs.
+        const Precision p = baseline == "textbook"                      ? Precision::Float32
+                            : rt.precision == Precision::Fp8Attention ? Precision::BFloat16
+                                                                      : rt.precision;
         base_ms = time_forward(net, in, p, rt.device, repeat);
         if (a.profile) profiles.emplace_back("baseline", profile(p));
         net.set_execution(ExecutionOptions());

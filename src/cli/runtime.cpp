@@ -11,8 +11,9 @@ void add_runtime_options(CLI::App* cmd, RuntimeOptions& options) {
   cmd->add_option("--threads", options.threads, "CPU threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--precision", options.precision,
                   "Network precision; auto = bf16 on a GPU and on CPUs with native bf16 (AVX512-BF16/AMX), "
-                  "else fp32")
-      ->check(CLI::IsMember({"auto", "fp32", "bf16"}))
+                  "else fp32; fp8 = bf16 with attention in FP8 (cuDNN on Hopper GPUs; elsewhere emulated, "
+                  "slowly, to measure its error)")
+      ->check(CLI::IsMember({"auto", "fp32", "bf16", "fp8"}))
       ->capture_default_str();
 }
 

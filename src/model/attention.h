@@ -9,11 +9,13 @@
 
 namespace ii {
 
-// How attention is computed; every form gives the same values up to rounding.
+// How attention is computed; every form but Fp8 gives the same values up to float rounding.
 enum class AttentionForm {
   Fastest,  // the fused CPU kernel where it applies, LibTorch's fused kernels on a GPU, else Chunked
   Chunked,  // LibTorch calls over blocks of queries: the reference twin of the fused CPU kernel
   Full,     // the textbook form with the whole score matrix (the benchmarks' baseline)
+  Fp8,      // the products in FP8 E4M3 (model/fp8_attention.h): cuDNN's kernel on Hopper GPUs,
+            // elsewhere emulated in float (slow; for measuring FP8's error). Rounds: not the same values
 };
 
 // q, k, v: (B, heads, N, head_dim), rows of head_dim contiguous or not. Softmax scale
@@ -32,7 +34,8 @@ std::optional<CpuIsa> fused_cpu_attention_isa(const torch::Tensor& q, const torc
 // if it cannot run these inputs on this CPU.
 torch::Tensor fused_cpu_attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v, CpuIsa isa);
 
-// The chunked form itself; `max_chunk_bytes` bounds the score block of one chunk.
+// The chunked form itself, computed in float for bf16 inputs too (returned in their dtype);
+// `max_chunk_bytes` bounds the score block of one chunk.
 torch::Tensor chunked_attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v,
                                 int64_t max_chunk_bytes = 64LL << 20);
 

@@ -28,10 +28,12 @@ Runtime set_up_runtime(const std::string& device, int threads, const std::string
     r.precision = Precision::Float32;
   else if (precision == "bf16")
     r.precision = Precision::BFloat16;
+  else if (precision == "fp8")
+    r.precision = Precision::Fp8Attention;
   else if (precision == "auto")
     r.precision = default_precision(r.device);
   else
-    fail("--precision: unknown precision '{}' (expected auto, fp32 or bf16)", precision);
+    fail("--precision: unknown precision '{}' (expected auto, fp32, bf16 or fp8)", precision);
   return r;
 }
 

@@ -21,7 +21,7 @@ void set_cpu_threads(int threads);
 
 // Where and how the network runs, set up once by every command that runs it: the device by
 // name (resolve_device), the CPU threads (set_cpu_threads) and the precision by name ("fp32",
-// "bf16", or "auto" = default_precision of the device).
+// "bf16", "fp8" = bf16 with FP8 attention, or "auto" = default_precision of the device).
 struct Runtime {
   torch::Device device = torch::kCPU;
   Precision precision = Precision::Float32;

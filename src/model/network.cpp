@@ -12,7 +12,9 @@
 
 namespace ii {
 
-const char* precision_name(Precision p) { return p == Precision::BFloat16 ? "bf16" : "fp32"; }
+const char* precision_name(Precision p) {
+  return p == Precision::Float32 ? "fp32" : p == Precision::BFloat16 ? "bf16" : "fp8";
+}
 
 Precision default_cpu_precision() {
   // Without native bf16 dot products, bf16 matrix products are emulated and slower than fp32.
@@ -312,7 +314,8 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   if (H % p != 0 || W % p != 0)
     fail("input size {}x{} is not a multiple of the patch size {}", W, H, p);
   const int64_t h = H / p, w = W / p, hw = h * w;
-  const auto dtype = precision == Precision::BFloat16 ? torch::kBFloat16 : torch::kFloat32;
+  const auto dtype = precision == Precision::Float32 ? torch::kFloat32 : torch::kBFloat16;
+  const AttentionForm attention_form = precision == Precision::Fp8Attention ? AttentionForm::Fp8 : execution_.attention;
   StageClock mark(profile_);
 
   // Patch embedding: a stride-p convolution is a matrix product over flattened patches.
@@ -333,8 +336,8 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   if (checkpoint_blocks_ && torch::GradMode::is_enabled()) {
     for (const Block& blk : blocks_)
       x = RecomputedBlock::apply(x, blk.qkv, blk.proj, blk.fc1, blk.fc2, static_cast<int64_t>(config_.heads),
-                                 config_.ln_eps, static_cast<int64_t>(execution_.attention),
-                                 precision == Precision::BFloat16);
+                                 config_.ln_eps, static_cast<int64_t>(attention_form),
+                                 precision != Precision::Float32);
     normed = add_layer_norm(x, {}, config_.ln_eps, dtype).normed;
   } else {
     AddNorm state = add_layer_norm(x, {}, config_.ln_eps, dtype, execution_.fused_norms);
@@ -342,7 +345,7 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
     for (const Block& blk : blocks_)
       state = transformer_block(state, weight_for(blk.qkv, precision), weight_for(blk.proj, precision),
                                 weight_for(blk.fc1, precision), weight_for(blk.fc2, precision), config_.heads,
-                                config_.ln_eps, execution_.attention, execution_.fused_norms, true, profile_);
+                                config_.ln_eps, attention_form, execution_.fused_norms, true, profile_);
     x = state.sum;
     normed = state.normed;
   }

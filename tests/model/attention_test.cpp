@@ -37,6 +37,20 @@ TEST(Attention, ChunkedEqualsTextbook) {
   EXPECT_LT(max_abs(attention(q, k, v, AttentionForm::Full), ref), 1e-5);
 }
 
+// bf16 inputs: the chunked form computes in float. LibTorch 1.13's CPU bf16 batched product sums
+// in bf16, which over a few thousand keys lost most of the output (the default model's statue
+// renders were 22 dB from float32's).
+TEST(Attention, ChunkedBf16SumsInFloat) {
+  torch::manual_seed(3);
+  const auto q = torch::randn({1, 2, 64, 64}).to(torch::kBFloat16), k = torch::randn({1, 2, 3000, 64}).to(torch::kBFloat16),
+             v = torch::randn({1, 2, 3000, 64}).to(torch::kBFloat16);
+  const auto exact = naive_attention(q.to(torch::kFloat32), k.to(torch::kFloat32), v.to(torch::kFloat32));
+  const auto chunked = chunked_attention(q, k, v);
+  EXPECT_EQ(chunked.scalar_type(), torch::kBFloat16);
+  // What remains is the output's rounding to bf16: 2^-9 of values up to ~0.5.
+  EXPECT_LT(max_abs(chunked, exact), 2e-3);
+}
+
 TEST(Attention, ChunkedHasGradients) {
   torch::manual_seed(1);
   const auto q = torch::randn({1, 2, 9, 4}, torch::requires_grad()), k = torch::randn({1, 2, 9, 4}),
