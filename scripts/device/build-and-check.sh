@@ -9,16 +9,19 @@
 #   4. runs the whole test suite, the GPU tests included (agreement with the float32 CPU path);
 #   5. times the network: release model, 4 x 512² and 4 x 512 x 904, fast path, CUDA graph and
 #      the official code's way of computing in the same run;
-#   6. times `eval` end to end on a synthetic room with 40 test views at 904 x 512;
-#   7. refines the statue on the GPU (every 8th view held out, $REFINE: default preset fast) for ms per step.
+#   6. FP8 attention (cuDNN, --precision fp8): its kernel's tests, attention alone and the network
+#      against bf16 and the official way in the same run, and statue renders against bf16's (PSNR);
+#   7. times `eval` end to end on a synthetic room with 40 test views at 904 x 512;
+#   8. refines the statue on the GPU (every 8th view held out, $REFINE: default preset fast) for ms per step.
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
-#   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared"], timeout_s=600)
+#   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared",
+#       ".device/cudnn-frontend"], timeout_s=600)
 # STEPS="training ..." adds a training-throughput probe; STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
 # machine stays warm); TESTS=REGEX runs only the tests whose names match.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}
-STEPS=${STEPS:-"tests bench eval refine"}
+STEPS=${STEPS:-"tests bench fp8 eval refine"}
 REFINE=${REFINE:-fast}
 BUILD=build-gpu
 mkdir -p "$OUT"
@@ -75,6 +78,26 @@ if [[ " $STEPS " == *" bench "* ]]; then
   "$BIN" bench --device cuda --presets release --sizes 512,904x512 --repeat 20
   step "network: the same in float32 (no tensor-core bf16) for reference"
   "$BIN" bench --device cuda --presets release --sizes 512 --repeat 5 --precision fp32 --no-cuda-graph
+fi
+
+if [[ " $STEPS " == *" fp8 "* ]]; then
+  step "FP8 attention: cuDNN's kernel against its emulation, then speed and error against bf16"
+  grep -E "^-- cuDNN" "$BUILD/configure.log" || true
+  if [ -x "$BUILD/tests/model_tests" ]; then
+    "$BUILD/tests/model_tests" --gtest_filter='Fp8*' 2>&1 | grep -E "^\[ +(OK|FAILED|SKIPPED) +\]|Failure|actual|Skipped|difference" || true
+  fi
+  # The release model's attention at 4 x 904 x 512: 28,928 tokens, 16 heads of 64.
+  "$BIN" bench --device cuda --attention --tokens 28928 --heads 16 --head-dim 64 --precision fp8 --repeat 10 || true
+  "$BIN" bench --device cuda --presets release --sizes 512,904x512 --repeat 20 --precision fp8 || true
+  for precision in bf16 fp8; do
+    "$BIN" eval --device cuda --precision "$precision" --scene .device/shared/data/statue --hold-out-every 8 \
+      --height 512 --refine 0 --no-report --out "/tmp/ii-fp8-$precision" > "/tmp/ii-fp8-$precision.log" 2>&1 ||
+      tail -5 "/tmp/ii-fp8-$precision.log"
+  done
+  for render in /tmp/ii-fp8-bf16/renders/*.png; do
+    printf '%s fp8 against bf16: ' "$(basename "$render")"
+    "$BIN" metrics "/tmp/ii-fp8-fp8/renders/$(basename "$render")" "$render" | grep -E "^psnr" || echo
+  done
 fi
 
 if [[ " $STEPS " == *" eval "* ]]; then

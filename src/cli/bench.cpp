@@ -326,7 +326,8 @@ void add_bench_command(CLI::App& app) {
                 "residual adds, heads) of one more call of the fast path and of the baseline, summed over blocks");
   cmd->add_flag("--attention", args->attention,
                 "Time one global attention call instead of the network: the chunked form, the fused CPU kernel, "
-                "LibTorch's fused kernel (LibTorch 2.x), the full score matrix");
+                "LibTorch's fused kernel (LibTorch 2.x), cuDNN's FP8 kernel (the GPU build on Hopper), the full "
+                "score matrix; with --precision fp8 also FP8's error against float32");
   cmd->add_option("--tokens", args->tokens, "With --attention: tokens (queries = keys)")
       ->capture_default_str()
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 20));
@@ -339,7 +340,8 @@ void add_bench_command(CLI::App& app) {
       "Examples: instainpaint bench --presets release --sizes 256\n"
       "          instainpaint bench --attention --tokens 16384   (release model's attention at 4 x 512²)\n"
       "          instainpaint bench --presets release --sizes 256 --baseline unfused --profile\n"
-      "          instainpaint bench --device cuda --presets release --sizes 512,904x512   (issue 9's configurations)");
+      "          instainpaint bench --device cuda --presets release --sizes 512,904x512   (issue 9's configurations)\n"
+      "          instainpaint bench --device cuda --attention --tokens 28928 --precision fp8   (FP8 against bf16)");
   cmd->callback([args] { run(*args); });
 }
 
