@@ -12,16 +12,18 @@
 #   6. FP8 attention (cuDNN, --precision fp8): its kernel's tests, attention alone and the network
 #      against bf16 and the official way in the same run, and statue renders against bf16's (PSNR);
 #   7. times `eval` end to end on a synthetic room with 40 test views at 904 x 512;
-#   8. refines the statue on the GPU (every 8th view held out, $REFINE: default preset fast) for ms per step.
+#   8. refines the statue on the GPU (every 8th view held out, $REFINE: default preset fast) for ms per step;
+#   9. times an edit in `serve` from the Run request to the new splats' last byte (the page's
+#      requests without a browser: scripts/measure-serve-edit.py), statue at 256 and 512 high.
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
 #   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared",
-#       ".device/cudnn-frontend"], timeout_s=600)
+#       ".device/cudnn-frontend.tar.xz"], timeout_s=600)
 # STEPS="training ..." adds a training-throughput probe; STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
 # machine stays warm); TESTS=REGEX runs only the tests whose names match.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}
-STEPS=${STEPS:-"tests bench fp8 eval refine"}
+STEPS=${STEPS:-"tests bench fp8 eval refine serve"}
 REFINE=${REFINE:-fast}
 BUILD=build-gpu
 mkdir -p "$OUT"
@@ -131,5 +133,13 @@ if [[ " $STEPS " == *" refine "* ]]; then
 print('outside the mask: PSNR %.2f SSIM %.3f; %d steps, %.1f ms/step, %.1f s' % (m['mean']['outside_psnr'],
       m['mean']['outside_ssim'], r['steps'], r['ms_per_step'], r['seconds']))" /tmp/ii-refine-statue/metrics.json || true
   cp /tmp/ii-refine-statue/metrics.json "$OUT/refine-statue.json" || true
+fi
+if [[ " $STEPS " == *" serve "* ]]; then
+  step "serve: an edit from Run to the new splats (the page's requests, no browser), statue"
+  for height in 256 512; do
+    echo "-- $height high"
+    python3 scripts/measure-serve-edit.py --bin "$BIN" --scene .device/shared/data/statue --runs 3 -- \
+      --device cuda --height "$height" || true
+  done
 fi
 step "done"

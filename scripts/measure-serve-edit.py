@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""Times an edit in `instainpaint serve` the way the page's Run button does it, without a browser.
+
+Starts the server on a scene, waits for its first job (the reconstruction), then for each run:
+POST /api/edit with a view's own object mask (multipart, as the page sends its painting),
+poll /api/job every 100 ms (the page's interval), then fetch what the page fetches before the
+new splats are on screen: the propagated masks and the SPZ. Prints the server's time, the time
+from the POST to the last byte, and its parts. What the page adds after that (decoding the SPZ
+and drawing it) is measured by the browser test (tests/web/browser/edit.test.mjs: "splats" part).
+Only Python's standard library: it runs on the lent GPU machines too.
+
+Example:
+  scripts/measure-serve-edit.py --bin build/instainpaint --scene ../shared/data/statue --runs 3
+  scripts/measure-serve-edit.py --bin build-gpu/instainpaint --scene .device/shared/data/statue --device cuda
+"""
+import argparse
+import json
+import re
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+import uuid
+
+TOKEN = "measure"
+
+
+def request(base, path, body=None, content_type=None):
+    req = urllib.request.Request(base + path, data=body, headers={"X-Instainpaint-Token": TOKEN})
+    if content_type:
+        req.add_header("Content-Type", content_type)
+    try:
+        with urllib.request.urlopen(req, timeout=600) as answer:
+            return answer.status, answer.read()
+    except urllib.error.HTTPError as error:
+        return error.code, error.read()
+
+
+def multipart(fields):
+    """fields: name -> str, or name -> (filename, bytes). Returns (body, content type)."""
+    boundary = uuid.uuid4().hex
+    parts = []
+    for name, value in fields.items():
+        if isinstance(value, tuple):
+            filename, data = value
+            head = f'Content-Disposition: form-data; name="{name}"; filename="{filename}"\r\nContent-Type: image/png\r\n\r\n'
+        else:
+            head, data = f'Content-Disposition: form-data; name="{name}"\r\n\r\n', value.encode()
+        parts.append(f"--{boundary}\r\n{head}".encode() + data + b"\r\n")
+    return b"".join(parts) + f"--{boundary}--\r\n".encode(), f"multipart/form-data; boundary={boundary}"
+
+
+def wait_for_job(base, job_id=None):
+    while True:
+        job = json.loads(request(base, "/api/job")[1])
+        if job.get("state") != "running" and (job_id is None or job.get("id") == job_id):
+            return job
+        time.sleep(0.1)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0], epilog=__doc__.split("Example:")[1],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--bin", required=True, help="the instainpaint program")
+    parser.add_argument("--scene", required=True, help="a scene with object masks (the statue has one per view)")
+    parser.add_argument("--view", type=int, help="index of the view to edit (default: the middle one)")
+    parser.add_argument("--runs", type=int, default=3, help="edits to time (the first includes warm-up)")
+    parser.add_argument("--refine", default="0", help="the page's refine setting (default 0: feed-forward)")
+    parser.add_argument("serve_args", nargs="*", help="more serve options after --, e.g. -- --device cuda --height 512")
+    args, extra = parser.parse_known_args()
+    out = tempfile.mkdtemp(prefix="ii-serve-edit-")
+    command = [args.bin, "serve", "--scene", args.scene, "--port", "0", "--token", TOKEN, "--out", out,
+               *args.serve_args, *extra]
+    server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        base = None
+        for line in server.stdout:
+            found = re.search(r"open (http://[0-9.:]+)/", line)
+            if found:
+                base = found.group(1)
+                break
+        if not base:
+            sys.exit(f"measure-serve-edit: the server did not start: {' '.join(command)}")
+        info = json.loads(request(base, "/api/info")[1])
+        model = info.get("model") or {}
+        print(f"server {base}, model {model.get('checkpoint')} ({model.get('config', {}).get('preset')})")
+        first = wait_for_job(base)
+        print(f"first job ({first.get('kind', first.get('stage'))}): {first.get('state')} in {first.get('seconds', 0):.2f} s")
+        views = info["scene"]["views"]
+        index = args.view if args.view is not None else len(views) // 2
+        status, mask = request(base, f"/api/views/{index}/mask")
+        if status != 200:
+            sys.exit(f"measure-serve-edit: view {index} has no mask ({status})")
+        for run in range(1, args.runs + 1):
+            body, content_type = multipart({"view": views[index]["name"], "mask": ("mask.png", mask),
+                                            "mode": "remove", "refine": args.refine})
+            clicked = time.perf_counter()
+            status, answer = request(base, "/api/edit", body, content_type)
+            if status != 202:
+                sys.exit(f"measure-serve-edit: the edit was refused ({status}): {answer.decode(errors='replace')}")
+            job = wait_for_job(base, json.loads(answer)["job"])
+            seen = time.perf_counter()
+            if job["state"] != "done":
+                sys.exit(f"measure-serve-edit: the edit failed: {job.get('error')}")
+            for url in job["result"].get("masks", {}).values():
+                request(base, url)
+            masks = time.perf_counter()
+            status, splats = request(base, job["result"]["splats"])
+            done = time.perf_counter()
+            print(f"run {run}: POST to the splats' last byte {done - clicked:.3f} s (server {job['seconds']:.3f} s; "
+                  f"job seen done {1000 * (seen - clicked):.0f} ms, masks {1000 * (masks - seen):.0f} ms, "
+                  f"splats {1000 * (done - masks):.0f} ms for {len(splats) / 1e6:.1f} MB; "
+                  f"{job['result'].get('gaussians')} Gaussians)")
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+
+
+if __name__ == "__main__":
+    main()
