@@ -189,8 +189,9 @@ void run_attention(const BenchArgs& a, const Runtime& rt) {
     auto f32 = [](const torch::Tensor& t) { return t.to(torch::kFloat32); };
     const torch::Tensor exact = chunked_attention(f32(q), f32(k), f32(v));
     auto error = [&](const torch::Tensor& t) { return (f32(t) - exact).abs().max().item<double>(); };
-    fmt::print("largest difference from float32 (outputs up to {:.3f}): bf16 {:.5f}, FP8 emulated {:.5f}", 
-               exact.abs().max().item<double>(), error(chunked_attention(q, k, v)), error(fp8_emulated_attention(q, k, v)));
+    fmt::print("largest difference from float32 (outputs up to {:.3f}): bf16 {:.5f}, FP8 emulated {:.5f}",
+               exact.abs().max().item<double>(), error(chunked_attention(q, k, v)),
+               error(fp8_emulated_attention(q, k, v)));
     if (fp8_refusal.empty()) fmt::print(", cuDNN FP8 {:.5f}", error(cudnn_fp8_attention(q, k, v)));
     fmt::print("\n");
   }

@@ -14,19 +14,22 @@ torch::Tensor round_to_e4m3(const torch::Tensor& x) {
   return torch::copysign(torch::round(magnitude / spacing) * spacing, x.to(torch::kFloat32));
 }
 
+torch::Tensor e4m3_scale(const torch::Tensor& t) {
+  return kE4m3Max / t.to(torch::kFloat32).abs().amax().clamp_min(1e-30);
+}
+
 torch::Tensor fp8_emulated_attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v,
                                      int64_t max_chunk_bytes) {
   const int64_t B = q.size(0), H = q.size(1), N = q.size(2), Nk = k.size(2);
-  // Per-tensor scales stay tensors: on a GPU nothing waits for the device.
-  auto scale_of = [](const torch::Tensor& t) { return kE4m3Max / t.to(torch::kFloat32).abs().amax().clamp_min(1e-30); };
-  const torch::Tensor scale_q = scale_of(q), scale_k = scale_of(k), scale_v = scale_of(v);
+  const torch::Tensor scale_q = e4m3_scale(q), scale_k = e4m3_scale(k), scale_v = e4m3_scale(v);
   const torch::Tensor q8 = round_to_e4m3(q.to(torch::kFloat32) * scale_q);
   const torch::Tensor k8t = round_to_e4m3(k.to(torch::kFloat32) * scale_k).transpose(-2, -1);
   const torch::Tensor v8 = round_to_e4m3(v.to(torch::kFloat32) * scale_v);
   const torch::Tensor score_scale = 1.0 / (scale_q * scale_k * std::sqrt(static_cast<double>(q.size(3))));
 
   const int64_t bytes_per_row = B * H * Nk * static_cast<int64_t>(sizeof(float));
-  const int64_t chunk = std::clamp<int64_t>(max_chunk_bytes / std::max<int64_t>(bytes_per_row, 1), 1, std::max<int64_t>(N, 1));
+  const int64_t chunk =
+      std::clamp<int64_t>(max_chunk_bytes / std::max<int64_t>(bytes_per_row, 1), 1, std::max<int64_t>(N, 1));
   torch::Tensor out = torch::empty(q.sizes(), q.options().dtype(torch::kFloat32));
   for (int64_t start = 0; start < N; start += chunk) {
     const int64_t len = std::min(chunk, N - start);

@@ -19,6 +19,9 @@ constexpr float kE4m3Max = 448.0f;
 // cast to float8_e4m3fn keeps of a float, as a float tensor on x's device.
 torch::Tensor round_to_e4m3(const torch::Tensor& x);
 
+// The per-tensor scale 448 / max|t|, a float scalar tensor on t's device (nothing waits for a GPU).
+torch::Tensor e4m3_scale(const torch::Tensor& t);
+
 // The computation above in float with LibTorch operations, on any device and LibTorch: FP8's
 // error measured where no FP8 kernel runs (a CPU, a GPU older than Hopper). q, k, v:
 // (B, heads, N, head_dim); returns (B, heads, N, head_dim). Memory as chunked_attention's.

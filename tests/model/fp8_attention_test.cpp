@@ -18,7 +18,8 @@ namespace {
 // bits; exponent 0 is subnormal; S.1111.111 is NaN (no infinities).
 double e4m3_value(int bits) {
   const int sign = bits >> 7 & 1, exponent = bits >> 3 & 15, mantissa = bits & 7;
-  const double magnitude = exponent == 0 ? std::ldexp(mantissa / 8.0, -6) : std::ldexp(1.0 + mantissa / 8.0, exponent - 7);
+  const double magnitude =
+      exponent == 0 ? std::ldexp(mantissa / 8.0, -6) : std::ldexp(1.0 + mantissa / 8.0, exponent - 7);
   return sign ? -magnitude : magnitude;
 }
 

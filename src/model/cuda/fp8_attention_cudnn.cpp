@@ -94,7 +94,10 @@ Fp8Plan build_plan(int64_t B, int64_t H, int64_t N, int64_t Nk, int64_t d) {
                                                scale_s, p.scale_o, options);
   (void)stats;
   // (B, N, H, d) in memory: the heads merge into (B, N, H*d) without a copy.
-  o->set_output(true).set_dim({B, H, N, d}).set_stride({N * H * d, d, H * d, 1}).set_data_type(fe::DataType_t::FP8_E4M3);
+  o->set_output(true)
+      .set_dim({B, H, N, d})
+      .set_stride({N * H * d, d, H * d, 1})
+      .set_data_type(fe::DataType_t::FP8_E4M3);
   for (const TensorAttr& amax : {amax_s, amax_o})
     amax->set_output(true).set_dim({1, 1, 1, 1}).set_stride({1, 1, 1, 1}).set_data_type(fe::DataType_t::FLOAT);
   p.o = o;
@@ -121,7 +124,8 @@ const Fp8Plan& plan_for(const torch::Tensor& q, const torch::Tensor& k) {
   const PlanKey key{q.device().index(), q.size(0), q.size(1), q.size(2), k.size(2), q.size(3)};
   const std::lock_guard<std::mutex> lock(mutex);
   auto it = plans.find(key);
-  if (it == plans.end()) it = plans.emplace(key, build_plan(q.size(0), q.size(1), q.size(2), k.size(2), q.size(3))).first;
+  if (it == plans.end())
+    it = plans.emplace(key, build_plan(q.size(0), q.size(1), q.size(2), k.size(2), q.size(3))).first;
   return it->second;
 }
 
@@ -146,7 +150,8 @@ std::string cudnn_fp8_attention_refusal(const torch::Tensor& q, const torch::Ten
   if (q.dim() != 4 || k.dim() != 4 || v.dim() != 4) return "q, k and v must be (B, heads, N, head_dim)";
   if (k.sizes() != v.sizes() || q.size(0) != k.size(0) || q.size(1) != k.size(1) || q.size(3) != k.size(3))
     return "q, k and v shapes do not match";
-  if (q.size(3) % 16 != 0 || q.size(3) > 256) return fmt::format("head_dim {} is not a multiple of 16 up to 256", q.size(3));
+  if (q.size(3) % 16 != 0 || q.size(3) > 256)
+    return fmt::format("head_dim {} is not a multiple of 16 up to 256", q.size(3));
   if (torch::GradMode::is_enabled() && (q.requires_grad() || k.requires_grad() || v.requires_grad()))
     return "gradients are wanted (inference only)";
   const cudaDeviceProp* props = at::cuda::getDeviceProperties(q.device().index());
@@ -167,12 +172,11 @@ torch::Tensor cudnn_fp8_attention(const torch::Tensor& q, const torch::Tensor& k
   const c10::cuda::CUDAGuard guard(q.device());
   const Fp8Plan& plan = plan_for(q, k);
   const int64_t B = q.size(0), H = q.size(1), N = q.size(2), d = q.size(3);
-  auto scale_of = [](const torch::Tensor& t) { return kE4m3Max / t.to(torch::kFloat32).abs().amax().clamp_min(1e-30); };
   auto to_e4m3 = [](const torch::Tensor& t, const torch::Tensor& scale) {
     return (t.to(torch::kFloat32) * scale).to(at::kFloat8_e4m3fn).contiguous();
   };
-  const torch::Tensor scale_q = scale_of(q).reshape({1, 1, 1, 1}), scale_k = scale_of(k).reshape({1, 1, 1, 1}),
-                      scale_v = scale_of(v).reshape({1, 1, 1, 1});
+  const torch::Tensor scale_q = e4m3_scale(q).reshape({1, 1, 1, 1}), scale_k = e4m3_scale(k).reshape({1, 1, 1, 1}),
+                      scale_v = e4m3_scale(v).reshape({1, 1, 1, 1});
   const torch::Tensor q8 = to_e4m3(q, scale_q), k8 = to_e4m3(k, scale_k), v8 = to_e4m3(v, scale_v);
   const torch::Tensor descale_q = 1.0 / scale_q, descale_k = 1.0 / scale_k, descale_v = 1.0 / scale_v;
   const torch::Tensor descale_s = torch::full({1, 1, 1, 1}, 1.0f / kE4m3Max, scale_q.options());
@@ -180,7 +184,8 @@ torch::Tensor cudnn_fp8_attention(const torch::Tensor& q, const torch::Tensor& k
   const torch::Tensor& scale_o = scale_v;
   torch::Tensor o8 = torch::empty({B, N, H, d}, q8.options());
   torch::Tensor amax = torch::empty({2}, scale_q.options());
-  torch::Tensor workspace = torch::empty({std::max<int64_t>(plan.workspace_bytes, 1)}, q.options().dtype(torch::kUInt8));
+  torch::Tensor workspace =
+      torch::empty({std::max<int64_t>(plan.workspace_bytes, 1)}, q.options().dtype(torch::kUInt8));
   std::unordered_map<TensorAttr, void*> pack = {
       {plan.q, q8.data_ptr()},
       {plan.k, k8.data_ptr()},
