@@ -83,7 +83,7 @@ if [[ " $STEPS " == *" bench "* ]]; then
 fi
 
 if [[ " $STEPS " == *" fp8 "* ]]; then
-  step "FP8 attention: cuDNN's kernel against its emulation, then speed and error against bf16"
+  step "FP8 attention: cuDNN's kernel as accurate as its emulation, then speed and error against bf16"
   grep -E "^-- cuDNN" "$BUILD/configure.log" || true
   if [ -x "$BUILD/tests/model_tests" ]; then
     "$BUILD/tests/model_tests" --gtest_filter='Fp8*' 2>&1 | grep -E "^\[ +(OK|FAILED|SKIPPED) +\]|Failure|actual|Skipped|difference" || true

@@ -1,7 +1,7 @@
 // FP8 attention: the E4M3 rounding against an independent decoder of the format's bits (and,
-// in LibTorch 2.x, against its float8_e4m3fn cast), the emulated attention's error, and
-// cuDNN's kernel against the emulation on a Hopper GPU (the official fixture with FP8
-// attention: ModelParity.Fp8AttentionStaysNearFloat32).
+// in LibTorch 2.x, against its float8_e4m3fn cast), the emulated attention's error, and on a
+// Hopper GPU cuDNN's kernel against float32 beside the emulation (the official fixture with
+// FP8 attention: ModelParity.Fp8AttentionStaysNearFloat32).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -79,7 +79,7 @@ TEST(Fp8, EmulatedAttentionIsWithinFp8sErrorOfFloat32) {
   EXPECT_EQ(max_abs(attention(q, k, v, AttentionForm::Fp8), fp8), 0.0f);
 }
 
-TEST(Fp8Cuda, CudnnKernelAgreesWithTheEmulation) {
+TEST(Fp8Cuda, CudnnKernelIsAsAccurateAsTheEmulation) {
   if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device";
   const torch::Device gpu(torch::kCUDA, 0);
   torch::manual_seed(7);
@@ -90,11 +90,16 @@ TEST(Fp8Cuda, CudnnKernelAgreesWithTheEmulation) {
   torch::InferenceMode inference;
   const torch::Tensor kernel = cudnn_fp8_attention(q, k, v), emulated = fp8_emulated_attention(q, k, v);
   ASSERT_EQ(kernel.sizes(), q.sizes());
-  const float largest = v.abs().max().item<float>();
-  // The two sum in other orders, so a rounding may land one E4M3 step apart (1/8 relative at
-  // most); on average they agree far closer.
-  EXPECT_LT(max_abs(kernel, emulated), 0.07f * largest);
-  EXPECT_LT((kernel.to(torch::kFloat32) - emulated.to(torch::kFloat32)).abs().mean().item<float>(), 0.002f * largest);
+  const auto f32 = [](const torch::Tensor& t) { return t.to(torch::kFloat32); };
+  const torch::Tensor exact = chunked_attention(f32(q), f32(k), f32(v));
+  auto mean_error = [&](const torch::Tensor& t) { return (f32(t) - exact).abs().mean().item<float>(); };
+  // The kernel rounds its probabilities against a running row maximum (flash attention), the
+  // emulation against the final one: other roundings, the same precision. A wrong scale would
+  // be far off both.
+  std::printf("mean difference from float32: cuDNN FP8 %.5f, emulated FP8 %.5f\n", mean_error(kernel),
+              mean_error(emulated));
+  EXPECT_LT(mean_error(kernel), 1.5f * mean_error(emulated));
+  EXPECT_LT(max_abs(kernel, exact), 2.0f * max_abs(emulated, exact));
   // The network's form takes the kernel here.
   EXPECT_EQ(max_abs(attention(q, k, v, AttentionForm::Fp8), kernel), 0.0f);
 }
