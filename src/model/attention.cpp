@@ -39,22 +39,27 @@ torch::Tensor naive_attention(const torch::Tensor& q, const torch::Tensor& k, co
   return torch::matmul(torch::softmax(torch::matmul(q, k.transpose(-2, -1)) * scale, -1), v);
 }
 
+std::string forward_kernel_input_refusal(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
+  if (q.dim() != 4 || k.dim() != 4 || v.dim() != 4) return "q, k and v must be (B, heads, N, head_dim)";
+  if (k.sizes() != v.sizes() || q.size(0) != k.size(0) || q.size(1) != k.size(1) || q.size(3) != k.size(3))
+    return "q, k and v shapes do not match";
+  if (torch::GradMode::is_enabled() && (q.requires_grad() || k.requires_grad() || v.requires_grad()))
+    return "gradients are wanted (the kernel has no backward pass)";
+  return {};
+}
+
 namespace {
 
 // Why the kernel of `isa` cannot run these inputs here, or empty.
 std::string fused_cpu_refusal(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v, CpuIsa isa) {
   if (!cpu_features().has(isa)) return fmt::format("this CPU has no {}", cpu_isa_name(isa));
   if (!q.device().is_cpu() || !k.device().is_cpu() || !v.device().is_cpu()) return "the inputs are not on the CPU";
-  if (q.dim() != 4 || k.dim() != 4 || v.dim() != 4) return "q, k and v must be (B, heads, N, head_dim)";
-  if (k.sizes() != v.sizes() || q.size(0) != k.size(0) || q.size(1) != k.size(1) || q.size(3) != k.size(3))
-    return "q, k and v shapes do not match";
+  if (std::string why = forward_kernel_input_refusal(q, k, v); !why.empty()) return why;
   if (q.size(3) > cpu_kernels::kMaxHeadDim)
     return fmt::format("head_dim {} is over {}", q.size(3), cpu_kernels::kMaxHeadDim);
   if (q.scalar_type() != k.scalar_type() || q.scalar_type() != v.scalar_type()) return "q, k and v dtypes differ";
   if (!cpu_kernels::kernel_takes(isa, q.scalar_type()))
     return fmt::format("no {} kernel for {}", cpu_isa_name(isa), c10::toString(q.scalar_type()));
-  if (torch::GradMode::is_enabled() && (q.requires_grad() || k.requires_grad() || v.requires_grad()))
-    return "gradients are wanted (the kernel has no backward pass)";
   return {};
 }
 

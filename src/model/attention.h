@@ -3,6 +3,7 @@
 // 512 x 904 are 28,928 tokens; the full score matrix would need 53 GB in float32 for 16
 // heads).
 #include <optional>
+#include <string>
 
 #include "common/cpu_features.h"
 #include "common/torch.h"
@@ -23,6 +24,11 @@ enum class AttentionForm {
 // returns a view of a (B, N, heads, head_dim) tensor, so merging the heads afterwards is free.
 torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v,
                         AttentionForm form = AttentionForm::Fastest);
+
+// Why q, k and v are not one problem a forward-only attention kernel can take, or empty: each
+// must be 4-D (B, heads, N, head_dim), k and v alike and matching q, with no gradients wanted.
+// The fused CPU kernel and cuDNN's FP8 kernel check this before what is their own.
+std::string forward_kernel_input_refusal(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v);
 
 // The fused CPU kernel (flash-attention form: scores kept in cache, online softmax, bf16 dot
 // products with AVX-512 BF16, float FMA with AVX-512 or AVX2; model/cpu/). Which instruction

@@ -6,12 +6,13 @@
 namespace ii {
 
 torch::Tensor round_to_e4m3(const torch::Tensor& x) {
-  const torch::Tensor magnitude = x.to(torch::kFloat32).abs().clamp_max(kE4m3Max);
+  const torch::Tensor xf = x.to(torch::kFloat32);
+  const torch::Tensor magnitude = xf.abs().clamp_max(kE4m3Max);
   // |x| = m 2^e with m in [0.5, 1): E4M3 values near |x| are 2^(e - 4) apart (3 mantissa bits),
   // and 2^-9 apart below the smallest normal value 2^-6.
   const torch::Tensor exponent = std::get<1>(torch::frexp(magnitude.clamp_min(std::ldexp(1.0f, -6))));
   const torch::Tensor spacing = torch::ldexp(torch::ones_like(magnitude), exponent - 4);
-  return torch::copysign(torch::round(magnitude / spacing) * spacing, x.to(torch::kFloat32));
+  return torch::copysign(torch::round(magnitude / spacing) * spacing, xf);
 }
 
 torch::Tensor e4m3_scale(const torch::Tensor& t) {

@@ -4,6 +4,7 @@
 // other build keeps the refusal below and attention() emulates FP8 instead.
 #include "common/error.h"
 #include "common/torch_compat.h"
+#include "model/attention.h"
 #include "model/fp8_attention.h"
 
 #if II_HAVE_CUDNN_FRONTEND && II_TORCH2 && II_HAS_CUDA_TORCH
@@ -147,13 +148,9 @@ std::string load_cudnn() {
 std::string cudnn_fp8_attention_refusal(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
 #if II_CUDNN_FP8
   if (!q.is_cuda() || !k.is_cuda() || !v.is_cuda()) return "the inputs are not on a CUDA device";
-  if (q.dim() != 4 || k.dim() != 4 || v.dim() != 4) return "q, k and v must be (B, heads, N, head_dim)";
-  if (k.sizes() != v.sizes() || q.size(0) != k.size(0) || q.size(1) != k.size(1) || q.size(3) != k.size(3))
-    return "q, k and v shapes do not match";
+  if (std::string why = forward_kernel_input_refusal(q, k, v); !why.empty()) return why;
   if (q.size(3) % 16 != 0 || q.size(3) > 256)
     return fmt::format("head_dim {} is not a multiple of 16 up to 256", q.size(3));
-  if (torch::GradMode::is_enabled() && (q.requires_grad() || k.requires_grad() || v.requires_grad()))
-    return "gradients are wanted (inference only)";
   const cudaDeviceProp* props = at::cuda::getDeviceProperties(q.device().index());
   if (props->major < 9)
     return fmt::format("{} (compute capability {}.{}) is older than Hopper", props->name, props->major, props->minor);
