@@ -33,22 +33,6 @@ if(CMAKE_CUDA_COMPILER)
   endif()
   message(STATUS "CUDA rasterizer kernels: on (${CMAKE_CUDA_COMPILER}, ${II_CUDA_ARCHS})")
 
-  # cuDNN's FP8 attention (src/model/cuda/fp8_attention_cudnn.cpp) where the cuDNN frontend's
-  # headers are given (scripts/gpu/build.sh passes pip's) and LibTorch is a CUDA build: the
-  # frontend reaches the cuDNN library LibTorch loaded (dynamic loading), so nothing more is linked.
-  set(INSTAINPAINT_CUDNN_FRONTEND_INCLUDE "" CACHE PATH "Folder holding cudnn_frontend.h (FP8 attention)")
-  set(II_FP8_SOURCE ${PROJECT_SOURCE_DIR}/src/model/cuda/fp8_attention_cudnn.cpp)
-  if(INSTAINPAINT_CUDNN_FRONTEND_INCLUDE AND EXISTS ${INSTAINPAINT_CUDNN_FRONTEND_INCLUDE}/cudnn_frontend.h
-     AND TARGET torch_cuda)
-    set_source_files_properties(${II_FP8_SOURCE} PROPERTIES
-      COMPILE_DEFINITIONS "II_HAVE_CUDNN_FRONTEND=1;NV_CUDNN_FRONTEND_USE_DYNAMIC_LOADING"
-      COMPILE_OPTIONS "-isystem;${INSTAINPAINT_CUDNN_FRONTEND_INCLUDE}"
-      SKIP_PRECOMPILE_HEADERS ON)
-    target_link_libraries(ii_model PRIVATE ${CMAKE_DL_LIBS})
-    message(STATUS "cuDNN FP8 attention: on (frontend headers ${INSTAINPAINT_CUDNN_FRONTEND_INCLUDE})")
-  else()
-    message(STATUS "cuDNN FP8 attention: off (no INSTAINPAINT_CUDNN_FRONTEND_INCLUDE or no CUDA LibTorch): emulated")
-  endif()
 elseif(INSTAINPAINT_REQUIRE_CUDA)
   message(FATAL_ERROR "INSTAINPAINT_REQUIRE_CUDA is on but no CUDA compiler was found (CMAKE_CUDA_COMPILER, CUDACXX)")
 else()

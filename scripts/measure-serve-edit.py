@@ -3,11 +3,13 @@
 
 Starts the server on a scene, waits for its first job (the reconstruction), then for each run:
 POST /api/edit with a view's own object mask (multipart, as the page sends its painting),
-poll /api/job every 100 ms (the page's interval), then fetch what the page fetches before the
-new splats are on screen: the propagated masks and the SPZ. Prints the server's time, the time
-from the POST to the last byte, and its parts. What the page adds after that (decoding the SPZ
-and drawing it) is measured by the browser test (tests/web/browser/edit.test.mjs: "splats" part).
-Only Python's standard library: it runs on the lent GPU machines too.
+follow /api/job?wait=<id> as the page does (answered as soon as the job ends), fetch the page's
+splat file (the edit's figure ends with its last byte), then the propagated masks, which the
+page draws after the splats. Prints the server's time, the time from the POST to the splats'
+last byte and its parts, and the server's stage table of the last run (scripts/stage-table.py).
+What the page adds after that (decoding the splats and drawing them) is measured by the
+browser test (tests/web/browser/edit.test.mjs: "splats" part). Only Python's standard
+library: it runs on the lent GPU machines too.
 
 Example:
   scripts/measure-serve-edit.py --bin build/instainpaint --scene ../shared/data/statue --runs 3
@@ -15,6 +17,7 @@ Example:
 """
 import argparse
 import json
+import os
 import re
 import subprocess
 import sys
@@ -53,10 +56,12 @@ def multipart(fields):
 
 def wait_for_job(base, job_id=None):
     while True:
-        job = json.loads(request(base, "/api/job")[1])
+        path = "/api/job" if job_id is None else f"/api/job?wait={job_id}"
+        job = json.loads(request(base, path)[1])
         if job.get("state") != "running" and (job_id is None or job.get("id") == job_id):
             return job
-        time.sleep(0.1)
+        if job_id is None:
+            time.sleep(0.1)
 
 
 def main():
@@ -67,6 +72,7 @@ def main():
     parser.add_argument("--view", type=int, help="index of the view to edit (default: the middle one)")
     parser.add_argument("--runs", type=int, default=3, help="edits to time (the first includes warm-up)")
     parser.add_argument("--refine", default="0", help="the page's refine setting (default 0: feed-forward)")
+    parser.add_argument("--stages", metavar="FILE", help="also write the last run's job JSON (its stages) here")
     parser.add_argument("serve_args", nargs="*", help="more serve options after --, e.g. -- --device cuda --height 512")
     args, extra = parser.parse_known_args()
     out = tempfile.mkdtemp(prefix="ii-serve-edit-")
@@ -103,15 +109,23 @@ def main():
             seen = time.perf_counter()
             if job["state"] != "done":
                 sys.exit(f"measure-serve-edit: the edit failed: {job.get('error')}")
+            status, splats = request(base, job["result"]["splats"])
+            done = time.perf_counter()
             for url in job["result"].get("masks", {}).values():
                 request(base, url)
             masks = time.perf_counter()
-            status, splats = request(base, job["result"]["splats"])
-            done = time.perf_counter()
+            request(base, job["result"]["spz"])  # the download: the next run starts once it is written
             print(f"run {run}: POST to the splats' last byte {done - clicked:.3f} s (server {job['seconds']:.3f} s; "
-                  f"job seen done {1000 * (seen - clicked):.0f} ms, masks {1000 * (masks - seen):.0f} ms, "
-                  f"splats {1000 * (done - masks):.0f} ms for {len(splats) / 1e6:.1f} MB; "
-                  f"{job['result'].get('gaussians')} Gaussians)")
+                  f"job seen done {1000 * (seen - clicked):.0f} ms, splats {1000 * (done - seen):.0f} ms for "
+                  f"{len(splats) / 1e6:.1f} MB; {job['result'].get('gaussians')} Gaussians); then the masks "
+                  f"{1000 * (masks - done):.0f} ms")
+        job = json.loads(request(base, "/api/job")[1])  # with the stages of the files written behind
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        stage_table = __import__("stage-table")
+        print(stage_table.table(*stage_table.stage_rows(job), title=f"server stages of run {args.runs} (ms)"))
+        if args.stages:
+            with open(args.stages, "w", encoding="utf-8") as f:
+                json.dump(job, f, indent=2)
     finally:
         server.terminate()
         server.wait(timeout=30)

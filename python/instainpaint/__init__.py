@@ -136,8 +136,7 @@ class Predictor:
 
     checkpoint: the released InstaInpaint .pth, a safetensors file, or None for the model built
     into the library. device: "auto" (a GPU when there is one), "cpu", "cuda", "cuda:N".
-    precision: "auto" (bf16 on a GPU and on CPUs with native bf16), "fp32", "bf16" or "fp8"
-    (bf16 with attention in FP8: cuDNN's kernel on Hopper GPUs, elsewhere emulated, slowly).
+    precision: "auto" (bf16 on a GPU and on CPUs with native bf16), "fp32" or "bf16".
     """
 
     def __init__(self, checkpoint: Optional[PathLike] = None, *, device: str = "auto", precision: str = "auto"):

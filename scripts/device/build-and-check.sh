@@ -9,21 +9,21 @@
 #   4. runs the whole test suite, the GPU tests included (agreement with the float32 CPU path);
 #   5. times the network: release model, 4 x 512² and 4 x 512 x 904, fast path, CUDA graph and
 #      the official code's way of computing in the same run;
-#   6. FP8 attention (cuDNN, --precision fp8): its kernel's tests, attention alone and the network
-#      against bf16 and the official way in the same run, and statue renders against bf16's (PSNR);
-#   7. times `eval` end to end on a synthetic room with 40 test views at 904 x 512;
-#   8. refines the statue on the GPU (every 8th view held out, $REFINE: default preset fast) for ms per step;
-#   9. times an edit in `serve` from the Run request to the new splats' last byte (the page's
-#      requests without a browser: scripts/measure-serve-edit.py), statue at 256 and 512 high.
+#   6. times `eval` end to end on a synthetic room with 40 test views at 904 x 512 (issue 45's
+#      regression: 0.59-0.75 s of computation on 2026-11-25, 2.2 s on 11-26), its stage table;
+#   7. times `infer` on the statue at 512 high, its stage table;
+#   8. times an edit in `serve` from the Run request to the new splats' last byte (the page's
+#      requests without a browser: scripts/measure-serve-edit.py), statue at 256 and 512 high,
+#      and the server's stage table (targets: 0.25 s and 0.4 s);
+#   9. refines the statue on the GPU (every 8th view held out, $REFINE: default preset fast) for ms per step.
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
-#   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared",
-#       ".device/cudnn-frontend.tar.xz"], timeout_s=600)
+#   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared"], timeout_s=600)
 # STEPS="training ..." adds a training-throughput probe; STEPS="bench eval" skips the tests on a later call (the build folder is kept while the
 # machine stays warm); TESTS=REGEX runs only the tests whose names match.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}
-STEPS=${STEPS:-"tests bench fp8 eval refine serve"}
+STEPS=${STEPS:-"tests bench eval infer serve refine"}
 REFINE=${REFINE:-fast}
 BUILD=build-gpu
 mkdir -p "$OUT"
@@ -82,26 +82,6 @@ if [[ " $STEPS " == *" bench "* ]]; then
   "$BIN" bench --device cuda --presets release --sizes 512 --repeat 5 --precision fp32 --no-cuda-graph
 fi
 
-if [[ " $STEPS " == *" fp8 "* ]]; then
-  step "FP8 attention: cuDNN's kernel as accurate as its emulation, then speed and error against bf16"
-  grep -E "^-- cuDNN" "$BUILD/configure.log" || true
-  if [ -x "$BUILD/tests/model_tests" ]; then
-    "$BUILD/tests/model_tests" --gtest_filter='Fp8*' 2>&1 | grep -E "^\[ +(OK|FAILED|SKIPPED) +\]|Failure|actual|Skipped|difference" || true
-  fi
-  # The release model's attention at 4 x 904 x 512: 28,928 tokens, 16 heads of 64.
-  "$BIN" bench --device cuda --attention --tokens 28928 --heads 16 --head-dim 64 --precision fp8 --repeat 10 || true
-  "$BIN" bench --device cuda --presets release --sizes 512,904x512 --repeat 20 --precision fp8 || true
-  for precision in bf16 fp8; do
-    "$BIN" eval --device cuda --precision "$precision" --scene .device/shared/data/statue --hold-out-every 8 \
-      --height 512 --refine 0 --no-report --out "/tmp/ii-fp8-$precision" > "/tmp/ii-fp8-$precision.log" 2>&1 ||
-      tail -5 "/tmp/ii-fp8-$precision.log"
-  done
-  for render in /tmp/ii-fp8-bf16/renders/*.png; do
-    printf '%s fp8 against bf16: ' "$(basename "$render")"
-    "$BIN" metrics "/tmp/ii-fp8-fp8/renders/$(basename "$render")" "$render" | grep -E "^psnr" || echo
-  done
-fi
-
 if [[ " $STEPS " == *" eval "* ]]; then
   step "eval end to end: synthetic room, 40 test views at 904 x 512, release-size model (random weights)"
   ROOM=/tmp/ii-room
@@ -114,16 +94,26 @@ if [[ " $STEPS " == *" eval "* ]]; then
   "$BIN" train --scenes "$ROOM" --stage inpaint --preset release --width 64 --height 64 --inputs 4 --targets 2 \
     --batch 1 --steps 1 --val-every 0 --perceptual none --device cuda --out /tmp/ii-release > /tmp/ii-train.log 2>&1 ||
     { cat /tmp/ii-train.log; exit 1; }
-  for model in release default; do
+  # Twice with the release-size model (the second run is the figure: files cached), then the
+  # default model; each run's whole wall time as the user waits for it, and its stage table.
+  for run in release release default; do
     args=(--checkpoint /tmp/ii-release/model.safetensors)
-    [ "$model" = default ] && args=()
-    echo "-- $model model"
+    [ "$run" = default ] && args=()
+    start=$(date +%s%N)
     "$BIN" eval --device cuda --scene "$SCENE" --reference "$SCENE/reference.png" --context "$CONTEXT" \
-      --height 512 --no-report "${args[@]}" --out "/tmp/ii-eval-$model" | grep -E "test views|on cuda"
-    python3 -c "import json, sys; t = json.load(open(sys.argv[1]))['timings']
-print(', '.join(f'{k} {v:.0f}' for k, v in t.items()))" "/tmp/ii-eval-$model/metrics.json"
-    cp "/tmp/ii-eval-$model/metrics.json" "$OUT/eval-$model.json"
+      --height 512 --no-report "${args[@]}" --out "/tmp/ii-eval-$run" > "/tmp/ii-eval-$run.log" 2>&1 ||
+      { tail -20 "/tmp/ii-eval-$run.log"; exit 1; }
+    whole=$(( ($(date +%s%N) - start) / 1000000 ))
+    python3 scripts/stage-table.py "/tmp/ii-eval-$run/metrics.json" \
+      --title "-- eval, $run model: the command took $whole ms; $(grep -E 'computation' "/tmp/ii-eval-$run.log" | tail -1)"
+    cp "/tmp/ii-eval-$run/metrics.json" "$OUT/eval-$run.json"
   done
+fi
+if [[ " $STEPS " == *" infer "* ]]; then
+  step "infer: statue, 512 high, default model (the stages of a whole command)"
+  "$BIN" infer --device cuda --scene .device/shared/data/statue --height 512 --out /tmp/ii-infer \
+    > /tmp/ii-infer.log 2>&1 || tail -20 /tmp/ii-infer.log
+  python3 scripts/stage-table.py /tmp/ii-infer/run.json --title "-- infer: $(tail -3 /tmp/ii-infer.log | head -1)" || true
 fi
 if [[ " $STEPS " == *" refine "* ]]; then
   step "refinement on the GPU: statue, every 8th view held out, 256 high, --refine $REFINE"
@@ -138,8 +128,8 @@ if [[ " $STEPS " == *" serve "* ]]; then
   step "serve: an edit from Run to the new splats (the page's requests, no browser), statue"
   for height in 256 512; do
     echo "-- $height high"
-    python3 scripts/measure-serve-edit.py --bin "$BIN" --scene .device/shared/data/statue --runs 3 -- \
-      --device cuda --height "$height" || true
+    python3 scripts/measure-serve-edit.py --bin "$BIN" --scene .device/shared/data/statue --runs 4 \
+      --stages "$OUT/serve-$height.json" -- --device cuda --height "$height" || true
   done
 fi
 step "done"

@@ -22,11 +22,6 @@ device_deps_from_debs() {
   export LIBRARY_PATH="$libs${LIBRARY_PATH:+:$LIBRARY_PATH}"
   export PKG_CONFIG=$DEPS/usr/bin/pkgconf
   export PKG_CONFIG_LIBDIR="$libs/pkgconfig:$DEPS/usr/share/pkgconfig" PKG_CONFIG_SYSROOT_DIR=$DEPS
-  # The cuDNN frontend's headers, where scripts/gpu/build.sh looks for them (FP8 attention).
-  if [ -f .device/cudnn-frontend.tar.xz ]; then
-    rm -rf .device/cudnn-frontend && mkdir -p .device/cudnn-frontend
-    tar -xJf .device/cudnn-frontend.tar.xz -C .device/cudnn-frontend
-  fi
 }
 
 # The training scripts' common start (after device_deps_from_debs): the program alone built in

@@ -7,8 +7,6 @@
 #   .device/shared/   the ../shared fixtures and data the GPU tests and the refinement timing
 #                     read (only the checkout travels, and ../shared does not)
 #   .device/scenes/   the real scenes a default model trains on (scripts/device/train-default-model.sh)
-#   .device/cudnn-frontend.tar.xz   the cuDNN frontend's headers (FP8 attention), from the wheel
-#                     pinned in scripts/gpu/requirements-headers.txt
 # Then, on the GPU machine: bash scripts/device/build-and-check.sh (see its header).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -43,19 +41,7 @@ cp -r "$SHARED/fixtures/official-tiny" "$DEST/shared/fixtures/"
 cp -r "$SHARED/data/render-golden" "$SHARED/data/statue" "$SHARED/data/lpips" "$DEST/shared/data/"
 cp -r "$SHARED/data/fern" "$SHARED/data/fox" "$DEST/scenes/"
 
-# The cuDNN frontend: its wheel's include/ folder (headers only; the machine's pip has no
-# index), compressed (3.2 MB of headers, 0.3 MB carried); deps.sh unpacks it there.
-rm -rf "$DEST/cudnn-frontend" "$DEST/cudnn-frontend.tar.xz"
-wheel_dir=$(mktemp -d)
-python3 -m pip download --quiet --disable-pip-version-check --no-deps --only-binary=:all: --dest "$wheel_dir" \
-  -r scripts/gpu/requirements-headers.txt
-python3 -c 'import sys, zipfile
-with zipfile.ZipFile(sys.argv[1]) as z:
-    z.extractall(sys.argv[2], [n for n in z.namelist() if n.startswith("include/")])' "$wheel_dir"/*.whl "$wheel_dir"
-tar -cJf "$DEST/cudnn-frontend.tar.xz" -C "$wheel_dir" include
-rm -rf "$wheel_dir"
-
 echo "prepare: $(ls "$DEST"/debs/*.deb | wc -l) packages, $(du -sh "$DEST" | cut -f1) in $DEST"
 # The device tool carries at most 64 MiB, the checkout's tracked files included.
-echo "a check call carries $(du -cm "$DEST/debs" "$DEST/shared" "$DEST/cudnn-frontend.tar.xz" $(git ls-files) | tail -1 | cut -f1) MiB (limit 64)"
-echo "carry it: run(command=\"bash scripts/device/build-and-check.sh\", carry=[\"$DEST/debs\", \"$DEST/shared\", \"$DEST/cudnn-frontend.tar.xz\"])"
+echo "a check call carries $(du -cm "$DEST/debs" "$DEST/shared" $(git ls-files) | tail -1 | cut -f1) MiB (limit 64)"
+echo "carry it: run(command=\"bash scripts/device/build-and-check.sh\", carry=[\"$DEST/debs\", \"$DEST/shared\"])"

@@ -43,9 +43,8 @@ say() { printf 'gpu/build: %s\n' "$*"; }
 if [ -z "$python" ]; then
   venv=${GPU_VENV:-$repo/.venv-gpu}
   requirements=$repo/scripts/gpu/requirements.txt
-  headers=$repo/scripts/gpu/requirements-headers.txt
   stamp=$venv/.requirements.sha256
-  want=$(cat "$requirements" "$headers" | sha256sum | cut -d' ' -f1)
+  want=$(sha256sum "$requirements" | cut -d' ' -f1)
   if [ ! -x "$venv/bin/python" ]; then
     say "creating $venv"
     python3 -m venv "$venv"
@@ -53,7 +52,6 @@ if [ -z "$python" ]; then
   if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
     say "installing scripts/gpu/requirements.txt into $venv (PyPI's torch with CUDA, about 5 GB installed the first time; pip keeps the wheels in its cache)"
     "$venv/bin/pip" install --quiet --disable-pip-version-check --only-binary=:all: -r "$requirements"
-    "$venv/bin/pip" install --quiet --disable-pip-version-check --only-binary=:all: --no-deps -r "$headers"
     echo "$want" > "$stamp"
   fi
   python=$venv/bin/python
@@ -106,14 +104,6 @@ if [ ! -d "$cuda_root/lib64" ]; then
   cuda_root=$view
 fi
 
-# The cuDNN frontend's headers (FP8 attention): pip's, else those scripts/device/prepare.sh
-# carries to a lent GPU machine (which has no package index); without them FP8 attention is
-# emulated and the build says so.
-frontend=""
-for candidate in "$site/include" "$repo/.device/cudnn-frontend/include"; do
-  if [ -f "$candidate/cudnn_frontend.h" ]; then frontend=$candidate; break; fi
-done
-
 # ---- 3. configure and build ----------------------------------------------------------------
 # torch's own folder as the first prefix: its CMake files (share/cmake/Torch) and its libraries
 # (lib/) are found before any other LibTorch, Debian's included (cmake/torch_compat.cmake).
@@ -127,10 +117,10 @@ fi
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_PREFIX_PATH="$torch_root" \
   -DCMAKE_CUDA_COMPILER="$cuda_root/bin/nvcc" -DCUDAToolkit_ROOT="$cuda_root" -DCUDA_TOOLKIT_ROOT_DIR="$cuda_root" \
-  -DTORCH_CUDA_ARCH_LIST="$archs" -DINSTAINPAINT_REQUIRE_CUDA=ON -DINSTAINPAINT_CUDNN_FRONTEND_INCLUDE="$frontend" \
+  -DTORCH_CUDA_ARCH_LIST="$archs" -DINSTAINPAINT_REQUIRE_CUDA=ON \
   -DCMAKE_EXE_LINKER_FLAGS="-Wl,--as-needed" -DCMAKE_MODULE_LINKER_FLAGS="-Wl,--as-needed" \
   "${launcher[@]}" > "$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 1; }
-grep -E "^-- (CUDA|cuDNN|LibTorch|Default model|Web page)" "$build/configure.log" || true
+grep -E "^-- (CUDA|LibTorch|Default model|Web page)" "$build/configure.log" || true
 say "building ($jobs jobs)"
 cmake --build "$build" -j "$jobs" "${targets[@]}"
 

@@ -17,7 +17,6 @@
 #include "model/attention.h"
 #include "model/cuda_graph.h"
 #include "model/device.h"
-#include "model/fp8_attention.h"
 #include "model/network.h"
 
 namespace ii::cli {
@@ -179,22 +178,6 @@ void run_attention(const BenchArgs& a, const Runtime& rt) {
     row("LibTorch scaled_dot_product_attention", [&] { return compat::fused_sdpa(q, k, v); });
   else
     skipped("LibTorch scaled_dot_product_attention", "not in LibTorch " TORCH_VERSION);
-  const std::string fp8_refusal = cudnn_fp8_attention_refusal(q, k, v);
-  if (fp8_refusal.empty())
-    row("cuDNN FP8 (E4M3, per-tensor scales)", [&] { return cudnn_fp8_attention(q, k, v); });
-  else
-    skipped("cuDNN FP8", fp8_refusal);
-  if (rt.precision == Precision::Fp8Attention) {
-    // FP8's error on these inputs, beside bf16's.
-    auto f32 = [](const torch::Tensor& t) { return t.to(torch::kFloat32); };
-    const torch::Tensor exact = chunked_attention(f32(q), f32(k), f32(v));
-    auto error = [&](const torch::Tensor& t) { return (f32(t) - exact).abs().max().item<double>(); };
-    fmt::print("largest difference from float32 (outputs up to {:.3f}): bf16 {:.5f}, FP8 emulated {:.5f}",
-               exact.abs().max().item<double>(), error(chunked_attention(q, k, v)),
-               error(fp8_emulated_attention(q, k, v)));
-    if (fp8_refusal.empty()) fmt::print(", cuDNN FP8 {:.5f}", error(cudnn_fp8_attention(q, k, v)));
-    fmt::print("\n");
-  }
   const double full_gb = full_attention_gb(a.heads, a.tokens);
   if (full_gb > a.baseline_max_gb)
     skipped("full score matrix", fmt::format("skipped (needs {:.0f} GB, --baseline-max-gb {:.0f})", full_gb,
@@ -261,9 +244,7 @@ void run(const BenchArgs& a) {
         reset_peak_memory(rt.device);
         net.set_execution(baseline_execution(baseline));
         // The official code runs bf16 (or float32) attention, whatever ours runs.
-        const Precision p = baseline == "textbook"                      ? Precision::Float32
-                            : rt.precision == Precision::Fp8Attention ? Precision::BFloat16
-                                                                      : rt.precision;
+        const Precision p = baseline == "textbook" ? Precision::Float32 : rt.precision;
         base_ms = time_forward(net, in, p, rt.device, repeat);
         if (a.profile) profiles.emplace_back("baseline", profile(p));
         net.set_execution(ExecutionOptions());
@@ -327,8 +308,7 @@ void add_bench_command(CLI::App& app) {
                 "residual adds, heads) of one more call of the fast path and of the baseline, summed over blocks");
   cmd->add_flag("--attention", args->attention,
                 "Time one global attention call instead of the network: the chunked form, the fused CPU kernel, "
-                "LibTorch's fused kernel (LibTorch 2.x), cuDNN's FP8 kernel (the GPU build on Hopper), the full "
-                "score matrix; with --precision fp8 also FP8's error against float32");
+                "LibTorch's fused kernel (LibTorch 2.x), the full score matrix");
   cmd->add_option("--tokens", args->tokens, "With --attention: tokens (queries = keys)")
       ->capture_default_str()
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 20));
@@ -341,8 +321,7 @@ void add_bench_command(CLI::App& app) {
       "Examples: instainpaint bench --presets release --sizes 256\n"
       "          instainpaint bench --attention --tokens 16384   (release model's attention at 4 x 512²)\n"
       "          instainpaint bench --presets release --sizes 256 --baseline unfused --profile\n"
-      "          instainpaint bench --device cuda --presets release --sizes 512,904x512   (issue 9's configurations)\n"
-      "          instainpaint bench --device cuda --attention --tokens 28928 --precision fp8   (FP8 against bf16)");
+      "          instainpaint bench --device cuda --presets release --sizes 512,904x512   (issue 9's configurations)");
   cmd->callback([args] { run(*args); });
 }
 

@@ -12,6 +12,7 @@
 #include "cli/runtime.h"
 #include "common/error.h"
 #include "common/files.h"
+#include "common/stage_times.h"
 #include "common/stopwatch.h"
 #include "io/image.h"
 #include "io/splat_file.h"
@@ -50,17 +51,17 @@ void run(const InferArgs& a) {
     fail("--mode insert needs --reference: the reference view's photo with the new object painted in");
   for (const std::string& name : a.splats) splat_format_of(name);  // a bad name fails before the work
   const Runtime runtime = apply_runtime_options(a.runtime);
-  Stopwatch total, watch;
-  nlohmann::json timings;
+  Stopwatch total;
+  StageTimes stages;
 
   spdlog::info("[1/4] reading scene {}", a.scene_dir);
   const Scene scene = load_scene(a.scene_dir, a.scene);
   const std::optional<OneMask> edit = one_mask_request(a.edit, scene);
-  timings["read_scene_ms"] = watch.lap();
+  stages.lap("read scene");
 
   spdlog::info("[2/4] loading model {}", a.checkpoint.empty() ? kDefaultModelName : a.checkpoint);
   const Predictor predictor(a.checkpoint, runtime.device, runtime.precision);
-  timings["load_model_ms"] = watch.lap();
+  stages.lap("load model");
 
   SceneInputOptions opts;
   opts.context = a.context;
@@ -72,21 +73,20 @@ void run(const InferArgs& a) {
   nlohmann::json edit_report;
   if (edit) {
     spdlog::info("masks for every view from the region on {}", edit->view);
-    const SceneMasks masks = masks_from_one(scene, *edit, [&]() -> const Predictor& { return predictor; }, opts);
+    const SceneMasks masks =
+        masks_from_one(scene, *edit, [&]() -> const Predictor& { return predictor; }, opts, &stages);
     masks.apply_to(opts, *edit);
     edit_report = masks.describe(*edit);
     spdlog::info("depth from {}; {} region{}", masks.depth_source, masks.regions.size(),
                  masks.regions.size() == 1 ? "" : "s");
-    timings["masks_ms"] = watch.lap();
+    stages.restart_lap();
   }
   spdlog::info("[3/4] running the {} model ({}, {}) on {} views at height {} ...", predictor.config().preset,
                precision_name(predictor.precision()), runtime.device.str(),
                a.context.empty() ? a.views : static_cast<int>(a.context.size()), a.height);
   const Prediction p = predictor.predict(scene, opts);
-  timings["prepare_inputs_ms"] = p.prepare_ms;
-  timings["upload_inputs_ms"] = p.upload_ms;
-  timings["network_ms"] = p.network_ms;
-  watch.lap();  // the prediction's parts are timed above
+  stages.merge(p.stages);
+  stages.restart_lap();  // the prediction's parts are timed above
 
   const fs::path out(a.out);
   GaussianSet gaussians = p.gaussians();
@@ -98,15 +98,17 @@ void run(const InferArgs& a) {
     gaussians = refine_prediction(scene, p, opts, gaussians.to(render_device(runtime.device)), refine, refine_report);
     write_loss_chart(out, refine_report);
     refine_report["unrefined"] = a.keep_unrefined ? nlohmann::json("gaussians-unrefined.ply") : nlohmann::json();
-    timings["refine_ms"] = watch.lap();
+    stages.lap("refine");
   }
 
   spdlog::info("[4/4] writing {}", a.out);
   const SplatCloud cloud = splats_from_gaussians(gaussians);
+  stages.lap("gaussians to splats (host)");
   nlohmann::json splat_files = nlohmann::json::array();
   for (const std::string& name : a.splats) {
     write_splats(out / name, cloud);
     splat_files.push_back(name);
+    stages.lap("write " + name);
   }
   nlohmann::json depth_files = nlohmann::json::array();
   for (int64_t v = 0; v < p.maps.depth.size(1); ++v) {
@@ -114,8 +116,7 @@ void run(const InferArgs& a) {
     write_png(out / file, depth_colours(p.maps.depth[0][v][0]));
     depth_files.push_back(file);
   }
-  timings["write_outputs_ms"] = watch.lap();
-  timings["total_ms"] = total.ms();
+  stages.lap("write depth pictures");
 
   const auto& shape = p.input.input.images.sizes();
   const PoseNormalization& norm = p.input.normalization;
@@ -134,12 +135,14 @@ void run(const InferArgs& a) {
       {"gaussians", cloud.size()},
       {"normalization", {{"mean", {norm.mean.x(), norm.mean.y(), norm.mean.z()}}, {"scale", norm.scale}}},
       {"outputs", {{"splats", splat_files}, {"depth", depth_files}}},
-      {"timings", timings}};
+      {"stages", nlohmann::json()}};
   for (const auto& v : p.input.views) run["context"].push_back(v.name);
+  run["stages"] = stages.to_json();
+  run["total_ms"] = total.ms();
   write_file_atomic(out / "run.json", run.dump(2) + "\n");
 
   fmt::print("{} Gaussians from {} views ({}, {}), network {:.0f} ms, total {:.0f} ms\n", cloud.size(),
-             p.input.views.size(), precision_name(predictor.precision()), runtime.device.str(), p.network_ms,
+             p.input.views.size(), precision_name(predictor.precision()), runtime.device.str(), stages.ms("network"),
              total.ms());
   for (const std::string& name : a.splats) fmt::print("wrote {}\n", (out / name).string());
   fmt::print("wrote {}, depth/\n", (out / "run.json").string());

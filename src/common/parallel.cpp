@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdlib>
 #include <exception>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -64,6 +66,34 @@ void parallel_dynamic(int64_t n, int threads, const std::function<void(int64_t)>
   run_threads(thread_budget(threads, n), [&](int) {
     for (int64_t i = next++; i < n; i = next++) fn(i);
   });
+}
+
+ThreadPlan plan_threads(int requested, bool work_on_gpu) {
+  int cores = requested;
+  if (cores <= 0)
+    if (const char* omp = std::getenv("OMP_NUM_THREADS")) cores = std::atoi(omp);
+  if (cores <= 0) cores = static_cast<int>(std::thread::hardware_concurrency());
+  ThreadPlan plan;
+  plan.cores = std::max(1, cores);
+  plan.compute = work_on_gpu ? std::max(1, plan.cores / 2) : plan.cores;
+  plan.files = std::max(1, plan.cores / 4);
+  return plan;
+}
+
+namespace {
+std::mutex plan_mutex;
+std::optional<ThreadPlan> process_plan;
+}  // namespace
+
+ThreadPlan thread_plan() {
+  std::lock_guard<std::mutex> lock(plan_mutex);
+  if (!process_plan) process_plan = plan_threads(0, false);
+  return *process_plan;
+}
+
+void set_thread_plan(const ThreadPlan& plan) {
+  std::lock_guard<std::mutex> lock(plan_mutex);
+  process_plan = plan;
 }
 
 BackgroundJobs::~BackgroundJobs() {

@@ -12,6 +12,23 @@
 
 namespace ii {
 
+// How a command shares the CPU's cores: one policy for every command, CPU and GPU runs alike.
+// Three kinds of threads compete: LibTorch's (the network, the rasterizer and the metrics on
+// the CPU; on a GPU run only the main thread's few CPU operations), the threads decoding inputs
+// ahead, and those encoding and writing outputs behind. Busy threads never outnumber the cores:
+// on an H100 machine's 16 cores, LibTorch's 16 threads beside 8 decoding and 8 writing made
+// eval's renders and metrics 3-4x slower (issue 45); LibTorch 8 and 4 + 4 gave back the speed.
+struct ThreadPlan {
+  int cores = 1;    // what the command may use: --threads, else $OMP_NUM_THREADS, else every core
+  int compute = 1;  // LibTorch's intra-op threads: every core on a CPU run, half on a GPU run
+  int files = 1;    // threads decoding ahead, and as many writing behind: a quarter of the cores each
+};
+// requested <= 0: $OMP_NUM_THREADS when set (a launcher's share of the machine), else every core.
+ThreadPlan plan_threads(int requested, bool work_on_gpu);
+// The plan of this process (set_up_runtime sets it); before that, plan_threads(0, false).
+ThreadPlan thread_plan();
+void set_thread_plan(const ThreadPlan& plan);
+
 // Contiguous chunks of at least `grain` items: fn(begin, end).
 void parallel_range(int64_t n, int64_t grain, int threads, const std::function<void(int64_t, int64_t)>& fn);
 // fn(i) for each i, handed out one by one (for items that differ in cost).

@@ -61,4 +61,16 @@ PreparedView prepare_view(const View& view, const PreprocessOptions& options) {
   return out;
 }
 
+PreparedView PreparedViewCache::get(const View& view, const PreprocessOptions& options) {
+  const auto key = std::make_tuple(view.name, options.height, options.patch);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto found = views_.find(key);
+    if (found != views_.end()) return found->second;
+  }
+  PreparedView prepared = prepare_view(view, options);  // unlocked: views are prepared side by side
+  std::lock_guard<std::mutex> lock(mutex_);
+  return views_.emplace(key, std::move(prepared)).first->second;
+}
+
 }  // namespace ii

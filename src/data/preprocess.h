@@ -4,8 +4,11 @@
 // height if needed) to a multiple of the patch size. Unlike the official code, the camera
 // intrinsics follow the crop exactly (the official SPIn-NeRF path keeps the uncropped
 // field of view; see docs/architecture.md).
+#include <map>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <tuple>
 
 #include "camera/camera.h"
 #include "data/scene.h"
@@ -46,5 +49,17 @@ WorkingSize covering_size(int source_width, int source_height, int width, int he
 Image to_working_size(const Image& image, const WorkingSize& size, bool is_mask = false);
 
 PreparedView prepare_view(const View& view, const PreprocessOptions& options);
+
+// Views prepared once and kept, by name and working size: a server's edits read the same few
+// views again and again (decoding and resizing them was most of an edit's CPU time).
+// Thread-safe; get() returns a copy.
+class PreparedViewCache {
+ public:
+  PreparedView get(const View& view, const PreprocessOptions& options);
+
+ private:
+  std::mutex mutex_;
+  std::map<std::tuple<std::string, int, int>, PreparedView> views_;
+};
 
 }  // namespace ii

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/error.h"
+#include "common/parallel.h"
 
 namespace ii {
 
@@ -132,12 +133,6 @@ PropagatedMasks propagate_mask(const Image& region, const Image& depth, const Ca
             cv::BORDER_REPLICATE);
 
   const Eigen::Matrix4d c2w = opengl_to_opencv(camera.c2w);
-  std::vector<Eigen::Matrix4d> w2c;
-  std::vector<cv::Mat> canvases;
-  for (const Camera& t : targets) {
-    w2c.push_back(t.w2c_opencv());
-    canvases.emplace_back(t.K.height, t.K.width, CV_8UC1, cv::Scalar(0));
-  }
   auto point_at = [&](int x, int y, double t) -> Eigen::Vector3d {
     const Eigen::Vector3d local(t * (x + 0.5 - camera.K.cx) / camera.K.fx, t * (y + 0.5 - camera.K.cy) / camera.K.fy, t);
     return c2w.topLeftCorner<3, 3>() * local + c2w.topRightCorner<3, 1>();
@@ -145,6 +140,12 @@ PropagatedMasks propagate_mask(const Image& region, const Image& depth, const Ca
 
   const double m = options.depth_margin;
   PropagatedMasks out;
+  // Every region pixel's world segment, drawn afterwards into each view (the views side by side).
+  struct Segment {
+    Eigen::Vector3d a, b;
+    double min_z;
+  };
+  std::vector<Segment> segments;
   for (int k = 1; k < count; ++k) {
     const cv::Mat component = labels == k;
     LiftedRegion lifted;
@@ -208,15 +209,19 @@ PropagatedMasks propagate_mask(const Image& region, const Image& depth, const Ca
           t1 = d * (1 + m);
           t0 = std::max(1e-3 * d, d * (1 - m) - extent);
         }
-        const Eigen::Vector3d a = point_at(x, y, t0), b = point_at(x, y, t1);
-        for (size_t v = 0; v < targets.size(); ++v) draw_segment(canvases[v], targets[v].K, w2c[v], a, b, min_z);
+        segments.push_back({point_at(x, y, t0), point_at(x, y, t1), min_z});
       }
     out.regions.push_back(lifted);
   }
-  for (cv::Mat& canvas : canvases) {
+  out.masks.resize(targets.size());
+  parallel_dynamic(static_cast<int64_t>(targets.size()), thread_plan().cores, [&](int64_t v) {
+    const Camera& target = targets[static_cast<size_t>(v)];
+    const Eigen::Matrix4d w2c = target.w2c_opencv();
+    cv::Mat canvas(target.K.height, target.K.width, CV_8UC1, cv::Scalar(0));
+    for (const Segment& s : segments) draw_segment(canvas, target.K, w2c, s.a, s.b, s.min_z);
     const int automatic = std::max(2, static_cast<int>(std::lround(0.01 * std::max(canvas.cols, canvas.rows))));
-    out.masks.push_back(finish_mask(canvas, options.dilation >= 0 ? options.dilation : automatic));
-  }
+    out.masks[static_cast<size_t>(v)] = finish_mask(canvas, options.dilation >= 0 ? options.dilation : automatic);
+  });
   return out;
 }
 

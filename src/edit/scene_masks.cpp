@@ -7,6 +7,7 @@
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
+#include "common/stopwatch.h"
 #include "data/masks.h"
 #include "data/view_selection.h"
 
@@ -52,14 +53,16 @@ std::optional<Image> colmap_points_depth(const Scene& scene, const View& view) {
 }
 
 Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const std::string& view,
-                           const SceneInputOptions& options) {
+                           const SceneInputOptions& options, StageTimes* stages) {
   const View& marked = marked_view(scene, view);
   SceneInputOptions o;
   o.num_views = options.num_views;
   o.preprocess = options.preprocess;
   o.reference_view = view;
   o.keep_object = true;
+  o.view_cache = options.view_cache;
   const Prediction p = predictor.predict(scene, o);
+  Stopwatch watch;
   // z-depth scales with the pose normalisation; the working image is the view resized, then cropped.
   const torch::Tensor working = (p.maps.depth[0][0][0].to(torch::kCPU, torch::kFloat) * p.input.normalization.scale)
                                     .contiguous();
@@ -74,6 +77,10 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
       const long wx = std::lround((x + 0.5) * ws.resized_width / W - 0.5) - ws.crop_x;
       if (wx >= 0 && wx < ws.width) depth.at(y, x) = d[wy][wx];
     }
+  }
+  if (stages) {
+    stages->merge(p.stages, "masks: ");
+    stages->add("masks: depth map", watch.ms());
   }
   return depth;
 }
@@ -99,7 +106,9 @@ void SceneMasks::apply_to(SceneInputOptions& options, const OneMask& request) co
 }
 
 SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
-                          const SceneInputOptions& options) {
+                          const SceneInputOptions& options, StageTimes* stages) {
+  StageTimes unrecorded;
+  StageTimes& times = stages ? *stages : unrecorded;
   const View& marked = marked_view(scene, request.view);
   std::vector<Camera> cameras;
   for (const View& v : scene.views) cameras.push_back(v.camera);
@@ -109,7 +118,7 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
     PropagationOptions o = request.propagation;
     o.depth_margin = request.depth_margin.value_or(margin);
     o.pixel_depth = pixel_depth;
-    return propagate_mask(request.region, depth, marked.camera, cameras, o);
+    return times.time("masks: propagate", [&] { return propagate_mask(request.region, depth, marked.camera, cameras, o); });
   };
   auto finish = [&](const PropagatedMasks& p, std::string source) {
     for (size_t i = 0; i < scene.views.size(); ++i) out.masks[scene.views[i].name] = p.masks[i];
@@ -126,7 +135,7 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
                                        request.depth_png_scale);
     return finish(lift(depth, kFileDepthMargin, true), "file " + request.depth_file->string());
   }
-  if (const auto sparse = colmap_points_depth(scene, marked)) {
+  if (const auto sparse = times.time("masks: colmap points", [&] { return colmap_points_depth(scene, marked); })) {
     try {
       const PropagatedMasks p = lift(*sparse, kColmapDepthMargin, true);
       const bool enough = std::all_of(p.regions.begin(), p.regions.end(), [](const LiftedRegion& r) {
@@ -143,7 +152,7 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
          "reconstruct it{}",
          marked.name, out.notes.empty() ? "" : fmt::format(" ({})", fmt::join(out.notes, "; ")));
   for (const std::string& note : out.notes) spdlog::info("{}: using the network's depth", note);
-  const Image depth = predicted_view_depth(predictor(), scene, marked.name, options);
+  const Image depth = predicted_view_depth(predictor(), scene, marked.name, options, stages);
   return finish(lift(depth, kNetworkDepthMargin, false), "network");
 }
 

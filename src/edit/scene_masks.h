@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "data/scene.h"
+#include "common/stage_times.h"
 #include "edit/propagate.h"
 #include "model/predictor.h"
 
@@ -48,8 +49,9 @@ std::optional<Image> colmap_points_depth(const Scene& scene, const View& view);
 // The network's z-depth of `view` (scene units, at the view's image size; 0 outside the
 // working crop), reconstructed with the object present: that view is the reference, the
 // other context views are chosen around it, nothing is masked.
+// `stages` (optional) gets the prediction's stages, prefixed "masks: ".
 Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const std::string& view,
-                           const SceneInputOptions& options);
+                           const SceneInputOptions& options, StageTimes* stages = nullptr);
 
 struct SceneMasks {
   std::map<std::string, Image> masks;  // every view of the scene by name; the marked one = its region
@@ -65,9 +67,10 @@ struct SceneMasks {
 
 // The predictor (asked for only when the network's depth is needed, so a caller can load it
 // lazily; may be empty, which is then an error naming the other sources) runs with `options`'
-// preprocessing and number of context views.
+// preprocessing and number of context views. `stages` (optional) gets the work's stages,
+// named "masks: ..." (the depth's prediction, "masks: propagate").
 using PredictorSource = std::function<const Predictor&()>;
 SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
-                          const SceneInputOptions& options);
+                          const SceneInputOptions& options, StageTimes* stages = nullptr);
 
 }  // namespace ii

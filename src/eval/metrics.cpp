@@ -37,18 +37,23 @@ std::pair<torch::Tensor, torch::Tensor> image_pair(const torch::Tensor& a, const
 }
 
 // Mask as (N, 1, H, W) float weights in {0, 1} (> 0.5), matching `like` (N, C, H, W).
-torch::Tensor as_mask(const torch::Tensor& mask, const torch::Tensor& like, const char* what) {
+// The mask as {0, 1} of (n, 1, h, w) in `dtype`; `images` is the images' shape for the error.
+torch::Tensor as_mask(const torch::Tensor& mask, int64_t n, int64_t h, int64_t w, torch::ScalarType dtype,
+                      const std::string& images, const char* what) {
   if (!mask.defined()) fail("{}: the mask is undefined", what);
   torch::Tensor m = mask;
   if (m.dim() == 2)
     m = m.unsqueeze(0).unsqueeze(0);
   else if (m.dim() == 3)
     m = m.unsqueeze(0);
-  if (m.dim() != 4 || m.size(1) != 1 || m.size(2) != like.size(2) || m.size(3) != like.size(3) ||
-      (m.size(0) != like.size(0) && m.size(0) != 1))
+  if (m.dim() != 4 || m.size(1) != 1 || m.size(2) != h || m.size(3) != w || (m.size(0) != n && m.size(0) != 1))
     fail("{}: mask of shape {} does not fit images of shape {} (expected (N or 1, 1, H, W))", what, shape_text(mask),
-         shape_text(like));
-  return (m > 0.5).to(like.scalar_type()).expand({like.size(0), 1, like.size(2), like.size(3)});
+         images);
+  return (m > 0.5).to(dtype).expand({n, 1, h, w});
+}
+
+torch::Tensor as_mask(const torch::Tensor& mask, const torch::Tensor& like, const char* what) {
+  return as_mask(mask, like.size(0), like.size(2), like.size(3), like.scalar_type(), shape_text(like), what);
 }
 
 torch::Tensor gaussian_window(const torch::TensorOptions& options) {
@@ -120,9 +125,14 @@ torch::Tensor ssim(const torch::Tensor& a, const torch::Tensor& b) { return ssim
 
 torch::Tensor masked_ssim(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& mask) {
   const auto [x, y] = image_pair(a, b, "masked ssim");
-  const torch::Tensor m = as_mask(mask, x, "masked ssim");
-  const torch::Tensor map = ssim_channel_map(x, y, "masked ssim").mean(1, true);
+  return masked_ssim_of_map(ssim_channel_map(x, y, "masked ssim").mean(1, true), as_mask(mask, x, "masked ssim"));
+}
+
+torch::Tensor masked_ssim_of_map(const torch::Tensor& map, const torch::Tensor& mask) {
   const int64_t r = kSsimWindow / 2;
+  const torch::Tensor m =
+      as_mask(mask, map.size(0), map.size(2) + 2 * r, map.size(3) + 2 * r, map.scalar_type(),
+              fmt::format("[{}, C, {}, {}]", map.size(0), map.size(2) + 2 * r, map.size(3) + 2 * r), "masked ssim");
   const torch::Tensor inner = m.narrow(2, r, map.size(2)).narrow(3, r, map.size(3));
   return (map * inner).flatten(1).sum(1) / inner.flatten(1).sum(1);
 }
@@ -180,15 +190,20 @@ torch::Tensor crop_to_box(const torch::Tensor& t, const PixelBox& box) {
 double box_psnr(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& mask) {
   const auto box = mask_bounding_box(mask);
   if (!box) return std::numeric_limits<double>::quiet_NaN();
-  return psnr(crop_to_box(a, *box), crop_to_box(b, *box))[0].item<double>();
+  return box_psnr_ssim(a, b, *box)[0].item<double>();
 }
 
 double box_ssim(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& mask) {
   const auto box = mask_bounding_box(mask);
   if (!box) return std::numeric_limits<double>::quiet_NaN();
+  return box_psnr_ssim(a, b, *box)[1].item<double>();
+}
+
+torch::Tensor box_psnr_ssim(const torch::Tensor& a, const torch::Tensor& b, const PixelBox& box) {
   const PixelBox grown =
-      grow_box(*box, kSsimWindow, kSsimWindow, static_cast<int>(a.size(-1)), static_cast<int>(a.size(-2)));
-  return ssim(crop_to_box(a, grown), crop_to_box(b, grown))[0].item<double>();
+      grow_box(box, kSsimWindow, kSsimWindow, static_cast<int>(a.size(-1)), static_cast<int>(a.size(-2)));
+  return torch::stack({psnr(crop_to_box(a, box), crop_to_box(b, box))[0].to(torch::kFloat),
+                       ssim(crop_to_box(a, grown), crop_to_box(b, grown))[0].to(torch::kFloat)});
 }
 
 }  // namespace ii

@@ -38,6 +38,8 @@ torch::Tensor ssim_map(const torch::Tensor& a, const torch::Tensor& b);
 // Per-image SSIM, (N). Differentiable with respect to both inputs.
 torch::Tensor ssim(const torch::Tensor& a, const torch::Tensor& b);
 torch::Tensor masked_ssim(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& mask);
+// masked_ssim of an ssim_map computed once (one map, several masks).
+torch::Tensor masked_ssim_of_map(const torch::Tensor& map, const torch::Tensor& mask);
 
 // Half-open pixel box [x0, x1) × [y0, y1).
 struct PixelBox {
@@ -63,5 +65,8 @@ torch::Tensor crop_to_box(const torch::Tensor& t, const PixelBox& box);
 // bounding box. NaN when the mask is empty.
 double box_psnr(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& mask);
 double box_ssim(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& mask);
+// Both for a box known on the host, as a (2) float tensor on the inputs' device: nothing waits
+// for a GPU (box_psnr and box_ssim find the box on the host and read each value back).
+torch::Tensor box_psnr_ssim(const torch::Tensor& a, const torch::Tensor& b, const PixelBox& box);
 
 }  // namespace ii

@@ -6,6 +6,7 @@
 #include <future>
 #include <limits>
 #include <map>
+#include <set>
 
 #include <fmt/core.h>
 #include <opencv2/imgproc.hpp>
@@ -14,6 +15,7 @@
 #include "common/error.h"
 #include "common/files.h"
 #include "common/parallel.h"
+#include "common/stage_times.h"
 #include "common/stopwatch.h"
 #include "data/image_ops.h"
 #include "data/inpaint2d.h"
@@ -183,14 +185,16 @@ MetricNetworks load_metric_networks(const EvalOptions& o, const torch::Device& d
 
 // The predicted Gaussians, float32 on `render_on` (where the rasterizer runs).
 GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const torch::Device& render_on,
-                              json& info, json& timings) {
-  Stopwatch watch;
+                              json& info, StageTimes& stages) {
+  stages.restart_lap();
   if (o.gaussians) {
     const SplatCloud cloud = read_splats(*o.gaussians);
     info["source"] = "gaussians";
     info["ply"] = o.gaussians->string();
-    timings["read_gaussians_ms"] = watch.lap();
-    return gaussians_from_splats(cloud, o.sh_degree).to(render_on);
+    stages.lap("read gaussians");
+    GaussianSet g = gaussians_from_splats(cloud, o.sh_degree).to(render_on);
+    stages.lap("gaussians to the renderer");
+    return g;
   }
   info["source"] = "network";
   const std::string checkpoint = o.checkpoint ? o.checkpoint->string() : "";
@@ -200,7 +204,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   info["checkpoint"] = model["checkpoint"];
   info["checkpoint_format"] = model["format"];
   info["config"] = model["config"];
-  timings["load_model_ms"] = watch.lap();
+  stages.lap("load model");
 
   SceneInputOptions opts;
   opts.context = o.context;
@@ -212,26 +216,27 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   opts.keep_object = o.keep_object;
   if (o.edit) {
     spdlog::info("masks for every view from the region on {}", o.edit->view);
-    const SceneMasks masks = masks_from_one(scene, *o.edit, [&]() -> const Predictor& { return predictor; }, opts);
+    const SceneMasks masks =
+        masks_from_one(scene, *o.edit, [&]() -> const Predictor& { return predictor; }, opts, &stages);
     masks.apply_to(opts, *o.edit);
     info["edit"] = masks.describe(*o.edit);
-    timings["masks_ms"] = watch.lap();
+    stages.restart_lap();
   }
   spdlog::info("running the network ({})", precision_name(o.precision));
   const Prediction p = predictor.predict(scene, opts);
+  stages.merge(p.stages);
+  stages.restart_lap();
   info["context"] = json::array();
   for (const PreparedView& v : p.input.views) info["context"].push_back(v.name);
   info["reference"] = p.input.reference_source;
-  timings["prepare_inputs_ms"] = p.prepare_ms;
-  timings["upload_inputs_ms"] = p.upload_ms;
-  timings["network_ms"] = p.network_ms;
   GaussianSet g = p.gaussians();
   for (torch::Tensor* t : {&g.means, &g.quats, &g.scales, &g.opacities, &g.colors})
     *t = t->to(render_on, torch::kFloat32);
-  watch.lap();
+  synchronize(render_on);
+  stages.lap("gaussians to the renderer");
   if (o.after_prediction) {
     g = o.after_prediction(scene, p, opts, g, info["after_prediction"]);
-    timings["after_prediction_ms"] = watch.lap();
+    stages.lap("refine");
   }
   return g;
 }
@@ -337,10 +342,10 @@ void write_report(const fs::path& out, const json& metrics) {
     h += "</tr></table>\n<img src=\"" + html_escape(v["files"]["sheet"].get<std::string>()) + "\" alt=\"" +
          html_escape(v["name"].get<std::string>()) + "\"></div>\n";
   }
-  h += "<h2>Timings</h2>\n<table>";
-  for (const auto& [key, ms] : metrics["timings"].items())
-    if (ms.is_number())
-      h += "<tr><th>" + html_escape(key) + "</th><td>" + fmt::format("{:.0f}", ms.get<double>()) + "</td></tr>";
+  h += "<h2>Where the time went</h2>\n<table><tr><th>stage</th><th>ms</th><th>calls</th></tr>";
+  for (const json& s : metrics["stages"])
+    h += fmt::format("<tr><th>{}{}</th><td>{:.0f}</td><td>{}</td></tr>", html_escape(s["stage"].get<std::string>()),
+                     s.value("behind", false) ? " (behind)" : "", s["ms"].get<double>(), s["calls"].get<int>());
   h += "</table>\n</body></html>\n";
   write_file_atomic(out / "report.html", h);
 }
@@ -438,7 +443,18 @@ torch::Tensor quantize_image(const torch::Tensor& images, const std::string& mod
 }
 
 Image quantize_image(const Image& image, const std::string& mode) {
-  return mode == "none" ? image : tensor_to_image(quantize_image(image_to_tensor(image), mode));
+  if (mode == "none") return image;
+  if (mode != "round" && mode != "truncate")
+    fail("--quantize: unknown mode '{}' (expected round, truncate or none)", mode);
+  // The tensor form's arithmetic in the same float steps, without LibTorch: test views are
+  // quantised on the threads that decode them, beside LibTorch's own.
+  const float half = mode == "round" ? 0.5f : 0.f;
+  Image out = image;
+  for (float& v : out.pixels) {
+    const float scaled = std::clamp(v, 0.f, 1.f) * 255.f;
+    v = std::floor(scaled + half) / 255.f;
+  }
+  return out;
 }
 
 Image mean_fill(const Image& rgb, const Image& mask, int ring_width) {
@@ -511,221 +527,297 @@ std::optional<PixelBox> crop_around_mask(const Image& mask) {
   return grow_box(*box, side, side, mask.width, mask.height);
 }
 
-json run_evaluation(const EvalOptions& o) {
-  Stopwatch total, watch;
-  json timings = json::object();
-  json unavailable = json::object();
-  quantize_image(Image(1, 1, 1), o.quantize);  // validates the mode before any work
-  // A GPU given without an index (torch::kCUDA) is the first one: named so in the results and
-  // equal to the device of the tensors made there.
-  const torch::Device device = resolve_device(o.device.str());
-  // Without the CUDA rasterizer kernels a GPU run renders on the CPU.
-  const torch::Device render_on = render_device(device);
-  if (o.method == EvalMethod::model && o.checkpoint && o.gaussians)
-    fail("eval: give either --checkpoint or --gaussians, not both");
-  if (o.method != EvalMethod::model && (o.checkpoint || o.gaussians))
-    fail("eval --method {} is a baseline without a model: drop --checkpoint/--gaussians", eval_method_name(o.method));
+namespace {
 
-  spdlog::info("reading scene {}", o.scene_dir.string());
-  const Scene scene = load_scene(o.scene_dir, o.scene);
-  if (scene.test_views.empty())
-    fail("{}: no test views (SPIn-NeRF scenes list object-free ones by their masks in images_K/test_label/; "
-         "--hold-out-every N holds out input views that have masks)",
-         o.scene_dir.string());
-  timings["read_scene_ms"] = watch.lap();
+// A test view at the working size, its ground truth quantised as the predictions will be.
+struct TestView {
+  PreparedView prepared;
+  Image truth;
+};
 
-  json prediction = {{"method", eval_method_name(o.method)}};
-  const std::string task = scene_task(scene);
-  const std::optional<InsertionBaseline> baseline = insertion_baseline(scene, o);
-  if (baseline) prediction["reference_view"] = baseline->reference.name;
-  std::optional<GaussianSet> gaussians;
-  if (o.method == EvalMethod::model) {
-    json stage_timings = json::object();
-    gaussians = predict_gaussians(scene, o, render_on, prediction, stage_timings);
-    for (const auto& [k, v] : stage_timings.items()) timings[k] = v;
-    prediction["gaussians"] = gaussians->size();
-    watch.lap();
+// The test views in order, decoded `ahead` at a time on background threads: the CPU work that
+// runs beside the renders.
+class TestViewReader {
+ public:
+  TestViewReader(const std::vector<View>& views, const PreprocessOptions& preprocess, const std::string& quantize,
+                 size_t ahead)
+      : views_(views), preprocess_(preprocess), quantize_(quantize), ahead_(std::max<size_t>(1, ahead)) {}
+
+  TestView next() {
+    fill();
+    TestView view = pending_.front().get();
+    pending_.pop_front();
+    fill();
+    return view;
   }
 
-  const MetricNetworks nets = load_metric_networks(o, device);
-  if (!nets.lpips_vgg) {
-    unavailable["lpips"] = nets.lpips_vgg_reason;
-    unavailable["masked_lpips"] = nets.lpips_vgg_reason;
+ private:
+  void fill() {
+    for (; next_ < views_.size() && pending_.size() < ahead_; ++next_)
+      pending_.push_back(std::async(std::launch::async, [this, &view = views_[next_]] {
+        TestView t{prepare_view(view, preprocess_), {}};
+        // The ground truth is rounded whatever the predictions' mode, unless nothing is.
+        t.truth = quantize_ == "none" ? t.prepared.rgb : quantize_image(t.prepared.rgb, "round");
+        return t;
+      }));
   }
-  if (!nets.inception)
-    for (const char* k : {"fid", "kid", "c_fid", "c_kid"}) unavailable[k] = nets.inception_reason;
-  timings["load_metric_networks_ms"] = watch.lap();
 
-  const PoseNormalization normalization = scene_normalization(scene);
+  const std::vector<View>& views_;
+  const PreprocessOptions& preprocess_;
+  const std::string quantize_;
+  const size_t ahead_;
+  size_t next_ = 0;
+  std::deque<std::future<TestView>> pending_;
+};
+
+// Metric values computed on the device, read back in one transfer: on a GPU each value read
+// waits for the device.
+class DeviceValues {
+ public:
+  void add(const std::string& key, const torch::Tensor& value) {
+    keys_.push_back(key);
+    values_.push_back(value.reshape({}).to(torch::kDouble));
+  }
+  void add_nan(const std::string& key) { nan_keys_.push_back(key); }
+  std::vector<std::pair<std::string, double>> read() const {
+    std::vector<std::pair<std::string, double>> out;
+    if (!values_.empty()) {
+      const torch::Tensor read = torch::stack(values_).to(torch::kCPU);
+      const double* v = read.data_ptr<double>();
+      for (size_t i = 0; i < keys_.size(); ++i) out.emplace_back(keys_[i], v[i]);
+    }
+    for (const std::string& key : nan_keys_) out.emplace_back(key, kNaN);
+    return out;
+  }
+
+ private:
+  std::vector<std::string> keys_, nan_keys_;
+  std::vector<torch::Tensor> values_;
+};
+
+// What every test view's evaluation shares.
+struct EvalRun {
+  const EvalOptions& o;
+  const Scene& scene;
+  torch::Device device;                      // uploads, baselines and metrics
+  std::optional<GaussianSet> gaussians;      // method model, on the rasterizer's device
+  std::optional<InsertionBaseline> baseline;
+  PoseNormalization normalization;
   PreprocessOptions preprocess;
-  preprocess.height = o.height;
-  const fs::path out = o.out;
-  fs::create_directories(out / "renders");
-  if (o.write_report) fs::create_directories(out / "sheets");
+};
 
+// Inception features of ground truths and predictions (whole views and crops around the mask).
+struct FeatureSets {
+  std::vector<std::vector<float>> real, fake, real_crops, fake_crops;
+};
+
+struct TestViewResults {
   json views = json::array();
   std::map<std::string, Averager> means;
-  std::vector<std::vector<float>> real, fake, real_crops, fake_crops;
-  // Each view's images stay on `device` from the upload (or the render) to the metrics; only
-  // the prediction comes back, to be written.
-  double decode_ms = 0, predict_ms = 0, image_metrics_ms = 0, lpips_ms = 0, inception_ms = 0, write_ms = 0;
+  FeatureSets features;
   int working_width = 0, working_height = 0;
-  // The CPU work around the renders runs beside them: the next views are decoded ahead, and
-  // the renders' PNGs are encoded and written behind (on a GPU it is most of the wall time).
-  // Each side gets half the cores, for the main thread launches the renders and needs one too
-  // (with all cores on each side, renders and metrics on a 16-core GPU machine took 2-3x longer
-  // than before the background threads; docs/benchmarks.md, session 16).
-  const size_t cpu_threads = static_cast<size_t>(std::max(2, at::get_num_threads() / 2));
-  std::deque<std::future<PreparedView>> decoding;
-  size_t next_to_decode = 0;
-  auto decode_ahead = [&] {
-    for (; next_to_decode < scene.test_views.size() && decoding.size() < cpu_threads; ++next_to_decode)
-      decoding.push_back(std::async(std::launch::async, [&view = scene.test_views[next_to_decode], &preprocess] {
-        return prepare_view(view, preprocess);
-      }));
-  };
-  BackgroundJobs writes(cpu_threads);
-  int index = 0;
-  for (const View& view : scene.test_views) {
-    ++index;
-    Stopwatch step;
-    decode_ahead();
-    PreparedView pv = decoding.front().get();
-    decoding.pop_front();
-    decode_ahead();
-    const Image truth = o.quantize == "none" ? pv.rgb : quantize_image(pv.rgb, "round");
-    working_width = truth.width;
-    working_height = truth.height;
-    decode_ms += step.lap();
-    // The upload of the test view counts as prediction work, not as decoding.
-    const torch::Tensor b = to_device(image_to_tensor(truth), device);
-    torch::Tensor m;
-    if (pv.mask) m = to_device(image_to_tensor(*pv.mask), device);
+};
 
-    torch::Tensor a;
-    if (o.method == EvalMethod::model) {
-      RenderCamera rc;
-      rc.camera = normalization.apply(pv.camera);
-      a = render(*gaussians, rc).rgb.permute({2, 0, 1}).unsqueeze(0).to(device);
-    } else if (baseline) {
-      a = to_device(image_to_tensor(baseline->predict(view, preprocess)), device);
-    } else {
-      if (!pv.mask)
-        fail("{}: test view {} has no mask; --method {} fills the masked region", o.scene_dir.string(), view.name,
-             eval_method_name(o.method));
-      if (view.shows_object)
-        fail("{}: --method {} fills the mask of the ground truth itself; held-out views that show the object "
-             "(--hold-out-every) compare nothing else",
-             o.scene_dir.string(), eval_method_name(o.method));
-      a = to_device(image_to_tensor(o.method == EvalMethod::telea ? inpaint_telea(truth, *pv.mask)
-                                                                   : mean_fill(truth, *pv.mask, o.ring_width)),
-                    device);
+// The method's prediction of one test view on the device, quantised as the official pipeline
+// saves it; the device has finished it when this returns (its time is the view's).
+torch::Tensor predict_test_view(const EvalRun& r, const View& view, const TestView& t) {
+  torch::Tensor a;
+  if (r.o.method == EvalMethod::model) {
+    RenderCamera rc;
+    rc.camera = r.normalization.apply(t.prepared.camera);
+    a = render(*r.gaussians, rc).rgb.permute({2, 0, 1}).unsqueeze(0).to(r.device);
+  } else if (r.baseline) {
+    a = to_device(image_to_tensor(r.baseline->predict(view, r.preprocess)), r.device);
+  } else {
+    const char* method = eval_method_name(r.o.method);
+    if (!t.prepared.mask)
+      fail("{}: test view {} has no mask; --method {} fills the masked region", r.o.scene_dir.string(), view.name,
+           method);
+    if (view.shows_object)
+      fail("{}: --method {} fills the mask of the ground truth itself; held-out views that show the object "
+           "(--hold-out-every) compare nothing else",
+           r.o.scene_dir.string(), method);
+    const Image& truth = t.truth;
+    a = to_device(image_to_tensor(r.o.method == EvalMethod::telea ? inpaint_telea(truth, *t.prepared.mask)
+                                                                   : mean_fill(truth, *t.prepared.mask, r.o.ring_width)),
+                  r.device);
+  }
+  a = quantize_image(a, r.o.quantize);
+  synchronize(r.device);
+  return a;
+}
+
+// PSNR and SSIM and their masked, outside-the-mask and bounding-box variants of one view,
+// queued on the device (one SSIM map serves every SSIM).
+void queue_image_metrics(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& m,
+                         const std::optional<Image>& mask, bool shows_object, DeviceValues& values) {
+  const torch::Tensor map = ssim_map(a, b);
+  if (m.defined()) {
+    // Held-out views show the object the prediction removed: only the rest compares.
+    const torch::Tensor outside = (m <= 0.5).to(m.dtype());
+    values.add("outside_psnr", masked_psnr(a, b, outside)[0]);
+    values.add("outside_ssim", masked_ssim_of_map(map, outside)[0]);
+    values.add("mask_pixels", (m > 0.5).sum());
+  }
+  if (shows_object) return;
+  values.add("psnr", psnr(a, b)[0]);
+  values.add("ssim", map.flatten(1).mean(1)[0]);
+  if (!m.defined()) return;
+  values.add("masked_psnr", masked_psnr(a, b, m)[0]);
+  values.add("masked_ssim", masked_ssim_of_map(map, m)[0]);
+  if (const auto box = mask_bounding_box(*mask)) {  // the host's copy of the mask: no wait
+    const torch::Tensor both = box_psnr_ssim(a, b, *box);
+    values.add("box_psnr", both[0]);
+    values.add("box_ssim", both[1]);
+  } else {
+    values.add_nan("box_psnr");
+    values.add_nan("box_ssim");
+  }
+}
+
+// LPIPS values of one view, queued on the device.
+void queue_lpips(const MetricNetworks& nets, const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& m,
+                 DeviceValues& values) {
+  const torch::Tensor as = a * 2 - 1, bs = b * 2 - 1;
+  if (nets.lpips_vgg) {
+    values.add("lpips", nets.lpips_vgg->forward(as, bs)[0]);
+    if (m.defined()) values.add("masked_lpips", nets.lpips_vgg->masked(as, bs, m)[0]);
+  }
+  if (nets.lpips_alex) values.add("lpips_alex", nets.lpips_alex->forward(as, bs)[0]);
+}
+
+void add_inception_features(const InceptionFeatures& inception, const torch::Tensor& a, const torch::Tensor& b,
+                            const std::optional<Image>& mask, FeatureSets& sets) {
+  const torch::Tensor pair = torch::cat({b, a}, 0);
+  const torch::Tensor f = inception.forward(pair);
+  sets.real.push_back(row_of(f, 0));
+  sets.fake.push_back(row_of(f, 1));
+  if (mask)
+    if (const auto box = crop_around_mask(*mask)) {
+      const torch::Tensor fc = inception.forward(crop_to_box(pair, *box));
+      sets.real_crops.push_back(row_of(fc, 0));
+      sets.fake_crops.push_back(row_of(fc, 1));
     }
-    a = quantize_image(a, o.quantize);
-    synchronize(device);
-    const double view_predict_ms = step.lap();
-    predict_ms += view_predict_ms;
+}
 
-    json v = {{"name", view.name}};
-    auto put = [&](const std::string& key, double value) {
-      v[key] = number(value);
-      means[key].add(value);
-    };
+// The view's render (and contact sheet) encoded and written behind the main work; their time
+// is recorded as "behind" stages, the wait for a free writer as the main thread's.
+void queue_view_files(const EvalRun& r, const TestView& t, const Image& predicted, const std::string& name,
+                      BackgroundJobs& writes, StageTimes& stages, json& v) {
+  const fs::path out = r.o.out;
+  const std::string render_file = "renders/" + name + ".png";
+  writes.add([path = out / render_file, predicted, &stages] {
+    stages.time("write renders", [&] { write_png(path, predicted); }, /*behind=*/true);
+  });
+  v["files"] = {{"render", render_file}};
+  if (!r.o.write_report) return;
+  const std::string sheet_file = "sheets/" + name + ".png";
+  writes.add([path = out / sheet_file, truth = t.truth, predicted, mask = t.prepared.mask, &stages] {
+    stages.time(
+        "write contact sheets",
+        [&] {
+          write_png(path,
+                    contact_sheet({truth, predicted, error_map(truth, predicted), with_mask_outline(predicted, mask)}));
+        },
+        /*behind=*/true);
+  });
+  v["files"]["sheet"] = sheet_file;
+}
+
+void log_view(const View& view, size_t index, size_t count, const json& v, bool masked) {
+  if (view.shows_object)
+    spdlog::info("[{}/{}] {} (held out, shows the object): PSNR outside the mask {}", index, count, view.name,
+                 metric_cell(v["outside_psnr"], 2));
+  else
+    spdlog::info("[{}/{}] {}: PSNR {} SSIM {}{}", index, count, view.name, metric_cell(v["psnr"], 2),
+                 metric_cell(v["ssim"], 4), masked ? ", masked PSNR " + metric_cell(v["masked_psnr"], 2) : std::string());
+}
+
+// A view whose metric values are still on the device: read once the next view's render has
+// waited for the device anyway (one wait a view instead of two).
+struct MeasuredView {
+  const View* view = nullptr;
+  size_t index = 0;
+  bool masked = false;
+  json v;
+  DeviceValues values;
+};
+
+// Every test view: decoded ahead, predicted, measured, its files written behind. Each view's
+// images stay on the device from the upload (or the render) to the metrics; only the
+// prediction comes back, to be written.
+TestViewResults evaluate_test_views(const EvalRun& r, const MetricNetworks& nets, StageTimes& stages) {
+  const fs::path out = r.o.out;
+  fs::create_directories(out / "renders");
+  if (r.o.write_report) fs::create_directories(out / "sheets");
+  const ThreadPlan plan = thread_plan();
+  TestViewReader reader(r.scene.test_views, r.preprocess, r.o.quantize, static_cast<size_t>(plan.files));
+  // Declared after the reader: destroyed first, so a failed view waits for its writes.
+  BackgroundJobs writes(static_cast<size_t>(plan.files));
+  const std::string predict_stage =
+      r.o.method == EvalMethod::model ? "render" : fmt::format("baseline {}", eval_method_name(r.o.method));
+  TestViewResults results;
+  const size_t count = r.scene.test_views.size();
+  auto put = [&](json& v, const std::string& key, double value) {
+    if (key == "mask_pixels") {
+      v[key] = static_cast<int64_t>(value);
+      return;
+    }
+    v[key] = number(value);
+    results.means[key].add(value);
+  };
+  std::optional<MeasuredView> measured;
+  auto finish_measured = [&] {
+    if (!measured) return;
+    for (const auto& [key, value] : measured->values.read()) put(measured->v, key, value);
+    log_view(*measured->view, measured->index + 1, count, measured->v, measured->masked);
+    results.views.push_back(std::move(measured->v));
+    measured.reset();
+  };
+  for (size_t i = 0; i < count; ++i) {
+    const View& view = r.scene.test_views[i];
+    stages.restart_lap();
+    const TestView t = reader.next();
+    results.working_width = t.truth.width;
+    results.working_height = t.truth.height;
+    stages.lap("decode test views (waited)");
+    const torch::Tensor b = image_to_device(t.truth, r.device);
+    torch::Tensor m;
+    if (t.prepared.mask) m = image_to_device(*t.prepared.mask, r.device);
+    stages.lap("upload test views");
+    const torch::Tensor a = predict_test_view(r, view, t);
+    const double predict_ms = stages.lap(predict_stage);
+    finish_measured();  // the device has finished the previous view's metrics: no wait
+    const Image predicted = tensor_to_image(a);
+    stages.lap("download renders");
+
+    MeasuredView next{&view, i, t.prepared.mask.has_value(), {{"name", view.name}, {"predict_ms", predict_ms}}, {}};
     {
       torch::NoGradGuard no_grad;
-      // The view's metrics come back in one transfer: on a GPU each value read waits for the device.
-      std::vector<std::string> keys;
-      std::vector<torch::Tensor> values;
-      auto later = [&](const char* key, const torch::Tensor& value) {
-        keys.emplace_back(key);
-        values.push_back(value.reshape({}).to(torch::kDouble));
-      };
-      if (pv.mask) {
-        // Held-out views show the object the prediction removed: only the rest compares.
-        const torch::Tensor outside = (m <= 0.5).to(m.dtype());
-        later("outside_psnr", masked_psnr(a, b, outside)[0]);
-        later("outside_ssim", masked_ssim(a, b, outside)[0]);
-        later("mask_pixels", (m > 0.5).sum());
-      }
-      if (!view.shows_object) {
-        later("psnr", psnr(a, b)[0]);
-        later("ssim", ssim(a, b)[0]);
-        if (pv.mask) {
-          later("masked_psnr", masked_psnr(a, b, m)[0]);
-          later("masked_ssim", masked_ssim(a, b, m)[0]);
-        }
-      }
-      if (!values.empty()) {
-        const torch::Tensor read = torch::stack(values).to(torch::kCPU);
-        for (size_t i = 0; i < keys.size(); ++i) {
-          const double value = read[static_cast<int64_t>(i)].item<double>();
-          if (keys[i] == "mask_pixels")
-            v["mask_pixels"] = static_cast<int64_t>(value);
-          else
-            put(keys[i], value);
-        }
-      }
-      if (!view.shows_object && pv.mask) {
-        put("box_psnr", box_psnr(a, b, m));
-        put("box_ssim", box_ssim(a, b, m));
-      }
-      image_metrics_ms += step.lap();
-
+      queue_image_metrics(a, b, m, t.prepared.mask, view.shows_object, next.values);
+      stages.lap("image metrics");
       if (!view.shows_object && (nets.lpips_vgg || nets.lpips_alex)) {
-        const torch::Tensor as = a * 2 - 1, bs = b * 2 - 1;
-        if (nets.lpips_vgg) {
-          put("lpips", nets.lpips_vgg->forward(as, bs)[0].item<double>());
-          if (pv.mask) put("masked_lpips", nets.lpips_vgg->masked(as, bs, m)[0].item<double>());
-        }
-        if (nets.lpips_alex) put("lpips_alex", nets.lpips_alex->forward(as, bs)[0].item<double>());
-        lpips_ms += step.lap();
+        queue_lpips(nets, a, b, m, next.values);
+        stages.lap("lpips");
       }
       if (!view.shows_object && nets.inception) {
-        const torch::Tensor pair = torch::cat({b, a}, 0);
-        const torch::Tensor f = nets.inception->forward(pair);
-        real.push_back(row_of(f, 0));
-        fake.push_back(row_of(f, 1));
-        if (pv.mask)
-          if (const auto box = crop_around_mask(*pv.mask)) {
-            const torch::Tensor fc = nets.inception->forward(crop_to_box(pair, *box));
-            real_crops.push_back(row_of(fc, 0));
-            fake_crops.push_back(row_of(fc, 1));
-          }
-        inception_ms += step.lap();
+        add_inception_features(*nets.inception, a, b, t.prepared.mask, results.features);
+        stages.lap("inception features");
       }
     }
-
-    const Image predicted = tensor_to_image(a);
-    const std::string render_file = "renders/" + view.name + ".png";
-    writes.add([path = out / render_file, predicted] { write_png(path, predicted); });
-    v["files"] = {{"render", render_file}};
-    if (o.write_report) {
-      const std::string sheet_file = "sheets/" + view.name + ".png";
-      writes.add([path = out / sheet_file, truth, predicted, mask = pv.mask] {
-        write_png(path, contact_sheet({truth, predicted, error_map(truth, predicted), with_mask_outline(predicted, mask)}));
-      });
-      v["files"]["sheet"] = sheet_file;
-    }
-    write_ms += step.lap();
-    v["predict_ms"] = view_predict_ms;
-    if (view.shows_object)
-      spdlog::info("[{}/{}] {} (held out, shows the object): PSNR outside the mask {}", index,
-                   scene.test_views.size(), view.name, metric_cell(v["outside_psnr"], 2));
-    else
-      spdlog::info("[{}/{}] {}: PSNR {} SSIM {}{}", index, scene.test_views.size(), view.name,
-                   metric_cell(v["psnr"], 2), metric_cell(v["ssim"], 4),
-                   pv.mask ? ", masked PSNR " + metric_cell(v["masked_psnr"], 2) : std::string());
-    views.push_back(std::move(v));
+    queue_view_files(r, t, predicted, view.name, writes, stages, next.v);
+    stages.lap("write files (waited)");
+    measured = std::move(next);
   }
-  Stopwatch last_writes;
+  stages.restart_lap();
+  finish_measured();
+  stages.lap("image metrics");
   writes.finish();
-  write_ms += last_writes.ms();
-  timings["decode_test_views_ms"] = decode_ms;
-  timings["predict_ms"] = predict_ms;
-  timings["image_metrics_ms"] = image_metrics_ms;
-  if (nets.lpips_vgg || nets.lpips_alex) timings["lpips_ms"] = lpips_ms;
-  if (nets.inception) timings["inception_ms"] = inception_ms;
+  stages.lap("write files (waited)");
+  return results;
+}
 
+json mean_metrics(const std::map<std::string, Averager>& means, json& unavailable) {
   json mean = json::object();
   if (!means.count("psnr"))
     for (const char* key : {"psnr", "ssim", "masked_psnr", "masked_ssim", "lpips", "masked_lpips"})
@@ -734,7 +826,7 @@ json run_evaluation(const EvalOptions& o) {
   for (const char* key : {"psnr", "ssim", "masked_psnr", "masked_ssim", "outside_psnr", "outside_ssim", "box_psnr",
                           "box_ssim", "lpips", "masked_lpips", "lpips_alex"}) {
     if (means.count(key))
-      mean[key] = number(means[key].mean());
+      mean[key] = number(means.at(key).mean());
     else if (unavailable.contains(key))
       mean[key] = nullptr;
   }
@@ -744,61 +836,129 @@ json run_evaluation(const EvalOptions& o) {
       unavailable[key] = "no test view has a mask";
     }
   }
+  return mean;
+}
 
+json set_metrics(const MetricNetworks& nets, const FeatureSets& features, json& unavailable) {
   json set = json::object();
-  watch.lap();
   if (nets.inception) {
-    distribution_metrics(real, fake, "fid", "kid", set, unavailable);
-    distribution_metrics(real_crops, fake_crops, "c_fid", "c_kid", set, unavailable);
-    timings["fid_kid_ms"] = watch.lap();
+    distribution_metrics(features.real, features.fake, "fid", "kid", set, unavailable);
+    distribution_metrics(features.real_crops, features.fake_crops, "c_fid", "c_kid", set, unavailable);
   } else {
     for (const char* k : {"fid", "kid", "c_fid", "c_kid"}) set[k] = nullptr;
   }
-  // The work of the method and the protocol without the file reading and writing around it.
-  double compute_ms = 0;
-  for (const char* key : {"upload_inputs_ms", "network_ms", "predict_ms", "image_metrics_ms", "lpips_ms",
-                          "inception_ms", "fid_kid_ms"})
-    if (timings.contains(key)) compute_ms += timings[key].get<double>();
-  timings["compute_ms"] = compute_ms;
+  return set;
+}
 
-  json metrics = {
-      {"protocol", "spin-nerf"},
-      {"scene", scene.root.string()},
-      {"format", scene.format},
-      {"method", eval_method_name(o.method)},
-      {"task", task},
-      {"prediction", prediction},
-      {"working_size", {working_width, working_height}},
-      {"quantize", o.quantize},
-      {"device", device.str()},
-      {"views", views},
-      {"mean", mean},
-      {"set", set},
-      {"unavailable", unavailable},
-      {"definitions",
-       {{"psnr", "-10 log10 MSE over all pixels and channels, images in [0,1]; \"inf\" for identical images"},
-        {"ssim", "Gaussian window 11, sigma 1.5, K1 0.01, K2 0.03, valid positions, mean over channels"},
-        {"masked_psnr", "PSNR over the pixels of the view's test mask"},
-        {"masked_ssim", "SSIM map averaged over valid positions whose centre is in the mask"},
-        {"outside_psnr", "PSNR over the pixels outside the view's mask (the only comparison on held-out views)"},
-        {"outside_ssim", "SSIM map averaged over valid positions whose centre is outside the mask"},
-        {"box_psnr", "PSNR on the mask's bounding box"},
-        {"box_ssim", "SSIM on the mask's bounding box grown to at least 11x11"},
-        {"lpips",
-         "LPIPS v0.1 VGG, inputs in [-1,1], spatial average per stage (the official helper averages the upsampled "
-         "spatial map: the same value when the sides are multiples of 16)"},
-        {"masked_lpips", "both images multiplied by the mask, spatial LPIPS map averaged over the mask"},
-        {"fid", "Frechet distance of pytorch-fid Inception-v3 pool features, ground truth vs predictions"},
-        {"kid", "unbiased MMD^2, kernel (x.y/2048 + 1)^3"},
-        {"c_fid", "FID on square crops around the mask (1.2 x the box's longer side)"},
-        {"c_kid", "KID on the same crops"}}},
-      {"timings", timings}};
+json metric_definitions() {
+  return {{"psnr", "-10 log10 MSE over all pixels and channels, images in [0,1]; \"inf\" for identical images"},
+          {"ssim", "Gaussian window 11, sigma 1.5, K1 0.01, K2 0.03, valid positions, mean over channels"},
+          {"masked_psnr", "PSNR over the pixels of the view's test mask"},
+          {"masked_ssim", "SSIM map averaged over valid positions whose centre is in the mask"},
+          {"outside_psnr", "PSNR over the pixels outside the view's mask (the only comparison on held-out views)"},
+          {"outside_ssim", "SSIM map averaged over valid positions whose centre is outside the mask"},
+          {"box_psnr", "PSNR on the mask's bounding box"},
+          {"box_ssim", "SSIM on the mask's bounding box grown to at least 11x11"},
+          {"lpips",
+           "LPIPS v0.1 VGG, inputs in [-1,1], spatial average per stage (the official helper averages the upsampled "
+           "spatial map: the same value when the sides are multiples of 16)"},
+          {"masked_lpips", "both images multiplied by the mask, spatial LPIPS map averaged over the mask"},
+          {"fid", "Frechet distance of pytorch-fid Inception-v3 pool features, ground truth vs predictions"},
+          {"kid", "unbiased MMD^2, kernel (x.y/2048 + 1)^3"},
+          {"c_fid", "FID on square crops around the mask (1.2 x the box's longer side)"},
+          {"c_kid", "KID on the same crops"}};
+}
 
-  watch.lap();
-  if (o.write_report) write_report(out, metrics);
-  metrics["timings"]["write_outputs_ms"] = write_ms + watch.lap();
-  metrics["timings"]["total_ms"] = total.ms();
-  write_file_atomic(out / "metrics.json", metrics.dump(2) + "\n");
+// The method's and the protocol's computation: every stage but reading, decoding and writing
+// files and loading networks; the figure `eval` prints and the device check compares.
+double compute_ms(const StageTimes& stages) {
+  static const std::set<std::string> compute = {"upload", "network", "gaussians to the renderer",
+                                                "upload test views", "render", "image metrics", "lpips",
+                                                "inception features", "fid/kid", "download renders"};
+  double ms = 0;
+  for (const StageTimes::Stage& s : stages.stages())
+    if (!s.behind && (compute.count(s.name) || s.name.rfind("baseline ", 0) == 0)) ms += s.ms;
+  return ms;
+}
+
+void check_eval_options(const EvalOptions& o) {
+  quantize_image(Image(1, 1, 1), o.quantize);  // validates the mode before any work
+  if (o.method == EvalMethod::model && o.checkpoint && o.gaussians)
+    fail("eval: give either --checkpoint or --gaussians, not both");
+  if (o.method != EvalMethod::model && (o.checkpoint || o.gaussians))
+    fail("eval --method {} is a baseline without a model: drop --checkpoint/--gaussians", eval_method_name(o.method));
+}
+
+}  // namespace
+
+json run_evaluation(const EvalOptions& o) {
+  Stopwatch total;
+  StageTimes stages;
+  check_eval_options(o);
+  // A GPU given without an index (torch::kCUDA) is the first one: named so in the results and
+  // equal to the device of the tensors made there.
+  const torch::Device device = resolve_device(o.device.str());
+  spdlog::info("reading scene {}", o.scene_dir.string());
+  const Scene scene = load_scene(o.scene_dir, o.scene);
+  if (scene.test_views.empty())
+    fail("{}: no test views (SPIn-NeRF scenes list object-free ones by their masks in images_K/test_label/; "
+         "--hold-out-every N holds out input views that have masks)",
+         o.scene_dir.string());
+  stages.lap("read scene");
+
+  EvalRun r{o, scene, device, std::nullopt, insertion_baseline(scene, o), scene_normalization(scene), {}};
+  r.preprocess.height = o.height;
+  json prediction = {{"method", eval_method_name(o.method)}};
+  if (r.baseline) prediction["reference_view"] = r.baseline->reference.name;
+  if (o.method == EvalMethod::model) {
+    // Without the CUDA rasterizer kernels a GPU run renders on the CPU.
+    r.gaussians = predict_gaussians(scene, o, render_device(device), prediction, stages);
+    prediction["gaussians"] = r.gaussians->size();
+  }
+
+  stages.restart_lap();
+  const MetricNetworks nets = load_metric_networks(o, device);
+  json unavailable = json::object();
+  if (!nets.lpips_vgg) {
+    unavailable["lpips"] = nets.lpips_vgg_reason;
+    unavailable["masked_lpips"] = nets.lpips_vgg_reason;
+  }
+  if (!nets.inception)
+    for (const char* k : {"fid", "kid", "c_fid", "c_kid"}) unavailable[k] = nets.inception_reason;
+  stages.lap("load metric networks");
+
+  const TestViewResults results = evaluate_test_views(r, nets, stages);
+  const json mean = mean_metrics(results.means, unavailable);
+  stages.restart_lap();
+  const json set = set_metrics(nets, results.features, unavailable);
+  if (nets.inception) stages.lap("fid/kid");
+
+  json metrics = {{"protocol", "spin-nerf"},
+                  {"scene", scene.root.string()},
+                  {"format", scene.format},
+                  {"method", eval_method_name(o.method)},
+                  {"task", scene_task(scene)},
+                  {"prediction", prediction},
+                  {"working_size", {results.working_width, results.working_height}},
+                  {"quantize", o.quantize},
+                  {"device", device.str()},
+                  {"threads", {{"cores", thread_plan().cores}, {"compute", thread_plan().compute},
+                               {"files", thread_plan().files}}},
+                  {"views", results.views},
+                  {"mean", mean},
+                  {"set", set},
+                  {"unavailable", unavailable},
+                  {"definitions", metric_definitions()}};
+  stages.restart_lap();
+  if (o.write_report) {
+    metrics["stages"] = stages.to_json();  // the report's table: everything up to the report
+    write_report(o.out, metrics);
+    stages.lap("write report");
+  }
+  metrics["stages"] = stages.to_json();
+  metrics["timings"] = {
+      {"compute_ms", compute_ms(stages)}, {"waited_ms", stages.waited_ms()}, {"total_ms", total.ms()}};
+  write_file_atomic(o.out / "metrics.json", metrics.dump(2) + "\n");
   return metrics;
 }
 

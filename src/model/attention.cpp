@@ -2,14 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <mutex>
-
-#include <spdlog/spdlog.h>
 
 #include "common/error.h"
 #include "common/torch_compat.h"
 #include "model/cpu/dispatch.h"
-#include "model/fp8_attention.h"
 
 namespace ii {
 
@@ -113,13 +109,6 @@ torch::Tensor fused_cpu_attention(const torch::Tensor& q_in, const torch::Tensor
 
 torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v, AttentionForm form) {
   if (form == AttentionForm::Full) return naive_attention(q, k, v);
-  if (form == AttentionForm::Fp8) {
-    const std::string refusal = cudnn_fp8_attention_refusal(q, k, v);
-    if (refusal.empty()) return cudnn_fp8_attention(q, k, v);
-    static std::once_flag told;
-    std::call_once(told, [&] { spdlog::warn("FP8 attention emulated in float, slowly: {}", refusal); });
-    return fp8_emulated_attention(q, k, v);
-  }
   if (form == AttentionForm::Fastest) {
     if (compat::has_fused_sdpa && q.is_cuda()) return compat::fused_sdpa(q, k, v);
     if (const auto isa = fused_cpu_attention_isa(q, k, v)) return fused_cpu_attention(q, k, v, *isa);

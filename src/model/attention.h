@@ -10,13 +10,11 @@
 
 namespace ii {
 
-// How attention is computed; every form but Fp8 gives the same values up to float rounding.
+// How attention is computed; every form gives the same values up to float rounding.
 enum class AttentionForm {
   Fastest,  // the fused CPU kernel where it applies, LibTorch's fused kernels on a GPU, else Chunked
   Chunked,  // LibTorch calls over blocks of queries: the reference twin of the fused CPU kernel
   Full,     // the textbook form with the whole score matrix (the benchmarks' baseline)
-  Fp8,      // the products in FP8 E4M3 (model/fp8_attention.h): cuDNN's kernel on Hopper GPUs,
-            // elsewhere emulated in float (slow; for measuring FP8's error). Rounds: not the same values
 };
 
 // q, k, v: (B, heads, N, head_dim), rows of head_dim contiguous or not. Softmax scale
@@ -27,7 +25,7 @@ torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const to
 
 // Why q, k and v are not one problem a forward-only attention kernel can take, or empty: each
 // must be 4-D (B, heads, N, head_dim), k and v alike and matching q, with no gradients wanted.
-// The fused CPU kernel and cuDNN's FP8 kernel check this before what is their own.
+// The fused CPU kernel checks this before what is its own.
 std::string forward_kernel_input_refusal(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v);
 
 // The fused CPU kernel (flash-attention form: scores kept in cache, online softmax, bf16 dot

@@ -1,10 +1,9 @@
 #include "model/device.h"
 
-#include <cstdlib>
 #include <fstream>
-#include <thread>
 
 #include "common/error.h"
+#include "common/parallel.h"
 #include "common/torch_compat.h"
 
 #if II_HAS_CUDA_TORCH
@@ -13,27 +12,24 @@
 
 namespace ii {
 
-void set_cpu_threads(int threads) {
-  if (threads <= 0)
-    if (const char* omp = std::getenv("OMP_NUM_THREADS")) threads = std::atoi(omp);
-  if (threads <= 0) threads = static_cast<int>(std::thread::hardware_concurrency());
-  torch::set_num_threads(std::max(1, threads));
+void set_cpu_threads(int threads, bool work_on_gpu) {
+  const ThreadPlan plan = plan_threads(threads, work_on_gpu);
+  set_thread_plan(plan);
+  torch::set_num_threads(plan.compute);
 }
 
 Runtime set_up_runtime(const std::string& device, int threads, const std::string& precision) {
-  set_cpu_threads(threads);
   Runtime r;
   r.device = resolve_device(device);
+  set_cpu_threads(threads, r.device.is_cuda());
   if (precision == "fp32")
     r.precision = Precision::Float32;
   else if (precision == "bf16")
     r.precision = Precision::BFloat16;
-  else if (precision == "fp8")
-    r.precision = Precision::Fp8Attention;
   else if (precision == "auto")
     r.precision = default_precision(r.device);
   else
-    fail("--precision: unknown precision '{}' (expected auto, fp32, bf16 or fp8)", precision);
+    fail("--precision: unknown precision '{}' (expected auto, fp32 or bf16)", precision);
   return r;
 }
 

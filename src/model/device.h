@@ -15,13 +15,13 @@ torch::Device resolve_device(const std::string& name);
 // bf16 on a GPU (tensor cores) and on CPUs with native bf16 dot products, else float32.
 Precision default_precision(const torch::Device& device);
 
-// LibTorch's CPU thread count: `threads`, or when it is 0 or less, $OMP_NUM_THREADS when set
-// (a launcher's share of the machine), else every core.
-void set_cpu_threads(int threads);
+// The process's thread plan (common/parallel.h: plan_threads) for `threads` (0 or less:
+// $OMP_NUM_THREADS when set, else every core), and LibTorch's CPU threads as it says.
+void set_cpu_threads(int threads, bool work_on_gpu = false);
 
 // Where and how the network runs, set up once by every command that runs it: the device by
-// name (resolve_device), the CPU threads (set_cpu_threads) and the precision by name ("fp32",
-// "bf16", "fp8" = bf16 with FP8 attention, or "auto" = default_precision of the device).
+// name (resolve_device), the CPU threads for work there (set_cpu_threads) and the precision by name ("fp32",
+// "bf16", or "auto" = default_precision of the device).
 struct Runtime {
   torch::Device device = torch::kCPU;
   Precision precision = Precision::Float32;

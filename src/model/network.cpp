@@ -13,7 +13,7 @@
 namespace ii {
 
 const char* precision_name(Precision p) {
-  return p == Precision::Float32 ? "fp32" : p == Precision::BFloat16 ? "bf16" : "fp8";
+  return p == Precision::Float32 ? "fp32" : "bf16";
 }
 
 Precision default_cpu_precision() {
@@ -315,7 +315,6 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
     fail("input size {}x{} is not a multiple of the patch size {}", W, H, p);
   const int64_t h = H / p, w = W / p, hw = h * w;
   const auto dtype = precision == Precision::Float32 ? torch::kFloat32 : torch::kBFloat16;
-  const AttentionForm attention_form = precision == Precision::Fp8Attention ? AttentionForm::Fp8 : execution_.attention;
   StageClock mark(profile_);
 
   // Patch embedding: a stride-p convolution is a matrix product over flattened patches.
@@ -336,7 +335,7 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   if (checkpoint_blocks_ && torch::GradMode::is_enabled()) {
     for (const Block& blk : blocks_)
       x = RecomputedBlock::apply(x, blk.qkv, blk.proj, blk.fc1, blk.fc2, static_cast<int64_t>(config_.heads),
-                                 config_.ln_eps, static_cast<int64_t>(attention_form),
+                                 config_.ln_eps, static_cast<int64_t>(execution_.attention),
                                  precision != Precision::Float32);
     normed = add_layer_norm(x, {}, config_.ln_eps, dtype).normed;
   } else {
@@ -345,7 +344,7 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
     for (const Block& blk : blocks_)
       state = transformer_block(state, weight_for(blk.qkv, precision), weight_for(blk.proj, precision),
                                 weight_for(blk.fc1, precision), weight_for(blk.fc2, precision), config_.heads,
-                                config_.ln_eps, attention_form, execution_.fused_norms, true, profile_);
+                                config_.ln_eps, execution_.attention, execution_.fused_norms, true, profile_);
     x = state.sum;
     normed = state.normed;
   }

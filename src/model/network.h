@@ -23,8 +23,7 @@ struct NetworkOutput {
   GaussianMaps gaussians;
 };
 
-// Fp8Attention: bf16, with attention's products in FP8 E4M3 (AttentionForm::Fp8).
-enum class Precision { Float32, BFloat16, Fp8Attention };
+enum class Precision { Float32, BFloat16 };
 const char* precision_name(Precision p);
 // bf16 when the CPU has native bf16 dot products (AVX512-BF16 or AMX), else float32.
 Precision default_cpu_precision();

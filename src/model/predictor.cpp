@@ -1,6 +1,5 @@
 #include "model/predictor.h"
 
-#include "common/stopwatch.h"
 #include "model/checkpoint.h"
 #include "model/default_model.h"
 #include "model/device.h"
@@ -26,16 +25,15 @@ nlohmann::json Predictor::describe() const {
 
 Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& options) const {
   Prediction p;
-  Stopwatch watch;
-  p.input = prepare_scene_input(scene, options);
+  p.input = prepare_scene_input(scene, options, &p.stages);
   check_model_fits_input(config(), p.input.input, model_name_);
-  p.prepare_ms = watch.lap();
+  p.stages.restart_lap();
   upload_network_inputs(p.input.input, device_);
   synchronize(device_);
-  p.upload_ms = watch.lap();
+  p.stages.lap("upload");
   p.maps = run_network(network_, p.input.input, precision_);
   synchronize(device_);
-  p.network_ms = watch.lap();
+  p.stages.lap("network");
   return p;
 }
 

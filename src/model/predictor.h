@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/stage_times.h"
 #include "gaussians/gaussians.h"
 #include "model/config.h"
 #include "model/network.h"
@@ -22,7 +23,8 @@ namespace ii {
 struct Prediction {
   SceneInput input;   // what the network saw: context views (reference first), normalisation
   GaussianMaps maps;  // (1, V, C, H, W) on the predictor's device, in the pose-normalised frame
-  double prepare_ms = 0, upload_ms = 0, network_ms = 0;  // preprocessing, upload, network
+  // Where predict's time went: prepare_scene_input's stages, then "upload" and "network".
+  StageTimes stages;
 
   // One Gaussian per input pixel, rows in the official order (views of `maps`).
   GaussianSet gaussians() const { return gaussians_from_maps(maps); }

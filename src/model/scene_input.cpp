@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
+#include "common/parallel.h"
 #include "data/image_ops.h"
 #include "data/inpaint2d.h"
 #include "data/view_selection.h"
@@ -39,26 +40,40 @@ Image mask_at_working_size(const Image& mask, const View& view, const Preprocess
 
 std::vector<PreparedView> prepare_masked_views(const Scene& scene, const std::vector<int>& indices,
                                                const SceneInputOptions& options, const std::string& role) {
-  std::vector<PreparedView> views;
-  for (int index : indices) {
-    const View& view = scene.views.at(static_cast<size_t>(index));
-    const auto given_mask = options.masks.find(view.name);
-    const bool has_mask = view.mask_path || view.mask_from_alpha || given_mask != options.masks.end();
-    if (!options.keep_object && !views.empty() && !has_mask)
+  for (size_t i = 1; i < indices.size() && !options.keep_object; ++i) {
+    const View& view = scene.views.at(static_cast<size_t>(indices[i]));
+    if (!view.mask_path && !view.mask_from_alpha && !options.masks.count(view.name))
       fail("view {} has no object mask: give masks for every {} (--masks DIR or --alpha-masks)", view.name, role);
+  }
+  std::vector<PreparedView> views(indices.size());
+  parallel_dynamic(static_cast<int64_t>(indices.size()), thread_plan().cores, [&](int64_t i) {
+    const View& view = scene.views.at(static_cast<size_t>(indices[static_cast<size_t>(i)]));
+    const auto given_mask = options.masks.find(view.name);
     View source = view;
     if (given_mask != options.masks.end()) {  // the caller's mask: the scene's file is not read
       source.mask_path.reset();
       source.mask_from_alpha = false;
     }
-    views.push_back(prepare_view(source, options.preprocess));
+    views[static_cast<size_t>(i)] =
+        options.view_cache ? options.view_cache->get(view, options.preprocess) : prepare_view(source, options.preprocess);
     if (given_mask != options.masks.end())
-      views.back().mask = mask_at_working_size(given_mask->second, view, options.preprocess);
-  }
+      views[static_cast<size_t>(i)].mask = mask_at_working_size(given_mask->second, view, options.preprocess);
+  });
   return views;
 }
 
-SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options) {
+Image classical_reference(const Scene& scene, const std::string& view, const Image& mask,
+                          const SceneInputOptions& options) {
+  const View& v = scene.views.at(static_cast<size_t>(input_view_index(scene, view, "reference view")));
+  const PreparedView prepared =
+      options.view_cache ? options.view_cache->get(v, options.preprocess) : prepare_view(v, options.preprocess);
+  return inpaint_classical(prepared.rgb, mask_at_working_size(mask, v, options.preprocess), options.inpainter);
+}
+
+SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options, StageTimes* stages) {
+  StageTimes unrecorded;
+  StageTimes& times = stages ? *stages : unrecorded;
+  times.restart_lap();
   SceneInput out;
   if (!options.context.empty() && !options.reference_view.empty())
     fail("give the context views or the reference view, not both (the context's first view is the reference)");
@@ -67,6 +82,7 @@ SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& opti
   out.context = options.context.empty() ? select_context_views(scene, options.num_views, reference)
                                         : context_views_by_name(scene, options.context);
   out.views = prepare_masked_views(scene, out.context, options, "context view");
+  times.lap("prepare context views");
 
   PreparedView& ref = out.views[0];
   const View& ref_view = scene.views[out.context[0]];
@@ -77,11 +93,12 @@ SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& opti
   } else if (options.reference_image) {
     ref.rgb = reference_at_working_size(*options.reference_image, "reference image in memory", ref_view, ref,
                                         options.preprocess);
-    out.reference_source = "image in memory";
+    out.reference_source = options.reference_image_source;
   } else if (options.reference) {
     ref.rgb = reference_at_working_size(read_image_rgb(*options.reference), options.reference->string(), ref_view,
                                         ref, options.preprocess);
     out.reference_source = options.reference->string();
+    times.lap("read reference");
   } else {
     if (!ref.mask)
       fail("no --reference image given and reference view {} has no mask to inpaint", ref.name);
@@ -90,9 +107,11 @@ SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& opti
                  ref.name, options.inpainter == ClassicalInpainter::Telea ? "Telea" : "Navier-Stokes");
     ref.rgb = inpaint_classical(ref.rgb, *ref.mask, options.inpainter);
     out.reference_source = inpainter_name(options.inpainter);
+    times.lap(fmt::format("inpaint reference ({})", out.reference_source));
   }
   out.normalization = scene_normalization(scene);
   out.input = build_model_input(out.views, out.normalization);
+  times.lap("network input");
   return out;
 }
 

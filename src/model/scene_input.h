@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "common/stage_times.h"
 #include "data/inpaint2d.h"
 #include "data/preprocess.h"
 #include "data/scene.h"
@@ -22,6 +23,7 @@ struct SceneInputOptions {
   // The 2D-inpainted reference image, at the reference photo's size or the working size:
   // in memory (wins) or a file; neither = classical inpainting of the reference (`inpainter`).
   std::optional<Image> reference_image;
+  std::string reference_image_source = "image in memory";  // what SceneInput::reference_source says of it
   std::optional<std::filesystem::path> reference;
   ClassicalInpainter inpainter = ClassicalInpainter::Telea;
   // Object masks by view name, at the view's image size (> 0.5 = object): they replace the
@@ -31,6 +33,8 @@ struct SceneInputOptions {
   // Reconstruct the scene as captured: photos unmasked, mask channels zero, the reference's
   // own photo (no masks needed; `reference` is ignored).
   bool keep_object = false;
+  // Where the context views come from when set (a server's edits): views prepared before.
+  PreparedViewCache* view_cache = nullptr;
 };
 
 struct SceneInput {
@@ -41,11 +45,21 @@ struct SceneInput {
   std::string reference_source;          // file name, "image in memory", or "telea" / "ns" when made here
 };
 
-SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options);
+// `stages` (optional) gets "prepare context views" (read, decode, resize, masks), the
+// reference's stage ("inpaint reference (telea)" or "read reference") and "network input".
+SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options, StageTimes* stages = nullptr);
+
+// The reference as prepare_scene_input makes it when none is given: view `view`'s working image
+// with `mask` (at the view's image size, > 0.5 = region) filled by options.inpainter. A caller
+// may make it ahead, beside other work (serve: beside the mask propagation), and pass it as
+// reference_image.
+Image classical_reference(const Scene& scene, const std::string& view, const Image& mask,
+                          const SceneInputOptions& options);
 
 // The views `indices` of scene.views at the working size with their object masks, the
 // caller's (options.masks) in place of the scene's. Every view after the first (the reference)
 // needs a mask unless options.keep_object; the error calls them `role`s ("context view").
+// The views are read and resized at once, on the thread plan's cores.
 std::vector<PreparedView> prepare_masked_views(const Scene& scene, const std::vector<int>& indices,
                                                const SceneInputOptions& options, const std::string& role);
 

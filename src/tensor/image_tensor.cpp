@@ -15,9 +15,20 @@ torch::Tensor image_to_tensor(const Image& image) {
       .clone();
 }
 
+torch::Tensor image_to_device(const Image& image, const torch::Device& device) {
+  if (device.is_cpu()) return image_to_tensor(image);
+  if (image.empty()) fail("cannot convert an empty image to a tensor");
+  return torch::from_blob(const_cast<float*>(image.pixels.data()), {image.height, image.width, image.channels},
+                          torch::kFloat32)
+      .to(device)
+      .permute({2, 0, 1})
+      .unsqueeze(0)
+      .contiguous();
+}
+
 Image image_from_hwc(const torch::Tensor& hwc) {
   if (hwc.dim() != 3) fail("image_from_hwc: expected (H, W, C), got shape [{}]", fmt::join(hwc.sizes(), ", "));
-  const torch::Tensor x = hwc.detach().to(torch::kCPU, torch::kFloat32).contiguous();
+  const torch::Tensor x = hwc.detach().to(torch::kFloat32).contiguous().to(torch::kCPU);
   Image image(static_cast<int>(x.size(1)), static_cast<int>(x.size(0)), static_cast<int>(x.size(2)));
   std::copy(x.data_ptr<float>(), x.data_ptr<float>() + x.numel(), image.pixels.begin());
   return image;

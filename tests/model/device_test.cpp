@@ -58,14 +58,13 @@ TEST(Device, ResolvesItsNamesAndRefusesOthers) {
 
 TEST(Device, PrecisionsByNameRoundTripAndOthersAreRefused) {
   for (const auto& [name, precision] : {std::make_pair("fp32", Precision::Float32),
-                                        std::make_pair("bf16", Precision::BFloat16),
-                                        std::make_pair("fp8", Precision::Fp8Attention)}) {
+                                        std::make_pair("bf16", Precision::BFloat16)}) {
     EXPECT_EQ(set_up_runtime("cpu", 0, name).precision, precision);
     EXPECT_STREQ(precision_name(precision), name);
   }
   EXPECT_EQ(set_up_runtime("cpu", 0, "auto").precision, default_cpu_precision());
   EXPECT_EQ(test::error_message([] { set_up_runtime("cpu", 0, "fp16"); }),
-            "--precision: unknown precision 'fp16' (expected auto, fp32, bf16 or fp8)");
+            "--precision: unknown precision 'fp16' (expected auto, fp32 or bf16)");
 }
 
 TEST(Device, PrecisionAndTransfersFollowTheDevice) {

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <future>
+#include <map>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -345,21 +346,41 @@ TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
   RunningServer s(room_options());
   auto r = s.client->Post("/api/edit", edit_form("view_003", view_mask_bytes("view_003"), "refine", "2"));
   ASSERT_EQ(r->status, 202) << r->body;
-  const json job = s.finished_job();
+  const int id = json::parse(r->body)["job"];
+  // ?wait= answers with the job once it has ended (or with its progress after half a second).
+  json job = json::parse(s.client->Get("/api/job?wait=" + std::to_string(id))->body);
+  while (job["state"] == "running") job = json::parse(s.client->Get("/api/job?wait=" + std::to_string(id))->body);
   ASSERT_EQ(job["state"], "done") << job;
   EXPECT_EQ(job["kind"], "edit");
   EXPECT_EQ(job["result"]["refine"]["steps"], 2);
   EXPECT_EQ(job["result"]["reference"], "telea");
+  // The page loads the standard PLY, written before the answer.
+  EXPECT_EQ(job["result"]["splats"], job["result"]["ply"]);
   const auto ply = s.client->Get(job["result"]["ply"].get<std::string>());
   ASSERT_EQ(ply->status, 200);
   EXPECT_EQ(ply->body.rfind("ply\n", 0), 0u);
-  // The page loads the SPZ of the same Gaussians.
-  EXPECT_EQ(job["result"]["splats"], job["result"]["spz"]);
+  // The SPZ download is written behind the answer: a request for it waits until it is there.
   const auto spz = s.client->Get(job["result"]["spz"].get<std::string>());
   ASSERT_EQ(spz->status, 200);
   const SplatCloud from_spz = decode_spz(reinterpret_cast<const uint8_t*>(spz->body.data()), spz->body.size(), "spz");
   EXPECT_EQ(from_spz.size(), job["result"]["gaussians"].get<size_t>());
   EXPECT_LT(spz->body.size() * 3, ply->body.size());  // 68 bytes per Gaussian against about 17
+  // Where the time went: the masks' work, the prediction, the files (those behind the answer
+  // marked so, recorded once written).
+  job = s.finished_job();
+  std::map<std::string, json> stages;
+  for (const json& stage : job["stages"]) stages[stage["stage"]] = stage;
+  for (const char* name : {"masks: propagate", "prepare context views", "network input", "upload", "network",
+                           "refine", "gaussians to splats (host)", "write gaussians.ply"}) {
+    ASSERT_TRUE(stages.count(name)) << name << " in " << job["stages"];
+    EXPECT_FALSE(stages[name].contains("behind")) << name;
+  }
+  for (const char* name : {"inpaint reference (telea)", "write mask PNGs", "write gaussians.spz"}) {
+    ASSERT_TRUE(stages.count(name)) << name << " in " << job["stages"];
+    EXPECT_EQ(stages[name]["behind"], true) << name;
+  }
+  EXPECT_EQ(s.client->Get("/api/job?wait=x")->status, 400);
+  EXPECT_EQ(error_of(s.client->Get("/api/job?wait=x")), "wait must be a job number");
   // SOG is made on the first request.
   const fs::path sog_file = s.out / "jobs" / std::to_string(job["id"].get<int>()) / "gaussians.sog";
   EXPECT_FALSE(fs::exists(sog_file));

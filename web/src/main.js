@@ -396,11 +396,12 @@ async function startAndWait(path, body) {
   return waitForJob(started.job);
 }
 
-// Polls the job with this id until it ends, showing its progress; the job, or null if it failed.
+// Follows the job with this id until it ends, showing its progress; the job, or null if it failed.
+// The server answers ?wait= as soon as the job ends (else after half a second): no polling delay.
 async function waitForJob(id) {
   $("progress").hidden = false;
   for (;;) {
-    const job = await (await fetch("/api/job")).json();
+    const job = await (await fetch(`/api/job?wait=${id}`)).json();
     api.job = job;
     $("progress").value = job.progress;
     status(`job ${job.id}: ${job.stage}`);
@@ -413,8 +414,6 @@ async function waitForJob(id) {
       }
       return job;
     }
-    // Every 100 ms: on a GPU an edit takes well under a second, and a poll costs the server little.
-    await new Promise((r) => setTimeout(r, 100));
   }
 }
 
@@ -431,20 +430,33 @@ async function runJob(path) {
   const job = await startAndWait(path, form);
   if (!job) return;
   const jobSeen = performance.now();
-  await drawMaskOverlays(job.result.masks ?? {});
-  const masksDrawn = performance.now();
+  // The splats first: the server writes the masks' PNGs behind its answer.
   if (job.result.splats) {
     afterUrl = job.result.splats;
     await showPly(afterUrl);
     setActive("after");
     setDownloads();
   }
-  const seconds = (performance.now() - clicked) / 1000;
-  // Where the time from the click went (ms): until the job was seen done, drawing the masks
-  // over the views, loading and drawing the new splats.
-  const parts = { job: jobSeen - clicked, masks: masksDrawn - jobSeen, splats: performance.now() - masksDrawn };
+  const splatsDrawn = performance.now();
+  await drawMaskOverlays(job.result.masks ?? {});
+  const seconds = (splatsDrawn - clicked) / 1000;
+  // Where the time from the click went (ms): until the job was seen done, loading and drawing
+  // the new splats (the edit's figure ends here), then drawing the masks over the views.
+  const parts = { job: jobSeen - clicked, splats: splatsDrawn - jobSeen, masks: performance.now() - splatsDrawn };
   api.lastRun = { ...job, clientSeconds: seconds, parts };
-  status(`job ${job.id} done: ${job.result.splats ? `${job.result.gaussians} Gaussians, ` : "masks, "}${seconds.toFixed(1)} s from the click`);
+  status(`job ${job.id} done: ${job.result.splats ? `${job.result.gaussians} Gaussians, ` : "masks, "}${seconds.toFixed(2)} s from the click`);
+  showStages(job, parts);
+}
+
+// Where the time of the last job went: the server's stages, then the page's own parts.
+function showStages(job, parts) {
+  const rows = (job.stages ?? []).filter((s) => !s.behind && s.ms >= 0.5);
+  rows.push({ stage: "page: request and answer", ms: parts.job - 1000 * job.seconds });
+  rows.push({ stage: "page: splats loaded and drawn", ms: parts.splats });
+  const cells = rows.map((s) => `<tr><td>${s.stage}${s.calls > 1 ? ` (${s.calls}x)` : ""}</td><td>${Math.max(0, s.ms).toFixed(0)}</td></tr>`);
+  cells.push(`<tr><td>then: masks drawn over the views</td><td>${parts.masks.toFixed(0)}</td></tr>`);
+  $("stages").innerHTML = `<summary>where the ${(parts.job + parts.splats).toFixed(0)} ms to the splats went</summary><table>${cells.join("")}</table>`;
+  $("stages").hidden = false;
 }
 
 // Exports of the splats on screen: the orbit video and the evaluation report, as jobs.
