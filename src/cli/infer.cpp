@@ -61,7 +61,8 @@ void run(const InferArgs& a) {
 
   spdlog::info("[2/4] loading model {}", a.checkpoint.empty() ? kDefaultModelName : a.checkpoint);
   const Predictor predictor(a.checkpoint, runtime.device, runtime.precision);
-  stages.lap("load model");
+  stages.merge(predictor.load_stages(), "load model: ");
+  stages.restart_lap();
 
   SceneInputOptions opts;
   opts.context = a.context;

@@ -32,7 +32,7 @@ std::vector<uint8_t> read_file_bytes(const fs::path& path) {
   return bytes;
 }
 
-MappedFile::MappedFile(const fs::path& path) {
+MappedFile::MappedFile(const fs::path& path, bool populate) {
   std::error_code ec;
   if (!fs::exists(path, ec)) fail_file(path, "file not found");
   if (fs::is_directory(path, ec)) fail_file(path, "is a directory, expected a file");
@@ -40,7 +40,8 @@ MappedFile::MappedFile(const fs::path& path) {
   if (fd < 0) fail_file(path, "cannot open for reading: {}", std::strerror(errno));
   struct stat st {};
   if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
-    void* p = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_PRIVATE, fd, 0);
+    void* p = ::mmap(nullptr, static_cast<size_t>(st.st_size), PROT_READ, MAP_PRIVATE | (populate ? MAP_POPULATE : 0),
+                     fd, 0);
     if (p != MAP_FAILED) {
       data_ = static_cast<const uint8_t*>(p);
       size_ = static_cast<size_t>(st.st_size);

@@ -204,7 +204,8 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   info["checkpoint"] = model["checkpoint"];
   info["checkpoint_format"] = model["format"];
   info["config"] = model["config"];
-  stages.lap("load model");
+  stages.merge(predictor.load_stages(), "load model: ");
+  stages.restart_lap();
 
   SceneInputOptions opts;
   opts.context = o.context;

@@ -15,6 +15,7 @@
 
 #include "common/error.h"
 #include "common/files.h"
+#include "common/parallel.h"
 #include "io/byte_reader.h"
 #include "io/splat_quantize.h"
 
@@ -612,17 +613,27 @@ std::vector<size_t> morton_order(const std::vector<float>& means) {
     return (v | (v << 2)) & 0x09249249;
   };
   std::vector<uint32_t> code(n);
-  for (size_t i = 0; i < n; ++i) {
-    uint32_t c = 0;
-    for (int a = 0; a < 3; ++a) {
-      const double t = hi[a] > lo[a] ? (means[i * 3 + a] - lo[a]) / (static_cast<double>(hi[a]) - lo[a]) : 0.0;
-      c |= spread(static_cast<uint32_t>(std::clamp(t, 0.0, 1.0) * 1023)) << a;
+  parallel_range(static_cast<int64_t>(n), 1 << 15, thread_plan().cores, [&](int64_t begin, int64_t end) {
+    for (auto i = static_cast<size_t>(begin); i < static_cast<size_t>(end); ++i) {
+      uint32_t c = 0;
+      for (int a = 0; a < 3; ++a) {
+        const double t = hi[a] > lo[a] ? (means[i * 3 + a] - lo[a]) / (static_cast<double>(hi[a]) - lo[a]) : 0.0;
+        c |= spread(static_cast<uint32_t>(std::clamp(t, 0.0, 1.0) * 1023)) << a;
+      }
+      code[i] = c;
     }
-    code[i] = c;
-  }
-  std::vector<size_t> order(n);
+  });
+  // A stable sort by the 30-bit codes: three counting passes of 10 bits (least significant
+  // first), the order std::stable_sort gives, in a fraction of its time for millions.
+  std::vector<size_t> order(n), next(n);
   for (size_t i = 0; i < n; ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return code[a] < code[b]; });
+  for (int shift = 0; shift < 30; shift += 10) {
+    std::vector<size_t> start(1025, 0);
+    for (size_t i = 0; i < n; ++i) ++start[((code[i] >> shift) & 1023) + 1];
+    for (size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
+    for (const size_t i : order) next[start[(code[i] >> shift) & 1023]++] = i;
+    order.swap(next);
+  }
   return order;
 }
 
@@ -659,52 +670,55 @@ void write_compressed_splat_ply(const fs::path& path, const SplatCloud& c) {
     const double t = hi > lo ? (v - lo) / (static_cast<double>(hi) - lo) : 0.0;
     return static_cast<uint32_t>(std::lround(std::clamp(t, 0.0, 1.0) * mask));
   };
-  for (size_t ci = 0; ci < chunks; ++ci) {
-    const size_t begin = ci * 256, end = std::min(n, begin + 256);
-    float lo[9], hi[9];  // position, log scale (clamped to ±20, as SuperSplat), colour
-    std::fill(lo, lo + 9, INFINITY);
-    std::fill(hi, hi + 9, -INFINITY);
-    auto colour = [&](size_t i, int a) { return static_cast<float>(0.5 + kSh0 * c.sh_dc[i * 3 + a]); };
-    auto log_scale = [&](size_t i, int a) { return std::clamp(c.log_scales[i * 3 + a], -20.f, 20.f); };
-    for (size_t s = begin; s < end; ++s) {
-      const size_t i = order[s];
-      for (int a = 0; a < 3; ++a) {
-        const float v[3] = {c.means[i * 3 + a], log_scale(i, a), colour(i, a)};
-        for (int g = 0; g < 3; ++g) {
-          lo[g * 3 + a] = std::min(lo[g * 3 + a], v[g]);
-          hi[g * 3 + a] = std::max(hi[g * 3 + a], v[g]);
+  // Chunks are independent: packed side by side.
+  parallel_range(static_cast<int64_t>(chunks), 64, thread_plan().cores, [&](int64_t first, int64_t last) {
+    for (auto ci = static_cast<size_t>(first); ci < static_cast<size_t>(last); ++ci) {
+      const size_t begin = ci * 256, end = std::min(n, begin + 256);
+      float lo[9], hi[9];  // position, log scale (clamped to ±20, as SuperSplat), colour
+      std::fill(lo, lo + 9, INFINITY);
+      std::fill(hi, hi + 9, -INFINITY);
+      auto colour = [&](size_t i, int a) { return static_cast<float>(0.5 + kSh0 * c.sh_dc[i * 3 + a]); };
+      auto log_scale = [&](size_t i, int a) { return std::clamp(c.log_scales[i * 3 + a], -20.f, 20.f); };
+      for (size_t s = begin; s < end; ++s) {
+        const size_t i = order[s];
+        for (int a = 0; a < 3; ++a) {
+          const float v[3] = {c.means[i * 3 + a], log_scale(i, a), colour(i, a)};
+          for (int g = 0; g < 3; ++g) {
+            lo[g * 3 + a] = std::min(lo[g * 3 + a], v[g]);
+            hi[g * 3 + a] = std::max(hi[g * 3 + a], v[g]);
+          }
+        }
+      }
+      float* row = &chunk_table[ci * 18];
+      for (int g = 0; g < 3; ++g)
+        for (int a = 0; a < 3; ++a) {
+          row[g * 6 + a] = lo[g * 3 + a];
+          row[g * 6 + 3 + a] = hi[g * 3 + a];
+        }
+      for (size_t s = begin; s < end; ++s) {
+        const size_t i = order[s];
+        uint32_t* p = &packed[s * 4];
+        const float* m = &c.means[i * 3];
+        p[0] = pack(m[0], lo[0], hi[0], 11) << 21 | pack(m[1], lo[1], hi[1], 10) << 11 | pack(m[2], lo[2], hi[2], 11);
+        // Rotation (w, x, y, z): the three smallest, 10 bits each over [-1/√2, 1/√2].
+        const splat_quantize::SmallestThree q = splat_quantize::smallest_three(&c.rotations[i * 4]);
+        uint32_t r = static_cast<uint32_t>(q.largest);
+        for (int a = 0; a < 4; ++a)
+          if (a != q.largest)
+            r = r << 10 | static_cast<uint32_t>(std::lround(std::clamp(q.q[a] / std::sqrt(2.0) + 0.5, 0.0, 1.0) * 1023));
+        p[1] = r;
+        p[2] = pack(log_scale(i, 0), lo[3], hi[3], 11) << 21 | pack(log_scale(i, 1), lo[4], hi[4], 10) << 11 |
+               pack(log_scale(i, 2), lo[5], hi[5], 11);
+        const double alpha = 1 / (1 + std::exp(-static_cast<double>(c.opacity_logit[i])));
+        p[3] = pack(colour(i, 0), lo[6], hi[6], 8) << 24 | pack(colour(i, 1), lo[7], hi[7], 8) << 16 |
+               pack(colour(i, 2), lo[8], hi[8], 8) << 8 | pack(alpha, 0, 1, 8);
+        for (int j = 0; j < 3 * k; ++j) {
+          const double t = c.sh_rest[i * 3 * k + j] / 8.0 + 0.5;
+          sh[s * 3 * k + j] = static_cast<uint8_t>(std::clamp(std::trunc(t * 256), 0.0, 255.0));
         }
       }
     }
-    float* row = &chunk_table[ci * 18];
-    for (int g = 0; g < 3; ++g)
-      for (int a = 0; a < 3; ++a) {
-        row[g * 6 + a] = lo[g * 3 + a];
-        row[g * 6 + 3 + a] = hi[g * 3 + a];
-      }
-    for (size_t s = begin; s < end; ++s) {
-      const size_t i = order[s];
-      uint32_t* p = &packed[s * 4];
-      const float* m = &c.means[i * 3];
-      p[0] = pack(m[0], lo[0], hi[0], 11) << 21 | pack(m[1], lo[1], hi[1], 10) << 11 | pack(m[2], lo[2], hi[2], 11);
-      // Rotation (w, x, y, z): the three smallest, 10 bits each over [-1/√2, 1/√2].
-      const splat_quantize::SmallestThree q = splat_quantize::smallest_three(&c.rotations[i * 4]);
-      uint32_t r = static_cast<uint32_t>(q.largest);
-      for (int a = 0; a < 4; ++a)
-        if (a != q.largest)
-          r = r << 10 | static_cast<uint32_t>(std::lround(std::clamp(q.q[a] / std::sqrt(2.0) + 0.5, 0.0, 1.0) * 1023));
-      p[1] = r;
-      p[2] = pack(log_scale(i, 0), lo[3], hi[3], 11) << 21 | pack(log_scale(i, 1), lo[4], hi[4], 10) << 11 |
-             pack(log_scale(i, 2), lo[5], hi[5], 11);
-      const double alpha = 1 / (1 + std::exp(-static_cast<double>(c.opacity_logit[i])));
-      p[3] = pack(colour(i, 0), lo[6], hi[6], 8) << 24 | pack(colour(i, 1), lo[7], hi[7], 8) << 16 |
-             pack(colour(i, 2), lo[8], hi[8], 8) << 8 | pack(alpha, 0, 1, 8);
-      for (int j = 0; j < 3 * k; ++j) {
-        const double t = c.sh_rest[i * 3 * k + j] / 8.0 + 0.5;
-        sh[s * 3 * k + j] = static_cast<uint8_t>(std::clamp(std::trunc(t * 256), 0.0, 255.0));
-      }
-    }
-  }
+  });
   write_file_atomic(path, [&](const fs::path& tmp) {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) fail_file(tmp, "cannot open for writing: {}", std::strerror(errno));

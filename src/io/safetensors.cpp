@@ -122,6 +122,20 @@ SafetensorsFile read_safetensors(const fs::path& path) {
 }
 
 SafetensorsFile parse_safetensors(const uint8_t* data, size_t size, const fs::path& path) {
+  SafetensorsIndex index = index_safetensors(data, size, path);
+  SafetensorsFile file;
+  file.metadata = std::move(index.metadata);
+  for (SafetensorsIndex::Entry& e : index.tensors) {
+    TensorData t;
+    t.dtype = std::move(e.dtype);
+    t.shape = std::move(e.shape);
+    t.bytes.assign(data + e.offset, data + e.offset + e.size);
+    file.tensors.emplace_back(std::move(e.name), std::move(t));
+  }
+  return file;
+}
+
+SafetensorsIndex index_safetensors(const uint8_t* data, size_t size, const fs::path& path) {
   if (size < 8) fail_file(path, "not a safetensors file: shorter than its 8-byte header length");
   ByteReader r(data, size, path);
   const uint64_t header_len = r.read<uint64_t>("header length");
@@ -140,11 +154,10 @@ SafetensorsFile parse_safetensors(const uint8_t* data, size_t size, const fs::pa
   const size_t data_start = r.position();
   const uint64_t data_size = r.remaining();
 
-  SafetensorsFile file;
+  SafetensorsIndex file;
   struct Entry {
     uint64_t begin, end;
-    std::string name;
-    TensorData tensor;
+    SafetensorsIndex::Entry tensor;
   };
   std::vector<Entry> entries;
   for (const auto& [name, entry] : header.items()) {
@@ -160,7 +173,8 @@ SafetensorsFile parse_safetensors(const uint8_t* data, size_t size, const fs::pa
         !entry["dtype"].is_string() || !entry["shape"].is_array() || !entry["data_offsets"].is_array() ||
         entry["data_offsets"].size() != 2)
       fail_file(path, "tensor '{}' needs dtype, shape and data_offsets [begin, end]", name);
-    TensorData t;
+    SafetensorsIndex::Entry t;
+    t.name = name;
     t.dtype = entry["dtype"].get<std::string>();
     const size_t item = dtype_size(t.dtype);
     if (item == 0) fail_file(path, "tensor '{}' has unknown dtype {}", name, t.dtype);
@@ -193,16 +207,17 @@ SafetensorsFile parse_safetensors(const uint8_t* data, size_t size, const fs::pa
                 fmt::join(t.shape, ", "), t.dtype,
                 numel > data_size ? "more than " + std::to_string(data_size) : std::to_string(numel * item),
                 end - begin);
-    t.bytes.assign(data + data_start + begin, data + data_start + end);
-    entries.push_back({begin, end, name, std::move(t)});
+    t.offset = data_start + begin;
+    t.size = end - begin;
+    entries.push_back({begin, end, std::move(t)});
   }
   std::stable_sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
     return a.begin != b.begin ? a.begin < b.begin : a.end < b.end;
   });
   for (size_t i = 1; i < entries.size(); ++i)
     if (entries[i].begin < entries[i - 1].end)
-      fail_file(path, "tensors '{}' and '{}' overlap", entries[i - 1].name, entries[i].name);
-  for (Entry& e : entries) file.tensors.emplace_back(std::move(e.name), std::move(e.tensor));
+      fail_file(path, "tensors '{}' and '{}' overlap", entries[i - 1].tensor.name, entries[i].tensor.name);
+  for (Entry& e : entries) file.tensors.push_back(std::move(e.tensor));
   return file;
 }
 

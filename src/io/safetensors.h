@@ -33,6 +33,19 @@ struct SafetensorsFile {
   const TensorData& at(const std::string& name, const std::filesystem::path& file_for_errors) const;
 };
 
+// Where each tensor's bytes lie, checked as parse_safetensors checks them (which copies them):
+// for readers that map a file and use the bytes where they are.
+struct SafetensorsIndex {
+  struct Entry {
+    std::string name, dtype;
+    std::vector<int64_t> shape;
+    size_t offset = 0, size = 0;  // bytes, from the start of the data given
+  };
+  std::map<std::string, std::string> metadata;
+  std::vector<Entry> tensors;  // in file (offset) order
+};
+SafetensorsIndex index_safetensors(const uint8_t* data, size_t size, const std::filesystem::path& path);
+
 SafetensorsFile read_safetensors(const std::filesystem::path& path);
 // The same from bytes in memory; `path` only names them in error messages.
 SafetensorsFile parse_safetensors(const uint8_t* data, size_t size, const std::filesystem::path& path);

@@ -125,14 +125,15 @@ void finish_checkpoint(Checkpoint& ck, const StateDict& raw, const nlohmann::jso
 
 }  // namespace
 
-Checkpoint checkpoint_from_safetensors(SafetensorsFile file, const fs::path& path, bool keep_weight_norm) {
+namespace {
+
+Checkpoint checkpoint_from_tensors(const StateDict& raw, const std::map<std::string, std::string>& metadata,
+                                   const fs::path& path, bool keep_weight_norm) {
   Checkpoint ck;
   ck.format = "safetensors";
-  StateDict raw;
-  for (auto& [name, t] : file.tensors) raw[name] = tensor_from_data(std::move(t), path);
-  ck.extra = nlohmann::json(file.metadata);
+  ck.extra = nlohmann::json(metadata);
   nlohmann::json hints = nlohmann::json::object();
-  if (auto it = file.metadata.find("config"); it != file.metadata.end()) {
+  if (auto it = metadata.find("config"); it != metadata.end()) {
     try {
       hints = nlohmann::json::parse(it->second);
     } catch (const nlohmann::json::exception& e) {
@@ -143,8 +144,21 @@ Checkpoint checkpoint_from_safetensors(SafetensorsFile file, const fs::path& pat
   return ck;
 }
 
-Checkpoint read_checkpoint(const fs::path& path, bool keep_weight_norm) {
-  if (is_safetensors_file(path)) return checkpoint_from_safetensors(read_safetensors(path), path, keep_weight_norm);
+}  // namespace
+
+Checkpoint checkpoint_from_safetensors(SafetensorsFile file, const fs::path& path, bool keep_weight_norm) {
+  StateDict raw;
+  for (auto& [name, t] : file.tensors) raw[name] = tensor_from_data(std::move(t), path);
+  return checkpoint_from_tensors(raw, file.metadata, path, keep_weight_norm);
+}
+
+Checkpoint read_checkpoint(const fs::path& path, bool keep_weight_norm, bool map_weights) {
+  if (is_safetensors_file(path)) {
+    if (!map_weights) return checkpoint_from_safetensors(read_safetensors(path), path, keep_weight_norm);
+    std::map<std::string, std::string> metadata;
+    const StateDict raw = map_safetensors_tensors(path, &metadata);
+    return checkpoint_from_tensors(raw, metadata, path, keep_weight_norm);
+  }
   Checkpoint ck;
   StateDict raw;
   nlohmann::json hints = nlohmann::json::object();

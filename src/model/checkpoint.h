@@ -29,8 +29,11 @@ struct Checkpoint {
   StateDict weight_norm;
 };
 
-// Reads a checkpoint file (format from its content, not its extension).
-Checkpoint read_checkpoint(const std::filesystem::path& path, bool keep_weight_norm = false);
+// Reads a checkpoint file (format from its content, not its extension). `map_weights`: a
+// safetensors file's float32 weights stay in its read-only mapping (map_safetensors_tensors),
+// for a caller that copies them on at once (to a GPU) and never writes into them.
+Checkpoint read_checkpoint(const std::filesystem::path& path, bool keep_weight_norm = false,
+                           bool map_weights = false);
 // A checkpoint from parsed safetensors (`path` names it in messages).
 Checkpoint checkpoint_from_safetensors(SafetensorsFile file, const std::filesystem::path& path,
                                       bool keep_weight_norm = false);

@@ -31,8 +31,8 @@ Checkpoint default_checkpoint() {
 #endif
 }
 
-Checkpoint checkpoint_or_default(const std::string& path) {
-  return path.empty() ? default_checkpoint() : read_checkpoint(path);
+Checkpoint checkpoint_or_default(const std::string& path, bool map_weights) {
+  return path.empty() ? default_checkpoint() : read_checkpoint(path, false, map_weights);
 }
 
 }  // namespace ii

@@ -19,6 +19,6 @@ Checkpoint default_checkpoint();
 constexpr const char* kDefaultModelName = "<embedded default model>";
 
 // `path` when given, else the default model: what --checkpoint means in every command.
-Checkpoint checkpoint_or_default(const std::string& path);
+Checkpoint checkpoint_or_default(const std::string& path, bool map_weights = false);
 
 }  // namespace ii

@@ -59,6 +59,12 @@ torch::Tensor to_device(const torch::Tensor& t, const torch::Device& device) {
   return t.to(device);
 }
 
+std::future<void> start_device(const torch::Device& device) {
+  if (device.is_cpu()) return {};
+  return std::async(std::launch::async,
+                    [device] { static_cast<void>(torch::empty({1}, torch::TensorOptions().device(device))); });
+}
+
 void synchronize(const torch::Device& device) {
   if (device.is_cuda()) torch::cuda::synchronize(device.index());
 }

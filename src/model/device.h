@@ -1,6 +1,7 @@
 #pragma once
 // Where the network and the renderer run, and moving data there. Everything here also works
 // in a CPU-only LibTorch: "auto" then means the CPU and "cuda" is refused with the reason.
+#include <future>
 #include <string>
 
 #include "common/torch.h"
@@ -32,6 +33,11 @@ Runtime set_up_runtime(const std::string& device, int threads, const std::string
 // that the copy is one DMA transfer issued without waiting (the caller's next kernels on
 // the same stream are ordered after it). On the CPU the tensor is returned as is.
 torch::Tensor to_device(const torch::Tensor& t, const torch::Device& device);
+
+// Creates the device's context on another thread (a GPU's takes a few hundred ms at its first
+// allocation), so that a caller overlaps it with reading files; wait for the future before
+// relying on it. For the CPU nothing to do: an empty future.
+std::future<void> start_device(const torch::Device& device);
 
 // Waits for the device's queued work (a no-op on the CPU): timings must end with it.
 void synchronize(const torch::Device& device);

@@ -12,10 +12,21 @@ Predictor::Predictor(const std::string& checkpoint, const torch::Device& device,
       device_(device),
       precision_(precision),
       network_([&] {
-        Checkpoint ck = checkpoint_or_default(checkpoint);
+        // A GPU's context is made while the file is read; the weights are read where the file
+        // is mapped and copied there once.
+        std::future<void> device_ready = start_device(device);
+        Checkpoint ck = checkpoint_or_default(checkpoint, /*map_weights=*/!device.is_cpu());
         format_ = ck.format;
+        load_stages_.lap("read checkpoint");
         Network network = network_from_checkpoint(std::move(ck), model_name_);
+        load_stages_.lap("network from checkpoint");
+        if (device_ready.valid()) {
+          device_ready.get();
+          load_stages_.lap("device context (made beside the reading)");
+        }
         network.to(device);
+        synchronize(device);
+        load_stages_.lap("weights to " + device.str());
         return network;
       }()) {}
 

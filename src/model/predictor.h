@@ -47,11 +47,15 @@ class Predictor {
   Precision precision() const { return precision_; }
   // {"checkpoint", "format", "config"}: what run.json and metrics.json record of the model.
   nlohmann::json describe() const;
+  // Where the constructor's time went: "read checkpoint", "network from checkpoint",
+  // "weights to <device>" (a command adds them to its own stages).
+  const StageTimes& load_stages() const { return load_stages_; }
 
  private:
   std::string model_name_, format_;
   torch::Device device_;
   Precision precision_;
+  StageTimes load_stages_;
   Network network_;
 };
 

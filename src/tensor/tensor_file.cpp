@@ -2,8 +2,10 @@
 
 #include <cstring>
 #include <fstream>
+#include <memory>
 
 #include "common/error.h"
+#include "common/files.h"
 #include "io/pth.h"
 
 namespace ii {
@@ -74,6 +76,20 @@ TensorMap read_tensor_file(const fs::path& path) {
     for (auto& [name, t] : read_safetensors(path).tensors) out[name] = tensor_from_data(std::move(t), path);
   } else {
     for (const auto& [name, t] : read_pth_tensors(path)) out[name] = tensor_from_pth(t, path);
+  }
+  return out;
+}
+
+TensorMap map_safetensors_tensors(const fs::path& path, std::map<std::string, std::string>* metadata) {
+  const auto file = std::make_shared<const MappedFile>(path, /*populate=*/true);
+  SafetensorsIndex index = index_safetensors(file->data(), file->size(), path);
+  if (metadata) *metadata = std::move(index.metadata);
+  TensorMap out;
+  for (const SafetensorsIndex::Entry& e : index.tensors) {
+    const torch::TensorOptions options = torch::TensorOptions().dtype(scalar_type(e.dtype, path));
+    void* bytes = const_cast<uint8_t*>(file->data() + e.offset);
+    out[e.name] = e.size == 0 ? torch::empty(e.shape, options)
+                              : torch::from_blob(bytes, e.shape, [file](void*) {}, options);
   }
   return out;
 }

@@ -133,6 +133,13 @@ TEST(Ssim, MaskedMeanOfTheMap) {
   torch::Tensor border = torch::zeros({20, 20});
   border[0][0] = 1;
   EXPECT_TRUE(std::isnan(masked_ssim(a, b, border)[0].item<double>()));
+  // One map, several masks (eval's SSIM, masked and outside the mask): the same values.
+  const torch::Tensor map = ssim_map(a, b);
+  EXPECT_TRUE(torch::equal(masked_ssim_of_map(map, mask), masked_ssim(a, b, mask)));
+  EXPECT_TRUE(torch::equal(masked_ssim_of_map(map, 1 - mask), masked_ssim(a, b, 1 - mask)));
+  EXPECT_EQ(test::error_message([&] { masked_ssim_of_map(map, torch::ones({10, 10})); }),
+            "masked ssim: mask of shape [10, 10] does not fit images of shape [1, C, 20, 20] (expected (N or 1, 1, "
+            "H, W))");
 }
 
 TEST(BoundingBox, OfTensorAndImageMasks) {
@@ -181,6 +188,10 @@ TEST(BoundingBox, PsnrAndSsimOnTheBox) {
   EXPECT_NEAR(box_ssim(a, b, mask), ssim(crop_to_box(a, grown), crop_to_box(b, grown))[0].item<double>(), 1e-7);
   EXPECT_LT(box_ssim(a, b, mask), ssim(a, b)[0].item<double>());
   EXPECT_TRUE(std::isnan(box_psnr(a, b, torch::zeros({30, 40}))));
+  // Both at once for a box known on the host (eval: no wait for a GPU).
+  const torch::Tensor both = box_psnr_ssim(a, b, *mask_bounding_box(mask));
+  EXPECT_EQ(both[0].item<float>(), static_cast<float>(box_psnr(a, b, mask)));
+  EXPECT_EQ(both[1].item<float>(), static_cast<float>(box_ssim(a, b, mask)));
 }
 
 TEST(Metrics, BadInputsNameTheProblem) {

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <random>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -648,6 +649,35 @@ TEST(Ply, CompressedWriteRoundTripsWithinItsQuantisation) {
         ASSERT_NEAR(d.sh_rest[s * 3 * rest + k], c.sh_rest[i * 3 * rest + k], 8.0 / 256 + 1e-6);
     }
   }
+}
+
+// morton_order against a plain reference: 10 bits per axis interleaved bit by bit (z highest),
+// then std::stable_sort; ties keep their order.
+TEST(Ply, MortonOrderIsAStableSortByInterleavedCodes) {
+  std::mt19937 random(11);
+  std::uniform_real_distribution<float> u(-3.f, 5.f);
+  std::vector<float> means(3 * 20000);
+  for (float& m : means) m = u(random);
+  for (size_t i = 100; i < 200; ++i)  // duplicates of one point: ties
+    for (int a = 0; a < 3; ++a) means[i * 3 + a] = means[a];
+  float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+  const size_t n = means.size() / 3;
+  for (size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], means[i * 3 + a]);
+      hi[a] = std::max(hi[a], means[i * 3 + a]);
+    }
+  std::vector<uint32_t> code(n, 0);
+  for (size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) {
+      const double t = (means[i * 3 + a] - lo[a]) / (static_cast<double>(hi[a]) - lo[a]);
+      const auto q = static_cast<uint32_t>(std::clamp(t, 0.0, 1.0) * 1023);
+      for (int bit = 0; bit < 10; ++bit) code[i] |= ((q >> bit) & 1u) << (3 * bit + a);
+    }
+  std::vector<size_t> expected(n);
+  for (size_t i = 0; i < n; ++i) expected[i] = i;
+  std::stable_sort(expected.begin(), expected.end(), [&](size_t a, size_t b) { return code[a] < code[b]; });
+  EXPECT_EQ(morton_order(means), expected);
 }
 
 TEST(Ply, WriteRefusesInconsistentClouds) {

@@ -58,6 +58,12 @@ TEST(Checkpoint, SafetensorsRoundTripKeepsWeightsAndArchitecture) {
   EXPECT_TRUE(raw.count("gaudecoder.blocks.0.attn.qkv.weight_g"));
   EXPECT_TRUE(raw.count("gauupsampler.mlp_rgb.2.weight_v"));
   EXPECT_TRUE(raw.count("mvencoder.patch_embed.proj.weight"));
+  // Read in place from the mapped file (a GPU's predictor): the same weights and architecture.
+  const Checkpoint mapped = read_checkpoint(path, false, /*map_weights=*/true);
+  EXPECT_EQ(mapped.config.heads, 4);
+  EXPECT_EQ(mapped.folded_weight_norms, back.folded_weight_norms);
+  ASSERT_EQ(mapped.state.size(), back.state.size());
+  for (const auto& [name, w] : back.state) EXPECT_TRUE(torch::equal(mapped.state.at(name), w)) << name;
 }
 
 TEST(Checkpoint, StrictLoadNamesWhatDoesNotFit) {

@@ -30,6 +30,39 @@ TEST(SceneInput, StatueBuildsOfficialInputs) {
   EXPECT_LE(si.input.rays_o.abs().max().item<float>(), 1.0f + 1e-6f);
 }
 
+// What a server reuses between edits gives the inputs a fresh read gives: views prepared once
+// (PreparedViewCache), the classical reference made ahead, the rays of a camera set kept.
+TEST(SceneInput, CachedViewsAndAReferenceMadeAheadGiveTheSameInput) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  const Scene scene = load_scene(dir);
+  SceneInputOptions opts;
+  opts.context = {"IMG_2720", "IMG_2707", "IMG_2715", "IMG_2730"};
+  opts.preprocess.height = 64;
+  const SceneInput fresh = prepare_scene_input(scene, opts);
+
+  PreparedViewCache cache;
+  SceneInputOptions cached = opts;
+  cached.view_cache = &cache;
+  const Image region = *load_view_mask(*scene.find("IMG_2720"));
+  cached.reference_image = classical_reference(scene, "IMG_2720", region, cached);
+  cached.reference_image_source = "telea";
+  for (int run = 0; run < 2; ++run) {  // the second from the cache alone
+    const SceneInput again = prepare_scene_input(scene, cached);
+    EXPECT_EQ(again.reference_source, "telea");
+    const std::vector<torch::Tensor> got = {again.input.images, again.input.plucker, again.input.rays_o,
+                                            again.input.rays_d_un},
+                                     want = {fresh.input.images, fresh.input.plucker, fresh.input.rays_o,
+                                             fresh.input.rays_d_un};
+    for (size_t i = 0; i < got.size(); ++i) EXPECT_TRUE(torch::equal(got[i], want[i])) << i << " on run " << run;
+  }
+  // The cache holds what prepare_view makes.
+  const PreparedView direct = prepare_view(*scene.find("IMG_2715"), opts.preprocess);
+  const PreparedView kept = cache.get(*scene.find("IMG_2715"), opts.preprocess);
+  EXPECT_EQ(kept.rgb.pixels, direct.rgb.pixels);
+  ASSERT_TRUE(kept.mask && direct.mask);
+  EXPECT_EQ(kept.mask->pixels, direct.mask->pixels);
+}
+
 TEST(SceneInput, KeepObjectFeedsThePhotosUnmasked) {
   II_REQUIRE_SHARED(dir, "data/statue");
   Scene scene = load_scene(dir);

@@ -37,6 +37,33 @@ TEST(TensorFile, EveryDtypeRoundTripsThroughSafetensors) {
             path.string() + ": unsupported tensor dtype F8_E4M3");
 }
 
+// The mapped reading (weights copied on to a GPU) gives the tensors the copying one gives, and
+// they outlive every handle of the file but their own.
+TEST(TensorFile, MappedSafetensorsEqualTheCopiedOnes) {
+  torch::manual_seed(2);
+  std::vector<std::pair<std::string, torch::Tensor>> tensors = {
+      {"a", torch::randn({5, 7})}, {"b", torch::randint(0, 100, {3}, torch::kInt64)}, {"empty", torch::zeros({0, 2})},
+      {"half", torch::randn({4}).to(torch::kBFloat16)}};
+  const fs::path path = test::temp_dir("tensor-file-mapped") / "m.safetensors";
+  write_tensor_file(path, tensors, {{"config", "{}"}});
+  std::map<std::string, std::string> metadata;
+  torch::Tensor kept;
+  {
+    const TensorMap mapped = map_safetensors_tensors(path, &metadata);
+    const TensorMap copied = read_tensor_file(path);
+    ASSERT_EQ(mapped.size(), copied.size());
+    for (const auto& [name, t] : copied) {
+      EXPECT_EQ(mapped.at(name).scalar_type(), t.scalar_type()) << name;
+      EXPECT_TRUE(torch::equal(mapped.at(name), t)) << name;
+    }
+    kept = mapped.at("a");
+  }
+  EXPECT_EQ(metadata.at("config"), "{}");
+  fs::remove(path);  // the mapping stays while a tensor uses it
+  EXPECT_TRUE(torch::equal(kept, tensors[0].second));
+  EXPECT_EQ(test::error_message([&] { map_safetensors_tensors(path); }), path.string() + ": file not found");
+}
+
 TEST(TensorFile, PthAndSafetensorsOfTheFixtureHoldTheSameTensors) {
   II_REQUIRE_SHARED(dir, "fixtures/official-tiny");
   EXPECT_FALSE(is_safetensors_file(dir / "checkpoint.pth"));

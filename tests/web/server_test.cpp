@@ -7,6 +7,7 @@
 #include <map>
 #include <thread>
 
+#include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
 #include "io/image.h"
@@ -354,12 +355,16 @@ TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
   EXPECT_EQ(job["kind"], "edit");
   EXPECT_EQ(job["result"]["refine"]["steps"], 2);
   EXPECT_EQ(job["result"]["reference"], "telea");
-  // The page loads the standard PLY, written before the answer.
-  EXPECT_EQ(job["result"]["splats"], job["result"]["ply"]);
+  // The page loads the compressed PLY, written before the answer.
+  EXPECT_EQ(job["result"]["splats"], fmt::format("/api/jobs/{}/gaussians.compressed.ply", id));
+  const auto page = s.client->Get(job["result"]["splats"].get<std::string>());
+  ASSERT_EQ(page->status, 200);
+  EXPECT_NE(page->body.find("element chunk"), std::string::npos);
+  // The downloads are written behind the answer: a request for one waits until it is there.
   const auto ply = s.client->Get(job["result"]["ply"].get<std::string>());
   ASSERT_EQ(ply->status, 200);
   EXPECT_EQ(ply->body.rfind("ply\n", 0), 0u);
-  // The SPZ download is written behind the answer: a request for it waits until it is there.
+  EXPECT_LT(page->body.size() * 3, ply->body.size());
   const auto spz = s.client->Get(job["result"]["spz"].get<std::string>());
   ASSERT_EQ(spz->status, 200);
   const SplatCloud from_spz = decode_spz(reinterpret_cast<const uint8_t*>(spz->body.data()), spz->body.size(), "spz");
@@ -371,11 +376,11 @@ TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
   std::map<std::string, json> stages;
   for (const json& stage : job["stages"]) stages[stage["stage"]] = stage;
   for (const char* name : {"masks: propagate", "prepare context views", "network input", "upload", "network",
-                           "refine", "gaussians to splats (host)", "write gaussians.ply"}) {
+                           "refine", "gaussians to splats (host)", "write gaussians.compressed.ply"}) {
     ASSERT_TRUE(stages.count(name)) << name << " in " << job["stages"];
     EXPECT_FALSE(stages[name].contains("behind")) << name;
   }
-  for (const char* name : {"inpaint reference (telea)", "write mask PNGs", "write gaussians.spz"}) {
+  for (const char* name : {"inpaint reference (telea)", "write mask PNGs", "write gaussians.ply", "write gaussians.spz"}) {
     ASSERT_TRUE(stages.count(name)) << name << " in " << job["stages"];
     EXPECT_EQ(stages[name]["behind"], true) << name;
   }

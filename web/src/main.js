@@ -226,7 +226,7 @@ function listPlys(plys) {
 function setDownloads() {
   const url = api.loadedUrl;
   const links = [];
-  const job = url?.match(/^(\/api\/jobs\/\d+\/gaussians)\.(ply|spz)$/);
+  const job = url?.match(/^(\/api\/jobs\/\d+\/gaussians)(\.compressed)?\.(ply|spz)$/);
   if (job) {
     links.push(`download: <a href="${job[1]}.ply?download=1">PLY</a>`);
     links.push(`<a href="${job[1]}.spz?download=1">SPZ (about a tenth of the size)</a>`);

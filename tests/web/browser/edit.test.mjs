@@ -47,9 +47,13 @@ try {
   const run = await page.evaluate(() => window.instainpaint.lastRun);
   h.check(run.state === "done", `the edit ran (${run.state}${run.error ? ": " + run.error : ""})`);
   h.check(/^\/api\/jobs\/\d+\/gaussians\.ply$/.test(run.result.ply), `the new PLY is served (${run.result.ply})`);
-  h.check(run.result.splats === run.result.spz && /^\/api\/jobs\/\d+\/gaussians\.spz$/.test(run.result.spz),
-    `and its SPZ (${run.result.spz})`);
-  h.check(await page.evaluate(() => window.instainpaint.loadedUrl) === run.result.spz, "the SPZ is displayed");
+  h.check(/^\/api\/jobs\/\d+\/gaussians\.spz$/.test(run.result.spz), `and its SPZ (${run.result.spz})`);
+  h.check(/^\/api\/jobs\/\d+\/gaussians\.compressed\.ply$/.test(run.result.splats),
+    `the page gets the compressed PLY (${run.result.splats})`);
+  h.check(await page.evaluate(() => window.instainpaint.loadedUrl) === run.result.splats, "the compressed PLY is displayed");
+  const stageRows = await page.evaluate(() => [...document.querySelectorAll("#stages tr")].map((r) => r.textContent));
+  h.check(stageRows.some((r) => r.startsWith("network")) && stageRows.some((r) => r.startsWith("page: splats loaded")),
+    `where the time went is shown under the result (${stageRows.length} rows)`);
   const downloads = await page.evaluate(() => [...document.querySelectorAll("#downloads a")].map((a) => a.getAttribute("href")));
   const sog = run.result.ply.replace(/\.ply$/, ".sog");
   h.check(downloads.includes(`${run.result.ply}?download=1`) && downloads.includes(`${run.result.spz}?download=1`) &&
