@@ -2,10 +2,12 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <string>
 
 #include "cli/commands.h"
+#include "cli/runtime.h"
 #include "common/error.h"
 #include "common/memory.h"
 
@@ -51,6 +53,13 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
     std::cerr << "error: " << e.what() << "\n";
     return 2;
+  }
+  // After a GPU command: out without LibTorch's CUDA teardown (freeing the cached device memory,
+  // destroying the context), which the user would wait for. Every file is written by now.
+  if (ii::cli::gpu_was_set_up()) {
+    std::fflush(nullptr);
+    spdlog::shutdown();
+    std::_Exit(0);
   }
   return 0;
 }

@@ -19,8 +19,16 @@ void add_runtime_options(CLI::App* cmd, RuntimeOptions& options) {
       ->capture_default_str();
 }
 
+namespace {
+bool gpu_set_up = false;
+}  // namespace
+
 Runtime apply_runtime_options(const RuntimeOptions& options) {
-  return set_up_runtime(options.device, options.threads, options.precision);
+  const Runtime runtime = set_up_runtime(options.device, options.threads, options.precision);
+  gpu_set_up = gpu_set_up || runtime.device.is_cuda();
+  return runtime;
 }
+
+bool gpu_was_set_up() { return gpu_set_up; }
 
 }  // namespace ii::cli

@@ -15,5 +15,8 @@ struct RuntimeOptions {
 void add_runtime_options(CLI::App* cmd, RuntimeOptions& options);
 // set_up_runtime with the options' values.
 Runtime apply_runtime_options(const RuntimeOptions& options);
+// Whether a command of this process set up a GPU (main then leaves without LibTorch's CUDA
+// teardown: the command has written and synced everything by then).
+bool gpu_was_set_up();
 
 }  // namespace ii::cli

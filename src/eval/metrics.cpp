@@ -199,11 +199,19 @@ double box_ssim(const torch::Tensor& a, const torch::Tensor& b, const torch::Ten
   return box_psnr_ssim(a, b, *box)[1].item<double>();
 }
 
-torch::Tensor box_psnr_ssim(const torch::Tensor& a, const torch::Tensor& b, const PixelBox& box) {
+torch::Tensor box_psnr_ssim(const torch::Tensor& a, const torch::Tensor& b, const PixelBox& box,
+                            const torch::Tensor& map) {
   const PixelBox grown =
       grow_box(box, kSsimWindow, kSsimWindow, static_cast<int>(a.size(-1)), static_cast<int>(a.size(-2)));
-  return torch::stack({psnr(crop_to_box(a, box), crop_to_box(b, box))[0].to(torch::kFloat),
-                       ssim(crop_to_box(a, grown), crop_to_box(b, grown))[0].to(torch::kFloat)});
+  // The grown box's SSIM: its valid positions are the whole image's map positions whose
+  // windows lie inside the box (the same pixels and weights), when that map is at hand.
+  const torch::Tensor box_ssim =
+      map.defined() ? map.narrow(2, grown.y0, grown.height() - kSsimWindow + 1)
+                          .narrow(3, grown.x0, grown.width() - kSsimWindow + 1)
+                          .flatten(1)
+                          .mean(1)[0]
+                    : ssim(crop_to_box(a, grown), crop_to_box(b, grown))[0];
+  return torch::stack({psnr(crop_to_box(a, box), crop_to_box(b, box))[0].to(torch::kFloat), box_ssim.to(torch::kFloat)});
 }
 
 }  // namespace ii

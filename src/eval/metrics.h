@@ -66,7 +66,9 @@ torch::Tensor crop_to_box(const torch::Tensor& t, const PixelBox& box);
 double box_psnr(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& mask);
 double box_ssim(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& mask);
 // Both for a box known on the host, as a (2) float tensor on the inputs' device: nothing waits
-// for a GPU (box_psnr and box_ssim find the box on the host and read each value back).
-torch::Tensor box_psnr_ssim(const torch::Tensor& a, const torch::Tensor& b, const PixelBox& box);
+// for a GPU (box_psnr and box_ssim find the box on the host and read each value back). With
+// the images' ssim_map the box's SSIM is read from it (the same values, no second filtering).
+torch::Tensor box_psnr_ssim(const torch::Tensor& a, const torch::Tensor& b, const PixelBox& box,
+                            const torch::Tensor& map = {});
 
 }  // namespace ii

@@ -667,7 +667,7 @@ void queue_image_metrics(const torch::Tensor& a, const torch::Tensor& b, const t
   values.add("masked_psnr", masked_psnr(a, b, m)[0]);
   values.add("masked_ssim", masked_ssim_of_map(map, m)[0]);
   if (const auto box = mask_bounding_box(*mask)) {  // the host's copy of the mask: no wait
-    const torch::Tensor both = box_psnr_ssim(a, b, *box);
+    const torch::Tensor both = box_psnr_ssim(a, b, *box, map);
     values.add("box_psnr", both[0]);
     values.add("box_ssim", both[1]);
   } else {

@@ -3,6 +3,7 @@
 // (read and write) and the SuperSplat/PlayCanvas "compressed PLY" layout (read).
 #include <cstddef>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 namespace ii {
@@ -56,6 +57,9 @@ void write_splat_ply(const std::filesystem::path& path, const SplatCloud& cloud)
 // their positions (morton_order), in chunks of 256 with per-chunk ranges; 11/10/11-bit
 // positions and log scales, 2+3x10-bit rotations, 8-bit colours and opacity, 8-bit SH. Atomic.
 void write_compressed_splat_ply(const std::filesystem::path& path, const SplatCloud& cloud);
+// The file's bytes in memory (a server sends them before they are on disk); `name` only names
+// the splats in error messages.
+std::string encode_compressed_splat_ply(const SplatCloud& cloud, const std::filesystem::path& name);
 // The order write_compressed_splat_ply stores splats in: by the Morton code of their position
 // (10 bits per axis within the bounding box), ties in index order.
 std::vector<size_t> morton_order(const std::vector<float>& means);

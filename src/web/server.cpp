@@ -7,6 +7,8 @@
 #include <condition_variable>
 #include <fstream>
 #include <future>
+#include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <random>
@@ -26,6 +28,7 @@
 #include "eval/protocol.h"
 #include "gaussians/gaussians.h"
 #include "io/image.h"
+#include "io/ply.h"
 #include "io/splat_file.h"
 #include "io/video.h"
 #include "refine/refine.h"
@@ -204,26 +207,40 @@ const char* content_type_of(const fs::path& file) {
   return "application/octet-stream";
 }
 
-// What the page loads is written before the job is done: SuperSplat's compressed PLY, quick to
-// write and to send. SPZ's compression was most of an edit (1.36 s of a 2.5 s edit at 512 high
-// on an H100 machine); the standard PLY is 4x the bytes (95 MB against 23 MB for the statue's
-// 1.39 M Gaussians at 512 high: 85 ms written, 107 ms sent over loopback on the H100 machine).
-// The downloads (standard PLY, SPZ) are written after the answer; requests for them wait.
+// What the page loads is ready before the job is done: SuperSplat's compressed PLY, quick to
+// make and to send, served from memory until its file is written. SPZ's compression was most
+// of an edit (1.36 s of a 2.5 s edit at 512 high on an H100 machine); the standard PLY is 4x
+// the bytes (95 MB against 23 MB for the statue's 1.39 M Gaussians at 512 high: 85 ms written,
+// 107 ms sent over loopback on the H100 machine). Every file (that one too, and the downloads,
+// standard PLY and SPZ) is written after the answer; requests for the downloads wait.
 constexpr const char* kPageSplats = "gaussians.compressed.ply";
 constexpr const char* kDownloadSplats[] = {"gaussians.ply", "gaussians.spz"};
 
-// The job's splats for the page, written now; the result's URLs ("splats": the page's).
-json write_page_splats(const fs::path& dir, int id, const SplatCloud& cloud, StageTimes& stages) {
-  stages.time(std::string("write ") + kPageSplats, [&] { write_splats(dir / kPageSplats, cloud); });
+// The result's URLs of a job's splats ("splats": the page's).
+json splat_urls(int id) {
   json result = {{"splats", fmt::format("/api/jobs/{}/{}", id, kPageSplats)}};
   for (const char* name : kDownloadSplats)
     result[fs::path(name).extension().string().substr(1)] = fmt::format("/api/jobs/{}/{}", id, name);
   return result;
 }
 
-void write_download_splats(const fs::path& dir, const SplatCloud& cloud, StageTimes& stages) {
+void write_splat_files(const fs::path& dir, const std::string& page_bytes, const SplatCloud& cloud,
+                       StageTimes& stages) {
+  stages.time(std::string("write ") + kPageSplats, [&] { write_file_atomic(dir / kPageSplats, page_bytes); }, true);
   for (const char* name : kDownloadSplats)
     stages.time(std::string("write ") + name, [&] { write_splats(dir / name, cloud); }, /*behind=*/true);
+}
+
+// Sends bytes held in memory (shared with whoever keeps them); ?download=1 as send_file.
+void send_bytes(const httplib::Request& req, httplib::Response& res, std::shared_ptr<const std::string> bytes,
+                const std::string& name) {
+  if (req.has_param("download")) res.set_header("Content-Disposition", "attachment; filename=\"" + name + "\"");
+  const size_t size = bytes->size();
+  res.set_content_provider(size, "application/octet-stream",
+                           [bytes](size_t offset, size_t length, httplib::DataSink& sink) {
+                             sink.write(bytes->data() + offset, std::min<size_t>(length, 1 << 20));
+                             return true;
+                           });
 }
 
 }  // namespace
@@ -254,6 +271,8 @@ struct WebServer::State {
   // Jobs whose download files are still being written, after their answer, by files_writer.
   std::set<int> files_pending;
   std::thread files_writer;
+  // The page's splats of the newest jobs, by job: sent from memory (written behind the answer).
+  std::map<int, std::shared_ptr<const std::string>> page_splats;
   PreparedViewCache views;  // the edits' context views at the working size, read once
 
   ~State() { stop_worker(); }
@@ -535,9 +554,16 @@ json WebServer::State::write_splats_of(const GaussianSet& gaussians, const fs::p
                                        std::function<void()>& behind) {
   auto cloud = std::make_shared<const SplatCloud>(
       stages.time("gaussians to splats (host)", [&] { return splats_from_gaussians(gaussians); }));
-  json result = write_page_splats(dir, id, *cloud, stages);
+  auto page = std::make_shared<const std::string>(stages.time(
+      std::string("encode ") + kPageSplats, [&] { return encode_compressed_splat_ply(*cloud, dir / kPageSplats); }));
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    page_splats[id] = page;
+    while (page_splats.size() > 2) page_splats.erase(page_splats.begin());
+  }
+  json result = splat_urls(id);
   result["gaussians"] = gaussians.size();
-  behind = [dir, cloud, &stages] { write_download_splats(dir, *cloud, stages); };
+  behind = [dir, cloud, page, &stages] { write_splat_files(dir, *page, *cloud, stages); };
   return result;
 }
 
@@ -834,7 +860,16 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
   // What jobs wrote: their PLY, masks, video and evaluation report (with its sheets and renders).
   http.Get(R"(/api/jobs/(\d{1,8})/(gaussians\.(?:ply|spz|compressed\.ply)|masks/\d{1,6}\.png|orbit\.mp4|eval/report\.html|eval/(sheets|renders)/[^/]+\.png))",
            [&s](const httplib::Request& req, httplib::Response& res) {
-             if (req.matches[2] != kPageSplats) s.wait_for_files(std::stoi(req.matches[1]));  // written behind
+             const int id = std::stoi(req.matches[1]);
+             if (req.matches[2] == kPageSplats) {
+               std::shared_ptr<const std::string> page;
+               {
+                 std::lock_guard<std::mutex> lock(s.mutex);
+                 if (const auto found = s.page_splats.find(id); found != s.page_splats.end()) page = found->second;
+               }
+               if (page) return send_bytes(req, res, page, kPageSplats);
+             }
+             s.wait_for_files(id);  // written behind the answer
              // The pattern admits no "/.." and no absolute path; job_file refuses symlinks out.
              const fs::path file = s.job_file(req.matches[1], req.matches[2]);
              if (file.empty()) return refuse(res, {404, "not found"});

@@ -192,6 +192,12 @@ TEST(BoundingBox, PsnrAndSsimOnTheBox) {
   const torch::Tensor both = box_psnr_ssim(a, b, *mask_bounding_box(mask));
   EXPECT_EQ(both[0].item<float>(), static_cast<float>(box_psnr(a, b, mask)));
   EXPECT_EQ(both[1].item<float>(), static_cast<float>(box_ssim(a, b, mask)));
+  // The box's SSIM read from the whole image's map: the same within float rounding.
+  torch::manual_seed(6);
+  const torch::Tensor c = torch::rand({1, 3, 30, 40}), d = torch::rand({1, 3, 30, 40});
+  const torch::Tensor from_map = box_psnr_ssim(c, d, *mask_bounding_box(mask), ssim_map(c, d));
+  EXPECT_EQ(from_map[0].item<float>(), static_cast<float>(box_psnr(c, d, mask)));
+  EXPECT_NEAR(from_map[1].item<float>(), box_ssim(c, d, mask), 1e-6);
 }
 
 TEST(Metrics, BadInputsNameTheProblem) {

@@ -365,6 +365,9 @@ TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
   ASSERT_EQ(ply->status, 200);
   EXPECT_EQ(ply->body.rfind("ply\n", 0), 0u);
   EXPECT_LT(page->body.size() * 3, ply->body.size());
+  // Sent from memory before its file is written: the same bytes as the file.
+  s.finished_job();
+  EXPECT_EQ(page->body, test::file_bytes(s.out / "jobs" / std::to_string(id) / "gaussians.compressed.ply"));
   const auto spz = s.client->Get(job["result"]["spz"].get<std::string>());
   ASSERT_EQ(spz->status, 200);
   const SplatCloud from_spz = decode_spz(reinterpret_cast<const uint8_t*>(spz->body.data()), spz->body.size(), "spz");
@@ -376,11 +379,12 @@ TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
   std::map<std::string, json> stages;
   for (const json& stage : job["stages"]) stages[stage["stage"]] = stage;
   for (const char* name : {"masks: propagate", "prepare context views", "network input", "upload", "network",
-                           "refine", "gaussians to splats (host)", "write gaussians.compressed.ply"}) {
+                           "refine", "gaussians to splats (host)", "encode gaussians.compressed.ply"}) {
     ASSERT_TRUE(stages.count(name)) << name << " in " << job["stages"];
     EXPECT_FALSE(stages[name].contains("behind")) << name;
   }
-  for (const char* name : {"inpaint reference (telea)", "write mask PNGs", "write gaussians.ply", "write gaussians.spz"}) {
+  for (const char* name : {"inpaint reference (telea)", "write mask PNGs", "write gaussians.compressed.ply",
+                           "write gaussians.ply", "write gaussians.spz"}) {
     ASSERT_TRUE(stages.count(name)) << name << " in " << job["stages"];
     EXPECT_EQ(stages[name]["behind"], true) << name;
   }

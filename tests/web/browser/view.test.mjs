@@ -47,8 +47,8 @@ try {
   // ours per tile by depth), in 8-bit blending on the GPU and in cut-offs: 42 dB measured.
   h.check(psnr >= 35, `the page's frame matches instainpaint render (PSNR ${psnr.toFixed(2)} >= 35 dB)`);
 
-  // The same splats as SPZ (what the page gets from jobs) and as compressed PLY, both written
-  // here: drawn like the float PLY's render.
+  // The same splats as SPZ (the jobs' download) and as compressed PLY (what the page gets from
+  // jobs), both written here: drawn like the float PLY's render.
   for (const file of ["room.spz", "room.compressed.ply"]) {
     const compressed = join(dir, file);
     h.run(["convert", ply, compressed]);
@@ -87,7 +87,7 @@ try {
     await gpage.close();
     other.stop();
 
-    // Page load to first frame of the same capture as a float PLY and as SPZ (what serve sends),
+    // Page load to first frame of the same capture as a float PLY and as SPZ (what serve sent before),
     // here and over a 50 Mbit/s link (Chromium's network emulation).
     const firstFrame = {};
     for (const kind of ["ply", "spz"]) {
@@ -123,7 +123,8 @@ try {
   writeFileSync(join(dir, "page-scene-alone.png"), await bpage.screenshot());
   const shown = await bpage.evaluate(() => ({ url: window.instainpaint.loadedUrl, hud: document.getElementById("hud").textContent,
     editing: !document.getElementById("edit-panel").hidden, view: document.getElementById("edit-view").textContent }));
-  h.check(/^\/api\/jobs\/\d+\/gaussians\.spz$/.test(shown.url ?? ""), `the scene's reconstruction is on screen, as SPZ (${shown.url})`);
+  h.check(/^\/api\/jobs\/\d+\/gaussians\.compressed\.ply$/.test(shown.url ?? ""),
+    `the scene's reconstruction is on screen, as compressed PLY (${shown.url})`);
   const bdrawn = await bpage.evaluate(drawnFraction);
   h.check(bdrawn > 0.3, `and drawn (${(100 * bdrawn).toFixed(0)} % of pixels)`);
   h.check(shown.editing && /^view_\d+$/.test(shown.view), `the editor is open on the reference view (${shown.view})`);
