@@ -47,6 +47,19 @@ def test_attributes_are_arrays_over_the_librarys_memory(statue, predictor):
     assert g.sh_degree == -1 and g.device == "cpu"
 
 
+def test_a_gpu_prediction_hands_its_gaussians_over_on_the_gpu(statue):
+    torch = pytest.importorskip("torch")
+    if not torch.cuda.is_available():
+        pytest.skip("no CUDA device here: the GPU build on a lent machine runs this")
+    g = ii.Predictor(device="cuda").predict(statue, height=HEIGHT)
+    assert g.device.startswith("cuda")
+    means = g.means
+    assert means.__dlpack_device__()[0] == 2  # kDLCUDA: the array is the device's memory, no host copy
+    t = torch.from_dlpack(means)
+    assert t.is_cuda and tuple(t.shape) == (len(g), 3)
+    assert torch.from_dlpack(g.means).data_ptr() == t.data_ptr()  # a second read: the same memory
+
+
 def test_arrays_go_to_torch_without_a_copy(statue, predictor):
     torch = pytest.importorskip("torch")  # Debian's python3-torch: the same LibTorch, side by side
     g = predictor.predict(statue, height=HEIGHT)

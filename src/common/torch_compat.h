@@ -26,13 +26,10 @@ constexpr bool has_fused_sdpa = II_TORCH2;
 inline torch::Tensor fused_sdpa(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
   return at::scaled_dot_product_attention(q, k, v);
 }
-// Whether fused_sdpa may use cuDNN's kernel (else FlashAttention's, LibTorch's own).
-inline void allow_cudnn_sdpa(bool allow) { at::globalContext().setSDPUseCuDNN(allow); }
 #else
 inline torch::Tensor fused_sdpa(const torch::Tensor&, const torch::Tensor&, const torch::Tensor&) {
   TORCH_CHECK(false, "fused attention needs LibTorch 2.x");
 }
-inline void allow_cudnn_sdpa(bool) {}
 #endif
 
 }  // namespace ii::compat

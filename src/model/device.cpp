@@ -1,6 +1,5 @@
 #include "model/device.h"
 
-#include <cstdlib>
 #include <fstream>
 
 #include "common/error.h"
@@ -23,10 +22,6 @@ Runtime set_up_runtime(const std::string& device, int threads, const std::string
   Runtime r;
   r.device = resolve_device(device);
   set_cpu_threads(threads, r.device.is_cuda());
-  // A measurement switch (scripts/device/build-and-check.sh): cuDNN's attention kernel is built
-  // at its first call for each shape, which a one-shot command pays; FlashAttention's is not.
-  if (const char* cudnn = std::getenv("INSTAINPAINT_CUDNN_ATTENTION"))
-    compat::allow_cudnn_sdpa(std::string(cudnn) != "0");
   if (precision == "fp32")
     r.precision = Precision::Float32;
   else if (precision == "bf16")

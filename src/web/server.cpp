@@ -216,6 +216,13 @@ const char* content_type_of(const fs::path& file) {
 constexpr const char* kPageSplats = "gaussians.compressed.ply";
 constexpr const char* kDownloadSplats[] = {"gaussians.ply", "gaussians.spz"};
 
+// Files a job leaves to write after its answer, in order, by group ("masks", "splats"): a
+// request for a file waits for its group alone.
+using BehindSteps = std::vector<std::pair<std::string, std::function<void()>>>;
+
+// The file group a job's file belongs to (BehindSteps).
+std::string file_group(const std::string& relative) { return relative.rfind("masks/", 0) == 0 ? "masks" : "splats"; }
+
 // The result's URLs of a job's splats ("splats": the page's).
 json splat_urls(int id) {
   json result = {{"splats", fmt::format("/api/jobs/{}/{}", id, kPageSplats)}};
@@ -255,8 +262,8 @@ struct WebServer::State {
   std::string token;
   int port = 0;
 
-  // Guards job, next_id, queued, worker_busy, stopping, files_pending, files_writer and the
-  // view PNG cache.
+  // Guards job, next_id, queued, worker_busy, stopping, files_pending, files_writer,
+  // page_splats and the view PNG cache.
   std::mutex mutex;
   std::condition_variable changed;  // the job's state, the queue or files_pending changed
   std::mutex sog_mutex;  // one SOG made at a time (downloads)
@@ -268,8 +275,8 @@ struct WebServer::State {
   std::thread worker;
   std::optional<std::pair<JobRequest, fs::path>> queued;
   bool worker_busy = false, stopping = false;
-  // Jobs whose download files are still being written, after their answer, by files_writer.
-  std::set<int> files_pending;
+  // The file groups of each job still being written, after its answer, by files_writer.
+  std::map<int, std::set<std::string>> files_pending;
   std::thread files_writer;
   // The page's splats of the newest jobs, by job: sent from memory (written behind the answer).
   std::map<int, std::shared_ptr<const std::string>> page_splats;
@@ -290,15 +297,15 @@ struct WebServer::State {
   // files to write in `behind` (run after the job is done).
   json run_edit(const JobRequest& edit, const fs::path& dir, int id,
                 const std::function<void(const std::string&, double)>& stage, StageTimes& stages,
-                std::function<void()>& behind);
+                BehindSteps& behind);
   json run_video(const JobRequest& job, const fs::path& dir, int id,
                  const std::function<void(const std::string&, double)>& stage);
   json run_eval(const JobRequest& job, const fs::path& dir, int id);
   json run_reconstruction(const fs::path& dir, int id, const std::function<void(const std::string&, double)>& stage,
-                          StageTimes& stages, std::function<void()>& behind);
-  // The prediction's Gaussians as splats: the page's file now, the downloads in `behind`.
+                          StageTimes& stages, BehindSteps& behind);
+  // The prediction's Gaussians as splats: the page's file now, the files in `behind`.
   json write_splats_of(const GaussianSet& gaussians, const fs::path& dir, int id, StageTimes& stages,
-                       std::function<void()>& behind);
+                       BehindSteps& behind);
   // Starts job `id` on the worker thread; the caller holds `mutex` and checked that none runs.
   void launch_locked(const JobRequest& request, int id, const fs::path& dir);
   fs::path cached_view_file(int index, bool mask);
@@ -315,13 +322,16 @@ struct WebServer::State {
     changed.wait_for(lock, limit, [&] { return job.id == id && job.state != "running"; });
     return job.to_json();
   }
-  // Waits until job `id`'s download files are written (at once when none are pending).
-  void wait_for_files(int id) {
+  // Waits until job `id`'s files of `group` are written (at once when none are pending).
+  void wait_for_files(int id, const std::string& group) {
     std::unique_lock<std::mutex> lock(mutex);
-    changed.wait(lock, [&] { return files_pending.count(id) == 0; });
+    changed.wait(lock, [&] {
+      const auto pending = files_pending.find(id);
+      return pending == files_pending.end() || pending->second.count(group) == 0;
+    });
   }
-  // Starts writing a finished job's download files behind its answer.
-  void write_files_behind(int id, std::function<void()> write);
+  // Starts writing a finished job's files behind its answer (its groups are pending already).
+  void write_files_behind(int id, BehindSteps steps, std::shared_ptr<StageTimes> stages);
 };
 
 json WebServer::State::info() const {
@@ -464,7 +474,7 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
 
 json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int id,
                                 const std::function<void(const std::string&, double)>& stage, StageTimes& stages,
-                                std::function<void()>& behind) {
+                                BehindSteps& behind) {
   const View& view = scene->views[static_cast<size_t>(edit.view)];
   SceneInputOptions input;
   input.preprocess.height = options.height;
@@ -543,15 +553,12 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   stage("writing the Gaussians", 0.95);
   result.update(write_splats_of(gaussians, dir, id, stages, behind));
   result["reference"] = p.input.reference_source;
-  behind = [write_masks, write_splats = behind] {
-    write_masks(true);
-    write_splats();
-  };
+  behind.insert(behind.begin(), {"masks", [write_masks] { write_masks(true); }});
   return result;
 }
 
 json WebServer::State::write_splats_of(const GaussianSet& gaussians, const fs::path& dir, int id, StageTimes& stages,
-                                       std::function<void()>& behind) {
+                                       BehindSteps& behind) {
   auto cloud = std::make_shared<const SplatCloud>(
       stages.time("gaussians to splats (host)", [&] { return splats_from_gaussians(gaussians); }));
   auto page = std::make_shared<const std::string>(stages.time(
@@ -563,13 +570,13 @@ json WebServer::State::write_splats_of(const GaussianSet& gaussians, const fs::p
   }
   json result = splat_urls(id);
   result["gaussians"] = gaussians.size();
-  behind = [dir, cloud, page, &stages] { write_splat_files(dir, *page, *cloud, stages); };
+  behind.emplace_back("splats", [dir, cloud, page, &stages] { write_splat_files(dir, *page, *cloud, stages); });
   return result;
 }
 
 json WebServer::State::run_reconstruction(const fs::path& dir, int id,
                                           const std::function<void(const std::string&, double)>& stage,
-                                          StageTimes& stages, std::function<void()>& behind) {
+                                          StageTimes& stages, BehindSteps& behind) {
   SceneInputOptions input;
   input.preprocess.height = options.height;
   input.num_views = options.views;
@@ -675,7 +682,7 @@ void WebServer::State::run_job(JobRequest request, fs::path dir) {
   };
   // Shared with the writer of the download files, which adds their stages after the answer.
   const auto stages = std::make_shared<StageTimes>();
-  std::function<void()> behind;
+  BehindSteps behind;
   try {
     if (options.before_job) options.before_job(id);
     json result;
@@ -690,9 +697,9 @@ void WebServer::State::run_job(JobRequest request, fs::path dir) {
       result = run_edit(request, dir, id, stage, *stages, behind);
     }
     const double seconds = watch.ms() / 1000;
-    if (behind) {  // before the answer: a request for the downloads must find them pending
+    if (!behind.empty()) {  // before the answer: a request for one of them must find it pending
       std::lock_guard<std::mutex> lock(mutex);
-      files_pending.insert(id);
+      for (const auto& [group, write] : behind) files_pending[id].insert(group);
     }
     update([&](Job& j) {
       j.state = "done";
@@ -712,22 +719,12 @@ void WebServer::State::run_job(JobRequest request, fs::path dir) {
       j.stages = stages->to_json();
     });
     spdlog::error("job {}: {}", id, e.what());
-    behind = nullptr;
+    behind.clear();
   }
-  if (behind) write_files_behind(id, [this, id, stages, behind] {
-    try {
-      behind();
-    } catch (const std::exception& e) {
-      spdlog::error("job {}: writing its download files: {}", id, e.what());
-    }
-    update([&](Job& j) {
-      files_pending.erase(id);
-      if (j.id == id) j.stages = stages->to_json();
-    });
-  });
+  if (!behind.empty()) write_files_behind(id, std::move(behind), stages);
 }
 
-void WebServer::State::write_files_behind(int id, std::function<void()> write) {
+void WebServer::State::write_files_behind(int id, BehindSteps steps, std::shared_ptr<StageTimes> stages) {
   // One writer at a time: the previous job's files are written before this job's.
   std::thread previous;
   {
@@ -735,10 +732,24 @@ void WebServer::State::write_files_behind(int id, std::function<void()> write) {
     previous = std::move(files_writer);
   }
   if (previous.joinable()) previous.join();
-  std::thread next(std::move(write));
+  std::thread next([this, id, steps = std::move(steps), stages] {
+    for (const auto& [group, write] : steps) {
+      try {
+        write();
+      } catch (const std::exception& e) {
+        spdlog::error("job {}: writing its files ({}): {}", id, group, e.what());
+      }
+      update([&, group = group](Job& j) {
+        const auto pending = files_pending.find(id);
+        if (pending != files_pending.end() && pending->second.erase(group) && pending->second.empty())
+          files_pending.erase(pending);
+        if (j.id == id) j.stages = stages->to_json();
+      });
+    }
+  });
   std::lock_guard<std::mutex> lock(mutex);
   files_writer = std::move(next);
-  spdlog::info("job {}: writing its download files behind the answer", id);
+  spdlog::info("job {}: writing its files behind the answer", id);
 }
 
 WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(std::make_unique<State>()) {
@@ -869,7 +880,7 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
                }
                if (page) return send_bytes(req, res, page, kPageSplats);
              }
-             s.wait_for_files(id);  // written behind the answer
+             s.wait_for_files(id, file_group(req.matches[2]));  // written behind the answer
              // The pattern admits no "/.." and no absolute path; job_file refuses symlinks out.
              const fs::path file = s.job_file(req.matches[1], req.matches[2]);
              if (file.empty()) return refuse(res, {404, "not found"});
@@ -879,7 +890,7 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
   // A job's splats as SOG, made from its PLY on the first download (k-means codebooks and
   // WebP images: not worth making for every edit).
   http.Get(R"(/api/jobs/(\d{1,8})/gaussians\.sog)", [&s](const httplib::Request& req, httplib::Response& res) {
-    s.wait_for_files(std::stoi(req.matches[1]));
+    s.wait_for_files(std::stoi(req.matches[1]), "splats");
     const fs::path ply = s.job_file(req.matches[1], "gaussians.ply");
     if (ply.empty()) return refuse(res, {404, "not found"});
     const fs::path sog = ply.parent_path() / "gaussians.sog";

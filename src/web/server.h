@@ -21,12 +21,16 @@
 //   POST /api/edit                 multipart view, mask[, mode, reference, refine]: edit (a job)
 //   POST /api/video, /api/eval     ply=<a served splat file's URL>: an orbit video (a job), the
 //                                  SPIn-NeRF evaluation on the scene's test views (a job)
-//   GET  /api/job                  the current or last job: state, stage, progress, result
-//                                  (kind "reconstruct": the scene with its object, started by
-//                                  the server itself when it has a scene and no PLYs)
-//   GET  /api/jobs/<id>/<file>     what job <id> wrote: gaussians.ply and .spz (the page loads
-//                                  the SPZ: result.splats), gaussians.sog (made on the first
-//                                  request), masks/<view index>.png,
+//   GET  /api/job[?wait=<id>]      the current or last job: state, stage, progress, result, and
+//                                  where its time went ("stages", common/stage_times.h);
+//                                  with wait, answered as soon as job <id> ends (else after half
+//                                  a second). Kind "reconstruct": the scene with its object,
+//                                  started by the server itself when it has a scene and no PLYs.
+//   GET  /api/jobs/<id>/<file>     what job <id> wrote: gaussians.compressed.ply (what the page
+//                                  loads: result.splats, sent from memory at first),
+//                                  gaussians.ply and .spz (written after the answer: a request
+//                                  waits for them), gaussians.sog (made on the first request),
+//                                  masks/<view index>.png (also after the answer),
 //                                  orbit.mp4, eval/report.html (and its sheets, renders)
 #include <filesystem>
 #include <functional>

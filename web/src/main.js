@@ -347,8 +347,13 @@ function drawMaskInRed(ctx, bitmap, alpha) {
   ctx.clearRect(0, 0, width, height);
   ctx.drawImage(bitmap, 0, 0, width, height);
   const pixels = ctx.getImageData(0, 0, width, height);
-  for (let k = 0; k < pixels.data.length; k += 4)
-    pixels.data.set(pixels.data[k] > 127 ? [255, 0, 0, alpha] : [0, 0, 0, 0], k);
+  const d = pixels.data;  // byte by byte: an array a pixel made this seconds for a scene's views
+  for (let k = 0; k < d.length; k += 4) {
+    const on = d[k] > 127;
+    d[k] = on ? 255 : 0;
+    d[k + 1] = d[k + 2] = 0;
+    d[k + 3] = on ? alpha : 0;
+  }
   ctx.putImageData(pixels, 0, 0);
 }
 
@@ -359,9 +364,10 @@ async function maskBlob() {
   const out = new OffscreenCanvas(width, height);
   const ctx = out.getContext("2d");
   const pixels = ctx.createImageData(width, height);
-  for (let k = 0; k < pixels.data.length; k += 4) {
-    const v = painted.data[k + 3] > 0 ? 255 : 0;
-    pixels.data.set([v, v, v, 255], k);
+  const d = pixels.data;
+  for (let k = 0; k < d.length; k += 4) {
+    d[k] = d[k + 1] = d[k + 2] = painted.data[k + 3] > 0 ? 255 : 0;
+    d[k + 3] = 255;
   }
   ctx.putImageData(pixels, 0, 0);
   return out.convertToBlob({ type: "image/png" });
@@ -376,7 +382,8 @@ async function drawMaskOverlays(masks) {
   const figures = document.querySelectorAll("#strip figure");
   await Promise.all(
     api.info.scene.views.map(async (view, i) => {
-      const ctx = figures[i].querySelector("canvas").getContext("2d");
+      // Read back pixel by pixel: a canvas kept in memory (one on the GPU reads back slowly).
+      const ctx = figures[i].querySelector("canvas").getContext("2d", { willReadFrequently: true });
       ctx.clearRect(0, 0, ctx.canvas.width, ctx.canvas.height);
       if (masks[view.name]) drawMaskInRed(ctx, await createImageBitmap(await (await fetch(masks[view.name])).blob()), 140);
     }),
