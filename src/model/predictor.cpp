@@ -22,7 +22,7 @@ Predictor::Predictor(const std::string& checkpoint, const torch::Device& device,
         load_stages_.lap("network from checkpoint");
         if (device_ready.valid()) {
           device_ready.get();
-          load_stages_.lap("device context (made beside the reading)");
+          load_stages_.lap("wait for the device's context (made beside the reading)");
         }
         network.to(device);
         synchronize(device);

@@ -11,12 +11,18 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Four of the statue's views, IMG_2720 the reference, at `height` rows.
+SceneInputOptions statue_context(int height) {
+  SceneInputOptions opts;
+  opts.context = {"IMG_2720", "IMG_2707", "IMG_2715", "IMG_2730"};
+  opts.preprocess.height = height;
+  return opts;
+}
+
 TEST(SceneInput, StatueBuildsOfficialInputs) {
   II_REQUIRE_SHARED(dir, "data/statue");
   const Scene scene = load_scene(dir);
-  SceneInputOptions opts;
-  opts.context = {"IMG_2720", "IMG_2707", "IMG_2715", "IMG_2730"};
-  opts.preprocess.height = 128;
+  const SceneInputOptions opts = statue_context(128);
   const SceneInput si = prepare_scene_input(scene, opts);
   ASSERT_EQ(si.input.images.sizes(), (std::vector<int64_t>{4, 4, 128, 168}));
   EXPECT_EQ(si.reference_source, "telea");
@@ -35,9 +41,7 @@ TEST(SceneInput, StatueBuildsOfficialInputs) {
 TEST(SceneInput, CachedViewsAndAReferenceMadeAheadGiveTheSameInput) {
   II_REQUIRE_SHARED(dir, "data/statue");
   const Scene scene = load_scene(dir);
-  SceneInputOptions opts;
-  opts.context = {"IMG_2720", "IMG_2707", "IMG_2715", "IMG_2730"};
-  opts.preprocess.height = 64;
+  const SceneInputOptions opts = statue_context(64);
   const SceneInput fresh = prepare_scene_input(scene, opts);
 
   PreparedViewCache cache;
