@@ -16,7 +16,8 @@
 #      requests without a browser: scripts/measure-serve-edit.py), statue at 256 and 512 high,
 #      and the server's stage table (targets: 0.25 s and 0.4 s);
 #   8. refines the statue on the GPU (every 8th view held out, $REFINE: default preset fast) for ms per step;
-#   9. (last) runs the whole test suite, the GPU tests included (agreement with the float32 CPU
+#   9. STEPS="python": the Python module, and a GPU prediction handed to PyTorch (DLPack, no copy);
+#  10. (last) runs the whole test suite, the GPU tests included (agreement with the float32 CPU
 #      path); TEST_TARGETS="model_tests eval_tests" builds and runs those suites alone.
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
 #   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared"], timeout_s=600)
@@ -110,6 +111,20 @@ if [[ " $STEPS " == *" infer "* ]]; then
   "$BIN" infer --device cuda --scene .device/shared/data/statue --height 512 --out /tmp/ii-infer \
     > /tmp/ii-infer.log 2>&1 || tail -20 /tmp/ii-infer.log
   python3 scripts/stage-table.py /tmp/ii-infer/run.json --title "-- infer: $(tail -3 /tmp/ii-infer.log | head -1)" || true
+fi
+# The Python module, built after the rest (a machine without Python's headers fails this step
+# alone), with nanobind from a carried wheel: .whl/, made here by
+#   python3 -m pip download --no-deps --only-binary=:all: nanobind==2.9.2 -d .whl
+if [[ " $STEPS " == *" python "* ]]; then
+  step "python: a GPU prediction's Gaussians handed to PyTorch by DLPack (scripts/measure-python-handover.py)"
+  if python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/nanobind-*.whl &&
+    PYTHONPATH=/tmp/site JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build "$BUILD" --cuda-arch 9.0 \
+      --cmake-arg -DINSTAINPAINT_PYTHON=ON --target instainpaint_python > "$OUT/build-python.log" 2>&1; then
+    PYTHONPATH=$BUILD/python python3 scripts/measure-python-handover.py --scene .device/shared/data/statue \
+      --height 512 || true
+  else
+    tail -20 "$OUT/build-python.log"
+  fi
 fi
 if [[ " $STEPS " == *" refine "* ]]; then
   step "refinement on the GPU: statue, every 8th view held out, 256 high, --refine $REFINE"

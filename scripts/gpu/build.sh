@@ -11,6 +11,7 @@
 #   --cuda-arch A  CUDA architectures in LibTorch's TORCH_CUDA_ARCH_LIST form (LibTorch's CMake
 #                  configuration ignores CMAKE_CUDA_ARCHITECTURES); default "8.0;9.0" (A100, H100/H200)
 #   --target T     build only target T (repeatable; default: everything)
+#   --cmake-arg A  one more argument to CMake's configuration (repeatable), e.g. -DINSTAINPAINT_PYTHON=ON
 #   --test         then run every test (those that need a GPU skip without one)
 # Examples:
 #   scripts/gpu/build.sh --test                          # what `make test-gpu-build` runs
@@ -25,12 +26,14 @@ build=build-gpu
 archs=${TORCH_CUDA_ARCH_LIST:-"8.0;9.0"}
 run_tests=0
 targets=()
+cmake_args=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --python) python=$2; shift 2 ;;
     --build) build=$2; shift 2 ;;
     --cuda-arch) archs=$2; shift 2 ;;
     --target) targets+=(--target "$2"); shift 2 ;;
+    --cmake-arg) cmake_args+=("$2"); shift 2 ;;
     --test) run_tests=1; shift ;;
     -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
     *) echo "gpu/build: unknown argument '$1' (see --help)" >&2; exit 2 ;;
@@ -119,7 +122,7 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_CUDA_COMPILER="$cuda_root/bin/nvcc" -DCUDAToolkit_ROOT="$cuda_root" -DCUDA_TOOLKIT_ROOT_DIR="$cuda_root" \
   -DTORCH_CUDA_ARCH_LIST="$archs" -DINSTAINPAINT_REQUIRE_CUDA=ON \
   -DCMAKE_EXE_LINKER_FLAGS="-Wl,--as-needed" -DCMAKE_MODULE_LINKER_FLAGS="-Wl,--as-needed" \
-  "${launcher[@]}" > "$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 1; }
+  "${launcher[@]}" "${cmake_args[@]}" > "$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 1; }
 grep -E "^-- (CUDA|LibTorch|Default model|Web page)" "$build/configure.log" || true
 say "building ($jobs jobs)"
 cmake --build "$build" -j "$jobs" "${targets[@]}"
