@@ -3,7 +3,7 @@
 arrays handed to PyTorch by DLPack (on the device, no copy: checked by the memory's address), beside
 what a copy to the host would cost.
 
-Example (the module built with -DINSTAINPAINT_PYTHON=ON in build-gpu, as the device check does):
+Example:  (the module built with -DINSTAINPAINT_PYTHON=ON in build-gpu, as the device check does)
   PYTHONPATH=build-gpu/python scripts/measure-python-handover.py --scene .device/shared/data/statue
 """
 import argparse
