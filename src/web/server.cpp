@@ -906,6 +906,12 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
       if (!s.scene) return refuse(res, {400, "the server was started without --scene: nothing to edit"});
       if ((kind == "masks" || kind == "edit") && !s.predictor)
         return refuse(res, {400, "the server was started without a model"});
+      // An export of a job's splats, which that job may still be writing behind its answer.
+      static const std::regex job_url(R"(/api/jobs/(\d{1,8})/.*)");
+      std::smatch m;
+      const std::string ply = req.has_file("ply") ? req.get_file_value("ply").content : req.get_param_value("ply");
+      if ((kind == "video" || kind == "eval") && std::regex_match(ply, m, job_url))
+        s.wait_for_files(std::stoi(m[1]), "splats");
       std::lock_guard<std::mutex> lock(s.mutex);
       if (s.job.state == "running")
         return refuse(res, {409, fmt::format("busy: job {} ({}) is running", s.job.id, s.job.stage)});
