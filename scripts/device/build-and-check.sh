@@ -20,7 +20,8 @@
 #  10. (last) runs the whole test suite, the GPU tests included (agreement with the float32 CPU
 #      path); TEST_TARGETS="model_tests eval_tests" builds and runs those suites alone.
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
-#   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared"], timeout_s=600)
+#   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared", ".device/wheels"],
+#       timeout_s=600)
 # STEPS="training ..." adds a training-throughput probe; STEPS="bench eval" skips the tests on a later call (the
 # build folder is kept while the machine stays warm); TESTS=REGEX runs only the tests whose names match.
 set -euo pipefail
@@ -113,17 +114,16 @@ if [[ " $STEPS " == *" infer "* ]]; then
   python3 scripts/stage-table.py /tmp/ii-infer/run.json --title "-- infer: $(tail -3 /tmp/ii-infer.log | head -1)" || true
 fi
 # The Python module, built after the rest (a machine without Python's headers fails this step
-# alone), with nanobind from a carried wheel: .whl/, made here by
-#   python3 -m pip download --no-deps --only-binary=:all: nanobind==2.9.2 -d .whl
+# alone), with the nanobind pyproject.toml pins, from the wheel prepare.sh carries (.device/wheels).
 if [[ " $STEPS " == *" python "* ]]; then
   step "python: a GPU prediction's Gaussians handed to PyTorch by DLPack (scripts/measure-python-handover.py)"
-  if python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/nanobind-*.whl &&
+  if python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .device/wheels/nanobind-*.whl &&
     PYTHONPATH=/tmp/site JOBS=$(nproc) bash scripts/gpu/build.sh --python python3 --build "$BUILD" --cuda-arch 9.0 \
       --cmake-arg -DINSTAINPAINT_PYTHON=ON --target instainpaint_python > "$OUT/build-python.log" 2>&1; then
     PYTHONPATH=$BUILD/python python3 scripts/measure-python-handover.py --scene .device/shared/data/statue \
       --height 512 || true
   else
-    tail -20 "$OUT/build-python.log"
+    tail -20 "$OUT/build-python.log" 2> /dev/null || echo "no nanobind wheel in .device/wheels (scripts/device/prepare.sh)"
   fi
 fi
 if [[ " $STEPS " == *" refine "* ]]; then

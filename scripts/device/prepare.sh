@@ -7,6 +7,7 @@
 #   .device/shared/   the ../shared fixtures and data the GPU tests and the refinement timing
 #                     read (only the checkout travels, and ../shared does not)
 #   .device/scenes/   the real scenes a default model trains on (scripts/device/train-default-model.sh)
+#   .device/wheels/   nanobind's wheel, the version pyproject.toml pins (the Python module, STEPS=python)
 # Then, on the GPU machine: bash scripts/device/build-and-check.sh (see its header).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -41,7 +42,11 @@ cp -r "$SHARED/fixtures/official-tiny" "$DEST/shared/fixtures/"
 cp -r "$SHARED/data/render-golden" "$SHARED/data/statue" "$SHARED/data/lpips" "$DEST/shared/data/"
 cp -r "$SHARED/data/fern" "$SHARED/data/fox" "$DEST/scenes/"
 
+rm -rf "$DEST/wheels"
+python3 -m pip download --quiet --disable-pip-version-check --no-deps --only-binary=:all: --dest "$DEST/wheels" \
+  "$(grep -o 'nanobind==[0-9.]*' pyproject.toml)"
+
 echo "prepare: $(ls "$DEST"/debs/*.deb | wc -l) packages, $(du -sh "$DEST" | cut -f1) in $DEST"
 # The device tool carries at most 64 MiB, the checkout's tracked files included.
-echo "a check call carries $(du -cm "$DEST/debs" "$DEST/shared" $(git ls-files) | tail -1 | cut -f1) MiB (limit 64)"
-echo "carry it: run(command=\"bash scripts/device/build-and-check.sh\", carry=[\"$DEST/debs\", \"$DEST/shared\"])"
+echo "a check call carries $(du -cm "$DEST/debs" "$DEST/shared" "$DEST/wheels" $(git ls-files) | tail -1 | cut -f1) MiB (limit 64)"
+echo "carry it: run(command=\"bash scripts/device/build-and-check.sh\", carry=[\"$DEST/debs\", \"$DEST/shared\", \"$DEST/wheels\"])"
