@@ -788,9 +788,9 @@ TestViewResults evaluate_test_views(const EvalRun& r, const MetricNetworks& nets
     stages.lap("upload test views");
     const torch::Tensor a = predict_test_view(r, view, t);
     const double predict_ms = stages.lap(predict_stage);
-    finish_measured();  // the device has finished the previous view's metrics: no wait
     const Image predicted = tensor_to_image(a);
     stages.lap("download renders");
+    finish_measured();  // the render waited for the previous view's metrics too: read at no wait
 
     MeasuredView next{&view, i, t.prepared.mask.has_value(), {{"name", view.name}, {"predict_ms", predict_ms}}, {}};
     {
@@ -934,6 +934,7 @@ json run_evaluation(const EvalOptions& o) {
   const json set = set_metrics(nets, results.features, unavailable);
   if (nets.inception) stages.lap("fid/kid");
 
+  const ThreadPlan plan = thread_plan();
   json metrics = {{"protocol", "spin-nerf"},
                   {"scene", scene.root.string()},
                   {"format", scene.format},
@@ -943,8 +944,7 @@ json run_evaluation(const EvalOptions& o) {
                   {"working_size", {results.working_width, results.working_height}},
                   {"quantize", o.quantize},
                   {"device", device.str()},
-                  {"threads", {{"cores", thread_plan().cores}, {"compute", thread_plan().compute},
-                               {"files", thread_plan().files}}},
+                  {"threads", {{"cores", plan.cores}, {"compute", plan.compute}, {"files", plan.files}}},
                   {"views", results.views},
                   {"mean", mean},
                   {"set", set},
