@@ -238,6 +238,11 @@ void write_splat_files(const fs::path& dir, const std::string& page_bytes, const
     stages.time(std::string("write ") + name, [&] { write_splats(dir / name, cloud); }, /*behind=*/true);
 }
 
+// The URL of the splats an export (video, eval) is asked for: the form's or the query's `ply`.
+std::string exported_url(const httplib::Request& req) {
+  return req.has_file("ply") ? req.get_file_value("ply").content : req.get_param_value("ply");
+}
+
 // Sends bytes held in memory (shared with whoever keeps them); ?download=1 as send_file.
 void send_bytes(const httplib::Request& req, httplib::Response& res, std::shared_ptr<const std::string> bytes,
                 const std::string& name) {
@@ -391,7 +396,7 @@ fs::path WebServer::State::job_file(const std::string& id, const std::string& re
 }
 
 std::optional<Refusal> WebServer::State::parse_export(const httplib::Request& req, JobRequest& job) const {
-  const std::string url = req.has_file("ply") ? req.get_file_value("ply").content : req.get_param_value("ply");
+  const std::string url = exported_url(req);
   std::smatch m;
   static const std::regex served_ply(R"(/api/plys/(\d{1,6}))"),
       job_splats(R"(/api/jobs/(\d{1,8})/(gaussians\.(ply|spz|compressed\.ply)))");
@@ -909,7 +914,7 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
       // An export of a job's splats, which that job may still be writing behind its answer.
       static const std::regex job_url(R"(/api/jobs/(\d{1,8})/.*)");
       std::smatch m;
-      const std::string ply = req.has_file("ply") ? req.get_file_value("ply").content : req.get_param_value("ply");
+      const std::string ply = exported_url(req);
       if ((kind == "video" || kind == "eval") && std::regex_match(ply, m, job_url))
         s.wait_for_files(std::stoi(m[1]), "splats");
       std::lock_guard<std::mutex> lock(s.mutex);
