@@ -28,11 +28,11 @@ import os
 from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple, Union
 
 from . import _core
-from ._core import Camera, Error, Scene, set_log_level
+from ._core import Camera, Error, Scene, set_log_level, set_threads
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
-    "masks_from_one", "set_log_level",
+    "masks_from_one", "set_log_level", "set_threads",
 ]
 __version__ = "0.1.0"
 

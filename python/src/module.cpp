@@ -146,6 +146,17 @@ SceneInputOptions input_options(const std::vector<std::string>& context, int vie
   return o;
 }
 
+// set_threads' count (0: the default plan), kept for every later runtime set-up: a Predictor made
+// after set_threads keeps the caller's count, as `--threads` does for a command.
+int requested_threads = 0;
+bool runtime_on_gpu = false;
+
+Runtime python_runtime(const std::string& device, const std::string& precision) {
+  const Runtime r = set_up_runtime(device, requested_threads, precision);
+  runtime_on_gpu = r.device.is_cuda();
+  return r;
+}
+
 }  // namespace
 
 NB_MODULE(_core, m) {
@@ -163,6 +174,16 @@ NB_MODULE(_core, m) {
         "level"_a,
         "How much the library prints to standard output: trace, debug, info (default), warning, error, "
         "critical or off.");
+
+  m.def("set_threads",
+        [](int threads) {
+          if (threads < 0) fail("set_threads: {} is not a thread count (0: $OMP_NUM_THREADS, else every core)", threads);
+          requested_threads = threads;
+          set_cpu_threads(threads, runtime_on_gpu);
+        },
+        "threads"_a,
+        "The CPU threads of the library's work, as the CLI's --threads: 0 (default) uses $OMP_NUM_THREADS, "
+        "else every core. It holds for every later Predictor and evaluate.");
 
   nb::class_<Camera>(m, "Camera")
       .def("__init__",
@@ -340,7 +361,7 @@ NB_MODULE(_core, m) {
       .def("__init__",
            [](Predictor* p, const std::string& checkpoint, const std::string& device, const std::string& precision) {
              nb::gil_scoped_release release;
-             const Runtime r = set_up_runtime(device, 0, precision);
+             const Runtime r = python_runtime(device, precision);
              new (p) Predictor(checkpoint, r.device, r.precision);
            },
            "checkpoint"_a, "device"_a, "precision"_a)
@@ -414,7 +435,7 @@ NB_MODULE(_core, m) {
           o.keep_object = keep_object;
           o.scene.hold_out_whole = keep_object;
           o.write_report = report;
-          const Runtime r = set_up_runtime(device, 0, "auto");
+          const Runtime r = python_runtime(device, "auto");
           o.device = r.device;
           o.precision = r.precision;
           const RefineOptions refine_options = refine_setting(refine.empty() ? "0" : refine);
