@@ -20,6 +20,7 @@ void add_eval_command(CLI::App& app);
 void add_train_command(CLI::App& app);
 void add_masks_command(CLI::App& app);
 void add_serve_command(CLI::App& app);
+void add_fill_command(CLI::App& app);
 
 // Options shared by every command that reads a scene.
 void add_scene_options(CLI::App* cmd, std::string& scene_dir, SceneOptions& options);

@@ -73,4 +73,9 @@ PreparedView PreparedViewCache::get(const View& view, const PreprocessOptions& o
   return views_.emplace(key, std::move(prepared)).first->second;
 }
 
+void PreparedViewCache::put(const View& view, const PreprocessOptions& options, PreparedView prepared) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  views_[std::make_tuple(view.name, options.height, options.patch)] = std::move(prepared);
+}
+
 }  // namespace ii

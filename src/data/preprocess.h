@@ -56,6 +56,8 @@ PreparedView prepare_view(const View& view, const PreprocessOptions& options);
 class PreparedViewCache {
  public:
   PreparedView get(const View& view, const PreprocessOptions& options);
+  // A view made elsewhere (a render at the working size), kept as if prepared from `view`.
+  void put(const View& view, const PreprocessOptions& options, PreparedView prepared);
 
  private:
   std::mutex mutex_;

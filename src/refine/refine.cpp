@@ -160,6 +160,35 @@ RefineOptions refine_setting(const std::string& text) {
        text);
 }
 
+namespace {
+
+// `g` drawn in front of the fixed set: one set, colours in the form of the richer of the two
+// (RGB as SH DC, missing SH coefficients zero).
+GaussianSet with_fixed(const GaussianSet& g, const GaussianSet& fixed) {
+  auto as_sh = [](const GaussianSet& s, int64_t k) {
+    torch::Tensor c = s.sh_degree < 0 ? sh_dc_from_rgb(s.colors).unsqueeze(1) : s.colors;
+    if (c.size(1) < k) c = torch::cat({c, torch::zeros({c.size(0), k - c.size(1), 3}, c.options())}, 1);
+    return c.narrow(1, 0, k);
+  };
+  GaussianSet out;
+  out.means = torch::cat({g.means, fixed.means});
+  out.scales = torch::cat({g.scales, fixed.scales});
+  out.quats = torch::cat({g.quats, fixed.quats});
+  out.opacities = torch::cat({g.opacities.reshape({-1}), fixed.opacities.reshape({-1}).to(g.opacities.dtype())});
+  if (g.sh_degree < 0 && fixed.sh_degree < 0) {
+    out.colors = torch::cat({g.colors, fixed.colors});
+    out.sh_degree = -1;
+  } else {
+    const int degree = std::max(g.sh_degree, fixed.sh_degree);
+    const int64_t k = (degree + 1) * (degree + 1);
+    out.colors = torch::cat({as_sh(g, k), as_sh(fixed, k)});
+    out.sh_degree = degree;
+  }
+  return out;
+}
+
+}  // namespace
+
 RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<RefineView>& views,
                               const RefineOptions& options) {
   const Stopwatch clock;
@@ -254,6 +283,10 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
     g.sh_degree = sh ? degree : -1;
     return g;
   };
+  // What a step draws: the optimised Gaussians and the fixed ones.
+  auto drawn = [&](int degree) {
+    return options.fixed.size() > 0 ? with_fixed(current(degree), options.fixed) : current(degree);
+  };
 
   const int64_t max_gaussians = options.densify.max_gaussians > 0
                                     ? options.densify.max_gaussians
@@ -326,7 +359,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
 
     // Unsupervised pixels are zero in both images: no gradient flows from them, and the SSIM
     // windows that reach into them see the same values on both sides.
-    torch::Tensor rgb = render(current(degree), t.camera).rgb.permute({2, 0, 1}).unsqueeze(0);
+    torch::Tensor rgb = render(drawn(degree), t.camera).rgb.permute({2, 0, 1}).unsqueeze(0);
     if (exposure.defined() && view > 0) {
       const torch::Tensor map = exposure[static_cast<int64_t>(view) - 1];
       rgb = (map.narrow(1, 0, 3).matmul(rgb.reshape({3, -1})) + map.narrow(1, 3, 1)).reshape(rgb.sizes());

@@ -94,6 +94,9 @@ struct RefineOptions {
   std::vector<double> opacity_resets = {0.2, 0.4};
   double reset_opacity = 0.01;
   std::function<void(const RefineProgress&)> progress;  // after each step
+  // Gaussians drawn with the optimised ones and never changed (a fill optimises its new
+  // Gaussians alone in front of the rest of the scene); on the start set's device.
+  GaussianSet fixed;
 };
 
 // `--refine`'s settings by name: "fast" (1 minute), "balanced" (5 minutes, what a user gets by

@@ -1,0 +1,208 @@
+#include "fill/cameras.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "common/error.h"
+#include "common/torch.h"
+#include "data/preprocess.h"
+#include "render/rasterizer.h"
+
+namespace ii {
+
+namespace {
+
+constexpr int kScoreHeight = 64;  // the small renders that score a camera
+
+torch::Tensor region_tensor(const RegionMask& region) {
+  std::vector<uint8_t> flags(region.begin(), region.end());
+  return torch::from_blob(flags.data(), {static_cast<int64_t>(flags.size())}, torch::kUInt8).to(torch::kBool).clone();
+}
+
+// The scene with the region white and everything else black, on black: a render's red channel
+// is the region's share of each pixel, hidden where the rest of the scene is in front of it.
+GaussianSet region_weight_set(const GaussianSet& scene, const torch::Tensor& in_region) {
+  GaussianSet g = scene;
+  g.colors = in_region.to(torch::kFloat32).unsqueeze(1).expand({scene.size(), 3}).contiguous();
+  g.sh_degree = -1;
+  return g;
+}
+
+double region_share(const GaussianSet& weights, const Camera& camera) {
+  RenderOptions black;
+  black.background = {0.f, 0.f, 0.f};
+  const RenderOutput out = render(weights, {camera}, black);
+  return out.rgb.select(2, 0).mean().item<double>();
+}
+
+Camera small(const Camera& camera) {
+  const int h = kScoreHeight, w = std::max(8, camera.K.width * kScoreHeight / std::max(1, camera.K.height));
+  return camera.resized(w, h);
+}
+
+struct Sphere {
+  Eigen::Vector3d centre;
+  double radius;
+};
+Sphere region_sphere(const GaussianSet& scene, const torch::Tensor& in_region) {
+  const torch::Tensor m = scene.means.index({in_region}).to(torch::kFloat64);
+  const torch::Tensor lo = std::get<0>(m.min(0)), hi = std::get<0>(m.max(0));
+  const torch::Tensor c = (lo + hi) / 2;
+  Sphere s;
+  s.centre = {c[0].item<double>(), c[1].item<double>(), c[2].item<double>()};
+  s.radius = std::max(1e-6, ((hi - lo) / 2).norm().item<double>());
+  return s;
+}
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+// The reference (best score) and the best others at least `min_apart` degrees from every
+// chosen one (seen from `centre`), within `max_from_reference` of the reference.
+std::vector<size_t> pick_views(const std::vector<double>& score, const std::vector<Camera>& cameras,
+                               const Eigen::Vector3d& centre, int views, double min_apart, double max_from_reference) {
+  std::vector<size_t> order(score.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return score[a] > score[b]; });
+  std::vector<size_t> chosen;
+  for (size_t i : order) {
+    if (score[i] <= 0 || static_cast<int>(chosen.size()) == views) break;
+    const Eigen::Vector3d dir = cameras[i].center() - centre;
+    bool ok = chosen.empty() || angle_deg(dir, cameras[chosen[0]].center() - centre) <= max_from_reference;
+    for (size_t j : chosen) ok = ok && angle_deg(dir, cameras[j].center() - centre) >= min_apart;
+    if (ok) chosen.push_back(i);
+  }
+  // Too few far enough apart: the next best ones, however close.
+  for (size_t i : order)
+    if (static_cast<int>(chosen.size()) < views && score[i] > 0 &&
+        std::find(chosen.begin(), chosen.end(), i) == chosen.end())
+      chosen.push_back(i);
+  return chosen;
+}
+
+Camera working_camera(const Camera& camera, int height) {
+  PreprocessOptions p;
+  p.height = height;
+  return working_size(camera.K.width, camera.K.height, p).working_camera(camera);
+}
+
+}  // namespace
+
+ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& region,
+                                   const std::vector<NamedCamera>& given, const FillCameraOptions& options) {
+  torch::NoGradGuard no_grad;
+  const torch::Tensor in_region = region_tensor(region);
+  const Sphere sphere = region_sphere(scene, in_region);
+  // Those the region's centre is in front of and inside, nearest first; the 16 nearest are rendered.
+  std::vector<size_t> candidates;
+  for (size_t i = 0; i < given.size(); ++i) {
+    const Camera& c = given[i].camera;
+    const Eigen::Vector3d p = (c.w2c_opencv() * sphere.centre.homogeneous()).head<3>();
+    if (p.z() <= 0) continue;
+    const double u = c.K.fx * p.x() / p.z() + c.K.cx, v = c.K.fy * p.y() / p.z() + c.K.cy;
+    if (u >= 0 && v >= 0 && u < c.K.width && v < c.K.height) candidates.push_back(i);
+  }
+  std::stable_sort(candidates.begin(), candidates.end(), [&](size_t a, size_t b) {
+    return (given[a].camera.center() - sphere.centre).norm() < (given[b].camera.center() - sphere.centre).norm();
+  });
+  if (candidates.size() > 16) candidates.resize(16);
+  const GaussianSet weights = region_weight_set(scene, in_region);
+  std::vector<double> score(given.size(), 0.0);
+  std::vector<Camera> cameras;
+  for (const NamedCamera& c : given) cameras.push_back(c.camera);
+  for (size_t i : candidates) score[i] = region_share(weights, small(given[i].camera));
+  if (!options.reference.empty()) {
+    const auto named = std::find_if(given.begin(), given.end(), [&](const NamedCamera& c) { return c.name == options.reference; });
+    if (named == given.end()) fail("--reference-view {}: no camera of that name", options.reference);
+    const size_t r = static_cast<size_t>(named - given.begin());
+    if (score[r] <= 0) score[r] = region_share(weights, small(given[r].camera));
+    if (score[r] <= 0) fail("--reference-view {}: that camera does not see the region", options.reference);
+    score[r] = 2;  // first
+  }
+  const std::vector<size_t> chosen = pick_views(score, cameras, sphere.centre, options.views, 8, 90);
+  if (chosen.empty())
+    fail("none of the {} cameras sees the region (its centre ({:.4g}, {:.4g}, {:.4g}) is outside every view, or "
+         "hidden): give cameras that see it, or none (automatic views)",
+         given.size(), sphere.centre.x(), sphere.centre.y(), sphere.centre.z());
+  ChosenCameras out;
+  for (size_t i : chosen) {
+    out.cameras.push_back({given[i].name, working_camera(given[i].camera, options.height)});
+    out.visible.push_back(std::min(1.0, score[i]));
+  }
+  out.how = fmt::format("given: {} of {} cameras see the region's centre, the {} that see most of it", candidates.size(),
+                        given.size(), chosen.size());
+  return out;
+}
+
+Eigen::Vector3d guess_up(const SplatCloud& cloud, const RegionMask& region) {
+  const auto [lo, hi] = splat_bounds(cloud);
+  int axis = 0;
+  (hi - lo).minCoeff(&axis);
+  const auto [rlo, rhi] = splat_bounds(cloud, &region);
+  const double centre = (rlo[axis] + rhi[axis]) / 2;
+  size_t below = 0, above = 0;
+  for (size_t i = 0; i < cloud.size(); ++i)
+    if (!region[i]) (cloud.means[3 * i + static_cast<size_t>(axis)] < centre ? below : above) += 1;
+  Eigen::Vector3d up = Eigen::Vector3d::Zero();
+  up[axis] = below >= above ? 1 : -1;
+  return up;
+}
+
+ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMask& region,
+                                       const FillCameraOptions& options) {
+  torch::NoGradGuard no_grad;
+  const torch::Tensor in_region = region_tensor(region);
+  const Sphere sphere = region_sphere(scene, in_region);
+  Eigen::Vector3d up = options.up.norm() > 0 ? options.up.normalized() : Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d side = (std::abs(up.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).cross(up).normalized();
+  const Eigen::Vector3d front = up.cross(side);
+  // Only what lies within reach of the farthest camera can stand between a camera and the region.
+  const double reach = 7 * sphere.radius + sphere.radius;
+  const torch::Tensor centre = torch::tensor({sphere.centre.x(), sphere.centre.y(), sphere.centre.z()}).to(torch::kFloat32);
+  const torch::Tensor near = (scene.means - centre).norm(2, 1) <= reach;
+  GaussianSet local;
+  local.means = scene.means.index({near});
+  local.quats = scene.quats.index({near});
+  local.scales = scene.scales.index({near});
+  local.opacities = scene.opacities.index({near});
+  local.colors = scene.colors.index({near});
+  local.sh_degree = scene.sh_degree;
+  const GaussianSet weights = region_weight_set(local, in_region.index({near}));
+  const int height = options.height, width = std::max(8, height * 4 / 3 / 8 * 8);
+  const Intrinsics K = Intrinsics::from_fov(width, height, 2 * std::atan(std::tan(25 * M_PI / 180) * width / height),
+                                            50 * M_PI / 180);
+  std::vector<Camera> cameras;
+  std::vector<double> score;
+  for (double distance : {4.0, 7.0})
+    for (double elevation : {10.0, 30.0, 50.0})
+      for (int azimuth = 0; azimuth < 360; azimuth += 30) {
+        const double a = azimuth * M_PI / 180, e = elevation * M_PI / 180;
+        const Eigen::Vector3d dir = std::cos(e) * (std::cos(a) * front + std::sin(a) * side) + std::sin(e) * up;
+        Camera c;
+        c.K = K;
+        c.c2w = look_at(sphere.centre + distance * sphere.radius * dir, sphere.centre, up);
+        cameras.push_back(c);
+        score.push_back(region_share(weights, small(c)) * (distance == 4.0 ? 1.0 : 0.999));
+      }
+  const std::vector<size_t> chosen = pick_views(score, cameras, sphere.centre, options.views, 12, 60);
+  if (chosen.empty())
+    fail("no automatic camera sees the region (centre ({:.4g}, {:.4g}, {:.4g}), radius {:.4g}): every view of it is "
+         "hidden by other splats; give cameras (--scene or --cameras)",
+         sphere.centre.x(), sphere.centre.y(), sphere.centre.z(), sphere.radius);
+  ChosenCameras out;
+  for (size_t k = 0; k < chosen.size(); ++k) {
+    const size_t i = chosen[k];
+    out.cameras.push_back({fmt::format("auto_{:02d}", i), cameras[i]});
+    out.visible.push_back(score[i]);
+  }
+  out.how = fmt::format(
+      "automatic: {} cameras on rings around the region (up ({:.3g}, {:.3g}, {:.3g})), the {} that see most of it",
+      cameras.size(), up.x(), up.y(), up.z(), chosen.size());
+  return out;
+}
+
+}  // namespace ii

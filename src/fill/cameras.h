@@ -1,0 +1,48 @@
+#pragma once
+// The cameras a fill looks at its region with: the capture's own (or a camera list), those
+// that see the region best; or, without any, cameras made around the region where nothing
+// stands between them and it.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "camera/trajectory.h"
+#include "fill/region.h"
+#include "gaussians/gaussians.h"
+
+namespace ii {
+
+struct FillCameraOptions {
+  int views = 4;    // the reference and views - 1 others
+  int height = 256;  // the working height (cameras are resized to it, width a multiple of 8)
+  std::string reference;  // a given camera's name to take as the reference; empty: the best
+  // Automatic cameras: the scene's up (zero: guessed, see choose_automatic_cameras).
+  Eigen::Vector3d up = Eigen::Vector3d::Zero();
+};
+
+struct ChosenCameras {
+  std::vector<NamedCamera> cameras;  // at the working size, the reference first
+  std::vector<double> visible;       // the region's share of each one's pixels
+  std::string how;                   // "given (12 of 40 see the region)", "automatic (...)"
+};
+
+// Of `given` (at any size), the views that see most of the region (its share of the pixels of a
+// small render where the rest of the scene may hide it), the reference first; an Error when
+// none sees it.
+ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& region,
+                                   const std::vector<NamedCamera>& given, const FillCameraOptions& options);
+
+// Cameras on rings around the region's centre (every 30 degrees of azimuth, 10, 30 and 50
+// degrees above the horizon, at 4 and 7 times the region's radius, 50-degree field of view),
+// scored by how much of the region each sees unhidden (a camera behind a wall sees none of it);
+// the best is the reference, the
+// others the best ones at least 12 degrees apart within 60 degrees of it. `up`: the scene's,
+// else the axis along which the scene is thinnest, pointing away from the bulk of splats below
+// the region (objects rest on floors).
+ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMask& region,
+                                       const FillCameraOptions& options);
+
+// The scene's up for automatic cameras (see above), a unit vector.
+Eigen::Vector3d guess_up(const SplatCloud& cloud, const RegionMask& region);
+
+}  // namespace ii

@@ -1,0 +1,329 @@
+#include "fill/fill.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+
+#include "common/error.h"
+#include "common/torch.h"
+#include "data/masks.h"
+#include "data/preprocess.h"
+#include "gaussians/gaussians.h"
+#include "model/device.h"
+#include "render/rasterizer.h"
+#include "tensor/image_tensor.h"
+
+namespace ii {
+
+namespace {
+
+// A pixel belongs to the hole when the region made at least this share of it.
+constexpr float kHoleShare = 0.1f;
+
+std::string bounds_text(const std::pair<Eigen::Vector3d, Eigen::Vector3d>& b) {
+  return fmt::format("x {:.4g} to {:.4g}, y {:.4g} to {:.4g}, z {:.4g} to {:.4g}", b.first.x(), b.second.x(),
+                     b.first.y(), b.second.y(), b.first.z(), b.second.z());
+}
+
+SplatCloud rows_of(const SplatCloud& cloud, const RegionMask& take) {
+  SplatCloud out;
+  const int rest = cloud.sh_rest_per_channel;
+  const size_t n = static_cast<size_t>(region_count(take));
+  out.resize(n, rest);
+  if (!cloud.normals.empty()) out.normals.resize(n * 3);
+  size_t k = 0;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    if (!take[i]) continue;
+    auto copy = [&](const std::vector<float>& from, std::vector<float>& to, size_t width) {
+      std::copy_n(from.begin() + static_cast<std::ptrdiff_t>(i * width), width, to.begin() + static_cast<std::ptrdiff_t>(k * width));
+    };
+    copy(cloud.means, out.means, 3);
+    if (!cloud.normals.empty()) copy(cloud.normals, out.normals, 3);
+    copy(cloud.sh_dc, out.sh_dc, 3);
+    copy(cloud.sh_rest, out.sh_rest, 3 * static_cast<size_t>(rest));
+    copy(cloud.opacity_logit, out.opacity_logit, 1);
+    copy(cloud.log_scales, out.log_scales, 3);
+    copy(cloud.rotations, out.rotations, 4);
+    ++k;
+  }
+  return out;
+}
+
+// `added` (DC colour only) after `cloud`'s rows, with zero higher SH coefficients and normals.
+void append_rows(SplatCloud& cloud, const SplatCloud& added) {
+  const size_t n = cloud.size(), m = added.size();
+  const int rest = cloud.sh_rest_per_channel;
+  auto extend = [](std::vector<float>& to, const std::vector<float>& from) { to.insert(to.end(), from.begin(), from.end()); };
+  extend(cloud.means, added.means);
+  extend(cloud.sh_dc, added.sh_dc);
+  extend(cloud.opacity_logit, added.opacity_logit);
+  extend(cloud.log_scales, added.log_scales);
+  extend(cloud.rotations, added.rotations);
+  cloud.sh_rest.resize((n + m) * 3 * static_cast<size_t>(rest), 0.f);
+  if (!cloud.normals.empty()) cloud.normals.resize((n + m) * 3, 0.f);
+}
+
+GaussianSet rows(const GaussianSet& g, const torch::Tensor& take) {
+  GaussianSet out;
+  out.means = g.means.index({take});
+  out.quats = g.quats.index({take});
+  out.scales = g.scales.index({take});
+  out.opacities = g.opacities.index({take});
+  out.colors = g.colors.index({take});
+  out.sh_degree = g.sh_degree;
+  return out;
+}
+
+struct CameraViews {
+  Image before, kept, mask;
+  torch::Tensor kept_depth, kept_alpha;  // (H, W) on the CPU, scene units
+};
+
+// One camera: the whole scene, the scene without the region (the network's input and the
+// depth to align with), and where the region was seen (its share of each pixel, grown 2 px).
+CameraViews render_camera(const GaussianSet& scene, const GaussianSet& kept, const GaussianSet& weights,
+                          const Camera& camera) {
+  CameraViews v;
+  v.before = image_from_hwc(render(scene, {camera}).rgb.clamp(0, 1).to(torch::kCPU));
+  const RenderOutput k = render(kept, {camera});
+  v.kept = image_from_hwc(k.rgb.clamp(0, 1).to(torch::kCPU));
+  v.kept_depth = k.depth.squeeze(2).to(torch::kCPU).contiguous();
+  v.kept_alpha = k.alpha.squeeze(2).to(torch::kCPU).contiguous();
+  RenderOptions black;
+  black.background = {0.f, 0.f, 0.f};
+  const torch::Tensor share = render(weights, {camera}, black).rgb.select(2, 0).to(torch::kCPU);
+  v.mask = image_from_hwc((share > kHoleShare).to(torch::kFloat32).unsqueeze(2));
+  v.mask = dilate_mask(v.mask, 1, 5);
+  return v;
+}
+
+// The factor that brings the network's depth (normalised units) to the scene's around the hole:
+// the median ratio of the rendered depth to the predicted one over a ring of seen pixels
+// around the mask (the whole seen view when the ring is empty; 1 when nothing is seen).
+double depth_scale(const CameraViews& v, const torch::Tensor& predicted_depth, double normalization_scale) {
+  const torch::Tensor mask = image_to_tensor(v.mask)[0][0] > 0.5;
+  const torch::Tensor ring = image_to_tensor(dilate_mask(v.mask, 4, 5))[0][0] > 0.5;
+  const torch::Tensor seen = v.kept_alpha > 0.5;
+  const torch::Tensor ratio = v.kept_depth / (predicted_depth.to(torch::kCPU) * normalization_scale).clamp_min(1e-12);
+  for (const torch::Tensor& where : {ring.logical_and(mask.logical_not()).logical_and(seen), seen}) {
+    const torch::Tensor r = ratio.index({where});
+    if (r.numel() >= 16) return r.median().item<double>();
+  }
+  return 1.0;
+}
+
+// A reference painted on a given camera's full-size view comes to the working size as a photo
+// would; one at the working size is taken as it is.
+Image reference_at_working_size(const Image& reference, const FillOptions& options, const ChosenCameras& chosen) {
+  const NamedCamera& working = chosen.cameras.at(0);
+  if (reference.width == working.camera.K.width && reference.height == working.camera.K.height) return reference;
+  const Intrinsics* full = nullptr;
+  for (const NamedCamera& c : options.cameras)
+    if (c.name == working.name) full = &c.camera.K;
+  if (full && reference.width == full->width && reference.height == full->height) {
+    PreprocessOptions p;
+    p.height = options.camera_options.height;
+    return to_working_size(reference, working_size(reference.width, reference.height, p));
+  }
+  fail("--reference: {}x{} pixels, but the reference view {} is {}x{}{}", reference.width, reference.height,
+       working.name, working.camera.K.width, working.camera.K.height,
+       full ? fmt::format(" at the working size and {}x{} as given", full->width, full->height) : "");
+}
+
+}  // namespace
+
+RegionMask choose_region(const SplatCloud& cloud, const FillOptions& options) {
+  const int ways = (options.box ? 1 : 0) + (options.selection ? 1 : 0) + (options.stroke ? 1 : 0);
+  if (ways != 1)
+    fail("fill: name the region one way: a box, a selection file, or a view and its mask ({} given)", ways);
+  RegionMask region;
+  std::string what;
+  if (options.box) {
+    region = region_in_box(cloud, *options.box);
+    what = "the box (" + options.box->describe() + ")";
+  } else if (options.selection) {
+    region = region_missing_from(cloud, *options.selection, options.selection_name);
+    what = "--selection " + options.selection_name;
+  } else {
+    const auto named = std::find_if(options.cameras.begin(), options.cameras.end(),
+                                    [&](const NamedCamera& c) { return c.name == options.stroke_view; });
+    if (named == options.cameras.end())
+      fail("--view {}: no camera of that name (the cameras come from --scene or --cameras)", options.stroke_view);
+    region = region_under_stroke(cloud, named->camera, *options.stroke);
+    what = "the mask on view " + options.stroke_view;
+  }
+  const int64_t n = region_count(region);
+  if (n == 0)
+    fail("{} holds no splat of {}: its splats lie within {}", what, options.scene_name, bounds_text(splat_bounds(cloud)));
+  if (n == static_cast<int64_t>(cloud.size()))
+    fail("{} holds all {} splats of {}: nothing would be left to fill the hole from", what, n, options.scene_name);
+  return region;
+}
+
+nlohmann::json FillResult::report() const {
+  nlohmann::json cams = nlohmann::json::array();
+  for (size_t i = 0; i < cameras.cameras.size(); ++i) {
+    const Camera& c = cameras.cameras[i].camera;
+    nlohmann::json rows = nlohmann::json::array();
+    for (int r = 0; r < 4; ++r) rows.push_back({c.c2w(r, 0), c.c2w(r, 1), c.c2w(r, 2), c.c2w(r, 3)});
+    cams.push_back({{"name", cameras.cameras[i].name},
+                    {"width", c.K.width},
+                    {"height", c.K.height},
+                    {"fx", c.K.fx},
+                    {"fy", c.K.fy},
+                    {"cx", c.K.cx},
+                    {"cy", c.K.cy},
+                    {"c2w_opengl", rows},
+                    {"region_share", cameras.visible[i]},
+                    {"depth_scale", i < depth_scales.size() ? depth_scales[i] : 1.0}});
+  }
+  nlohmann::json j = {{"splats", {{"input", total}, {"removed", removed}, {"kept", total - removed}, {"added", added},
+                                  {"output", total - removed + added}}},
+                      {"region", region_how},
+                      {"cameras", {{"how", cameras.how}, {"reference", cameras.cameras.at(0).name}, {"views", cams}}},
+                      {"stages", stages.to_json()},
+                      {"total_ms", stages.waited_ms()}};
+  if (!refine_report.is_null()) j["refine"] = refine_report;
+  return j;
+}
+
+FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, const Predictor& predictor) {
+  FillResult result;
+  StageTimes& stages = result.stages;
+  check_splats_finite(cloud, options.scene_name);
+  const RegionMask region = choose_region(cloud, options);
+  result.total = static_cast<int64_t>(cloud.size());
+  result.removed = region_count(region);
+  result.region_how = options.box ? "box: " + options.box->describe()
+                      : options.selection ? "selection: the splats missing from " + options.selection_name
+                                          : "mask on view " + options.stroke_view;
+  stages.lap("select region");
+
+  torch::NoGradGuard no_grad;
+  const torch::Device device = render_device(predictor.device());
+  const GaussianSet scene = gaussians_from_splats(cloud, 3).to(device);
+  std::vector<uint8_t> flags(region.begin(), region.end());
+  const torch::Tensor in_region =
+      torch::from_blob(flags.data(), {static_cast<int64_t>(flags.size())}, torch::kUInt8).to(torch::kBool).to(device);
+  const GaussianSet kept = rows(scene, in_region.logical_not());
+  GaussianSet weights = scene;
+  weights.colors = in_region.to(torch::kFloat32).unsqueeze(1).expand({scene.size(), 3}).contiguous();
+  weights.sh_degree = -1;
+  stages.lap("splats to Gaussians");
+
+  FillCameraOptions camera_options = options.camera_options;
+  if (options.cameras.empty() && camera_options.up.norm() == 0) camera_options.up = guess_up(cloud, region);
+  result.cameras = options.cameras.empty() ? choose_automatic_cameras(scene, region, camera_options)
+                                           : choose_given_cameras(scene, region, options.cameras, camera_options);
+  stages.lap("choose cameras");
+
+  std::vector<CameraViews> views;
+  for (const NamedCamera& c : result.cameras.cameras) views.push_back(render_camera(scene, kept, weights, c.camera));
+  stages.lap("render views");
+
+  // The renders as a scene the predictor reads from memory: views prepared already.
+  Scene rendered;
+  rendered.root = options.scene_name;
+  rendered.format = "renders";
+  PreparedViewCache cache;
+  SceneInputOptions input;
+  input.preprocess.height = camera_options.height;
+  input.num_views = static_cast<int>(views.size());
+  input.inpainter = options.inpainter;
+  input.view_cache = &cache;
+  for (size_t i = 0; i < views.size(); ++i) {
+    const NamedCamera& c = result.cameras.cameras[i];
+    View view;
+    view.name = c.name;
+    view.image_path = c.name + " (render)";
+    view.camera = c.camera;
+    rendered.views.push_back(view);
+    cache.put(view, input.preprocess, PreparedView{c.name, views[i].kept, std::nullopt, c.camera});
+    input.context.push_back(c.name);
+    input.masks[c.name] = views[i].mask;
+  }
+  if (options.reference_image) input.reference_image = reference_at_working_size(*options.reference_image, options, result.cameras);
+  Prediction p = predictor.predict(rendered, input);
+  stages.merge(p.stages);
+  stages.restart_lap();
+  result.reference = p.input.views.at(0).rgb;
+
+  // The masked pixels' Gaussians, in the scene's frame: normalised -> scene, each view's depth
+  // scaled about its camera to meet the scene's around the hole.
+  const PoseNormalization& norm = p.input.normalization;
+  const GaussianMaps& maps = p.maps;
+  std::vector<torch::Tensor> means, scales, quats, opacities, colours;
+  for (size_t v = 0; v < views.size(); ++v) {
+    if (options.reference_only && v > 0) break;
+    const int64_t vi = static_cast<int64_t>(v);
+    const double s = depth_scale(views[v], maps.depth[0][vi][0], norm.scale);
+    result.depth_scales.push_back(s);
+    const torch::Tensor take = (image_to_tensor(views[v].mask)[0][0] > 0.5).reshape({-1}).to(maps.xyz.device());
+    auto pixels = [&](const torch::Tensor& map) {  // (C, H, W) -> (masked pixels, C)
+      return map[0][vi].flatten(1).t().index({take}).to(torch::kCPU, torch::kFloat64);
+    };
+    const Eigen::Vector3d c = result.cameras.cameras[v].camera.center();
+    const torch::Tensor centre = torch::tensor({c.x(), c.y(), c.z()}, torch::kFloat64);
+    const torch::Tensor mean = torch::tensor({norm.mean.x(), norm.mean.y(), norm.mean.z()}, torch::kFloat64);
+    const torch::Tensor world = pixels(maps.xyz) * norm.scale + mean;
+    means.push_back(centre + s * (world - centre));
+    scales.push_back(pixels(maps.scale) * norm.scale * s);
+    quats.push_back(pixels(maps.rotation));
+    opacities.push_back(pixels(maps.opacity).squeeze(1));
+    colours.push_back(pixels(maps.rgb).clamp(0, 1));
+  }
+  GaussianSet added;
+  added.means = torch::cat(means).to(torch::kFloat32);
+  added.scales = torch::cat(scales).to(torch::kFloat32);
+  added.quats = torch::cat(quats).to(torch::kFloat32);
+  added.opacities = torch::cat(opacities).to(torch::kFloat32);
+  added.colors = torch::cat(colours).to(torch::kFloat32);
+  stages.lap("new Gaussians to the scene's frame");
+
+  if (options.refine) {
+    std::vector<RefineView> targets;
+    for (size_t v = 0; v < views.size(); ++v) {
+      RefineView t;
+      t.name = result.cameras.cameras[v].name;
+      t.camera = result.cameras.cameras[v].camera;
+      t.rgb = v == 0 ? result.reference : views[v].kept;
+      if (v > 0) t.mask = views[v].mask;
+      targets.push_back(std::move(t));
+    }
+    torch::AutoGradMode gradients(true);  // the rest of the fill runs without
+    RefineOptions refine = *options.refine;
+    refine.fixed = kept;
+    refine.cover = false;
+    const RefineResult refined = refine_gaussians(added.to(device), targets, refine);
+    result.refine_report = refinement_report(refined, refine);
+    added = refined.gaussians.to(torch::kCPU);
+    if (added.colors.dim() == 3) {  // SH: the DC term alone (the new splats carry one colour)
+      added.colors = rgb_from_sh_dc(added.colors.select(1, 0));
+      added.sh_degree = -1;
+    }
+    stages.lap("refine the new Gaussians");
+  }
+
+  result.splats = rows_of(cloud, [&] {
+    RegionMask keep(region.size());
+    for (size_t i = 0; i < region.size(); ++i) keep[i] = !region[i];
+    return keep;
+  }());
+  append_rows(result.splats, splats_from_gaussians(added.to(torch::kCPU)));
+  result.added = added.size();
+  stages.lap("assemble the splats");
+
+  const GaussianSet filled = gaussians_from_splats(result.splats, 3).to(device);
+  for (size_t v = 0; v < views.size(); ++v) {
+    const Camera& c = result.cameras.cameras[v].camera;
+    result.before.push_back(views[v].before);
+    result.deleted.push_back(views[v].kept);
+    result.masks.push_back(views[v].mask);
+    result.after.push_back(image_from_hwc(render(filled, {c}).rgb.clamp(0, 1).to(torch::kCPU)));
+  }
+  stages.lap("render after");
+  return result;
+}
+
+}  // namespace ii

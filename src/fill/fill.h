@@ -1,0 +1,65 @@
+#pragma once
+// Fill the hole: remove a region from any splat scene and fill what it hid. The rest of the
+// scene is rendered from cameras that see the region, each view's mask is where the region
+// was visible, the reference view's hole is painted by a 2D inpainter (the built-in one, or the
+// caller's image), the network predicts Gaussians for the masked pixels and only those are
+// added, in the scene's frame and scale; every other splat is kept as it was, bit for bit.
+#include <nlohmann/json.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/stage_times.h"
+#include "fill/cameras.h"
+#include "fill/region.h"
+#include "io/image.h"
+#include "model/predictor.h"
+#include "refine/refine.h"
+
+namespace ii {
+
+struct FillOptions {
+  // The region, exactly one of: a box; the same scene with the region deleted (`selection`,
+  // named `selection_name`); a stroke (at that camera's size) on the given camera `stroke_view`.
+  std::optional<OrientedBox> box;
+  std::optional<SplatCloud> selection;
+  std::string selection_name;
+  std::string stroke_view;
+  std::optional<Image> stroke;
+  // Cameras to look from (a capture's, a camera list); empty: automatic ones around the region.
+  std::vector<NamedCamera> cameras;
+  FillCameraOptions camera_options;
+  // The reference view's 2D-inpainted image (at the reference camera's size or the working
+  // size); none: the built-in inpainter's.
+  std::optional<Image> reference_image;
+  ClassicalInpainter inpainter = ClassicalInpainter::Telea;
+  // Which views' masked pixels become Gaussians: every context view's (false) or the
+  // reference's alone (true).
+  bool reference_only = false;
+  // Optimise the new Gaussians alone against the views (the rest of the scene fixed).
+  std::optional<RefineOptions> refine;
+  std::string scene_name = "splats";  // names the input in messages
+};
+
+struct FillResult {
+  SplatCloud splats;                   // kept splats as they were, then the new ones
+  int64_t total = 0, removed = 0, added = 0;
+  ChosenCameras cameras;               // at the working size, the reference first
+  std::vector<Image> before, deleted, after, masks;  // per camera: renders, and where the region was
+  Image reference;                     // the inpainted reference the network saw
+  std::vector<double> depth_scales;    // per camera: the network's depth scaled to the scene's around the hole
+  std::string region_how;              // how the region was chosen
+  nlohmann::json refine_report;        // with refinement
+  StageTimes stages;
+
+  nlohmann::json report() const;  // fill.json
+};
+
+// The region `options` names: an Error when it holds no splat (giving the scene's bounds) or
+// every splat.
+RegionMask choose_region(const SplatCloud& cloud, const FillOptions& options);
+
+FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, const Predictor& predictor);
+
+}  // namespace ii

@@ -1,0 +1,225 @@
+#include "fill/region.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "common/error.h"
+#include "common/torch.h"
+#include "data/masks.h"
+#include "gaussians/gaussians.h"
+#include "render/rasterizer.h"
+
+namespace ii {
+
+namespace {
+
+Eigen::Vector3d position(const SplatCloud& cloud, size_t i) {
+  return {cloud.means[3 * i], cloud.means[3 * i + 1], cloud.means[3 * i + 2]};
+}
+
+Eigen::Matrix3d box_rotation(const Eigen::Vector3d& deg) {
+  const Eigen::Vector3d r = deg * M_PI / 180.0;
+  return (Eigen::AngleAxisd(r.z(), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(r.y(), Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(r.x(), Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+double percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0;
+  const size_t k = std::min(values.size() - 1, static_cast<size_t>(q * static_cast<double>(values.size() - 1)));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  return values[k];
+}
+
+// The positions' exact bits, for matching splats between two files of one scene.
+struct PositionKey {
+  uint32_t x, y, z;
+  bool operator==(const PositionKey& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+struct PositionHash {
+  size_t operator()(const PositionKey& k) const {
+    return (static_cast<size_t>(k.x) * 73856093u) ^ (static_cast<size_t>(k.y) * 19349663u) ^
+           (static_cast<size_t>(k.z) * 83492791u);
+  }
+};
+PositionKey key_of(const SplatCloud& cloud, size_t i) {
+  PositionKey k;
+  std::memcpy(&k.x, &cloud.means[3 * i], 4);
+  std::memcpy(&k.y, &cloud.means[3 * i + 1], 4);
+  std::memcpy(&k.z, &cloud.means[3 * i + 2], 4);
+  return k;
+}
+
+// Matches by the nearest kept position within `tolerance` (a grid of that cell size).
+RegionMask missing_within(const SplatCloud& cloud, const SplatCloud& kept, double tolerance) {
+  auto cell = [&](const Eigen::Vector3d& p) {
+    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() / tolerance)), static_cast<int>(std::floor(p.y() / tolerance)),
+                           static_cast<int>(std::floor(p.z() / tolerance)));
+  };
+  auto cell_key = [](const Eigen::Vector3i& c) {
+    return (static_cast<int64_t>(c.x()) * 73856093) ^ (static_cast<int64_t>(c.y()) * 19349663) ^
+           (static_cast<int64_t>(c.z()) * 83492791);
+  };
+  std::unordered_map<int64_t, std::vector<uint32_t>> grid;
+  for (size_t i = 0; i < kept.size(); ++i) grid[cell_key(cell(position(kept, i)))].push_back(static_cast<uint32_t>(i));
+  RegionMask region(cloud.size(), true);
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d p = position(cloud, i);
+    const Eigen::Vector3i c = cell(p);
+    for (int dx = -1; dx <= 1 && region[i]; ++dx)
+      for (int dy = -1; dy <= 1 && region[i]; ++dy)
+        for (int dz = -1; dz <= 1 && region[i]; ++dz) {
+          const auto found = grid.find(cell_key(c + Eigen::Vector3i(dx, dy, dz)));
+          if (found == grid.end()) continue;
+          for (uint32_t j : found->second)
+            if ((position(kept, j) - p).norm() <= tolerance) {
+              region[i] = false;
+              break;
+            }
+        }
+  }
+  return region;
+}
+
+}  // namespace
+
+bool OrientedBox::contains(const Eigen::Vector3d& point) const {
+  const Eigen::Vector3d local = box_rotation(rotation_deg).transpose() * (point - centre);
+  return (local.array().abs() <= size.array() / 2).all();
+}
+
+std::string OrientedBox::describe() const {
+  std::string s = fmt::format("centre ({:.4g}, {:.4g}, {:.4g}), size ({:.4g}, {:.4g}, {:.4g})", centre.x(), centre.y(),
+                              centre.z(), size.x(), size.y(), size.z());
+  if (!rotation_deg.isZero())
+    s += fmt::format(", turned ({:.4g}, {:.4g}, {:.4g}) degrees", rotation_deg.x(), rotation_deg.y(), rotation_deg.z());
+  return s;
+}
+
+OrientedBox parse_box(const std::string& text) {
+  std::vector<double> v;
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    char* end = nullptr;
+    const double x = std::strtod(item.c_str(), &end);
+    if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(x))
+      fail("--box '{}': '{}' is not a number (expected cx,cy,cz,sx,sy,sz[,rx,ry,rz])", text, item);
+    v.push_back(x);
+  }
+  if (v.size() != 6 && v.size() != 9)
+    fail("--box '{}': {} numbers, expected 6 (centre, size) or 9 (centre, size, rotation in degrees)", text, v.size());
+  OrientedBox box;
+  box.centre = {v[0], v[1], v[2]};
+  box.size = {v[3], v[4], v[5]};
+  if (v.size() == 9) box.rotation_deg = {v[6], v[7], v[8]};
+  if ((box.size.array() <= 0).any()) fail("--box '{}': the size must be positive along every axis", text);
+  return box;
+}
+
+RegionMask region_in_box(const SplatCloud& cloud, const OrientedBox& box) {
+  RegionMask region(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) region[i] = box.contains(position(cloud, i));
+  return region;
+}
+
+RegionMask region_missing_from(const SplatCloud& cloud, const SplatCloud& kept, const std::string& kept_name) {
+  std::unordered_set<PositionKey, PositionHash> kept_keys;
+  kept_keys.reserve(kept.size());
+  for (size_t i = 0; i < kept.size(); ++i) kept_keys.insert(key_of(kept, i));
+  RegionMask region(cloud.size());
+  size_t matched = 0;
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    region[i] = kept_keys.count(key_of(cloud, i)) == 0;
+    matched += region[i] ? 0 : 1;
+  }
+  if (matched * 2 < kept.size()) {  // re-quantised positions: the nearest within a tolerance
+    const auto [lo, hi] = splat_bounds(cloud);
+    region = missing_within(cloud, kept, std::max(1e-9, 1e-3 * (hi - lo).norm()));
+    matched = cloud.size() - static_cast<size_t>(region_count(region));
+  }
+  if (kept.size() > cloud.size() || static_cast<double>(matched) < 0.9 * static_cast<double>(kept.size()))
+    fail("--selection {}: {} of its {} splats are not in the scene: it is not this scene with some splats deleted",
+         kept_name, kept.size() - std::min(kept.size(), matched), kept.size());
+  return region;
+}
+
+RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, const Image& stroke_in) {
+  const int W = camera.K.width, H = camera.K.height;
+  if (stroke_in.width != W || stroke_in.height != H)
+    fail("--mask: {}x{} pixels, but the view's camera is {}x{}", stroke_in.width, stroke_in.height, W, H);
+  // A stroke drawn over an object leaves its rim out: grown by about 1 % of the view.
+  const int grow = std::max(1, std::min(W, H) / 100);
+  const Image stroke = dilate_mask(stroke_in, 1, 2 * grow + 1);
+  torch::NoGradGuard no_grad;
+  const RenderOutput seen = render(gaussians_from_splats(cloud, 0), {camera});
+  const torch::Tensor depth = seen.depth.squeeze(2).contiguous(), alpha = seen.alpha.squeeze(2).contiguous();
+  const float* d = depth.data_ptr<float>();
+  const float* a = alpha.data_ptr<float>();
+  // The marked surface: its camera depths and, for its width, its points in the camera's frame.
+  std::vector<double> depths, xs, ys;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const size_t i = static_cast<size_t>(y) * W + x;
+      if (stroke_in.pixels[i] <= 0.5f || a[i] < 0.5f) continue;
+      depths.push_back(d[i]);
+      xs.push_back((x + 0.5 - camera.K.cx) / camera.K.fx * d[i]);
+      ys.push_back((y + 0.5 - camera.K.cy) / camera.K.fy * d[i]);
+    }
+  if (depths.empty()) fail("--mask: the stroke covers no surface of the scene in this view (nothing is drawn there)");
+  const double width = std::max({percentile(xs, 0.98) - percentile(xs, 0.02), percentile(ys, 0.98) - percentile(ys, 0.02),
+                                 1e-6});
+  const double far = percentile(depths, 0.98) + width, margin = 0.1 * width;
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  RegionMask region(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d p = (w2c * position(cloud, i).homogeneous()).head<3>();
+    if (p.z() <= 0) continue;
+    const double u = camera.K.fx * p.x() / p.z() + camera.K.cx, v = camera.K.fy * p.y() / p.z() + camera.K.cy;
+    if (!(u >= 0 && v >= 0 && u < W && v < H)) continue;
+    const size_t pixel = static_cast<size_t>(v) * W + static_cast<size_t>(u);
+    if (stroke.pixels[pixel] <= 0.5f) continue;
+    // From the surface seen at that pixel (what is in front of it is not what was marked) to
+    // as far behind the marked surface as it is wide.
+    const double surface = a[pixel] >= 0.5f ? d[pixel] : percentile(depths, 0.02);
+    region[i] = p.z() >= surface - margin && p.z() <= far;
+  }
+  return region;
+}
+
+int64_t region_count(const RegionMask& region) {
+  return static_cast<int64_t>(std::count(region.begin(), region.end(), true));
+}
+
+std::pair<Eigen::Vector3d, Eigen::Vector3d> splat_bounds(const SplatCloud& cloud, const RegionMask* only) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
+  for (int axis = 0; axis < 3; ++axis) {
+    std::vector<double> v;
+    for (size_t i = 0; i < cloud.size(); ++i)
+      if (!only || (*only)[i]) v.push_back(cloud.means[3 * i + static_cast<size_t>(axis)]);
+    lo[axis] = percentile(v, 0.01);
+    hi[axis] = percentile(v, 0.99);
+  }
+  return {lo, hi};
+}
+
+void check_splats_finite(const SplatCloud& cloud, const std::string& name) {
+  auto check = [&](const std::vector<float>& values, size_t per_splat, const char* what) {
+    for (size_t j = 0; j < values.size(); ++j)
+      if (!std::isfinite(values[j]))
+        fail("{}: splat {} has a non-finite {} ({}): the file is damaged", name, j / per_splat, what, values[j]);
+  };
+  check(cloud.means, 3, "position");
+  check(cloud.log_scales, 3, "scale");
+  check(cloud.rotations, 4, "rotation");
+  check(cloud.opacity_logit, 1, "opacity");
+  check(cloud.sh_dc, 3, "colour");
+}
+
+}  // namespace ii

@@ -1,0 +1,57 @@
+#pragma once
+// The region of a splat scene to remove, chosen one of three ways: a box in the scene's own
+// frame, the Gaussians another file lacks (the same scene with the object deleted in another
+// tool), or one stroke on one camera's view.
+#include <Eigen/Dense>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "camera/camera.h"
+#include "io/image.h"
+#include "io/ply.h"
+
+namespace ii {
+
+// A box: centre, full size along its own axes, turned by `rotation_deg` about x, then y, then z.
+struct OrientedBox {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  Eigen::Vector3d size = Eigen::Vector3d::Ones();
+  Eigen::Vector3d rotation_deg = Eigen::Vector3d::Zero();
+
+  bool contains(const Eigen::Vector3d& point) const;
+  std::string describe() const;  // "centre (x, y, z), size (...)[, rotated (...) degrees]"
+};
+// "cx,cy,cz,sx,sy,sz" or "cx,cy,cz,sx,sy,sz,rx,ry,rz" (degrees); an Error naming --box otherwise.
+OrientedBox parse_box(const std::string& text);
+
+// One flag per splat of `cloud`: true = in the region.
+using RegionMask = std::vector<bool>;
+
+// The splats whose centres lie in the box.
+RegionMask region_in_box(const SplatCloud& cloud, const OrientedBox& box);
+
+// The splats of `cloud` that `kept` lacks: matched by their positions' exact bits, or, when
+// fewer than half of kept's splats match that way (a file re-quantised by a compressed format),
+// by the nearest position within a thousandth of the scene's extent. `kept_name` names kept in
+// errors (a file that is not the same scene).
+RegionMask region_missing_from(const SplatCloud& cloud, const SplatCloud& kept, const std::string& kept_name);
+
+// The Gaussians that make the visible surface under `stroke` (> 0.5, at the camera's image
+// size) seen from `camera`, grown in 3D as one-mask editing grows a region: the splats whose
+// centres project into the stroke, from the surface the camera sees there to as far behind it
+// as the marked surface is wide.
+RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, const Image& stroke);
+
+int64_t region_count(const RegionMask& region);
+
+// The box that holds the middle 98 % of the splats' centres along each axis (for messages and
+// for framing): min and max corners.
+std::pair<Eigen::Vector3d, Eigen::Vector3d> splat_bounds(const SplatCloud& cloud, const RegionMask* only = nullptr);
+
+// Every value a renderer reads is finite: an Error naming `name`, the first bad splat and what
+// is wrong otherwise.
+void check_splats_finite(const SplatCloud& cloud, const std::string& name);
+
+}  // namespace ii

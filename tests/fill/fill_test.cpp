@@ -1,0 +1,301 @@
+// Filling the hole in a splat scene: the region chosen three ways, cameras, the fill itself
+// (kept splats bit for bit, new ones in the scene's frame, the hole closer to the truth than
+// deletion), refinement of the new splats alone, the CLI, and one clear message per bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "camera/trajectory.h"
+#include "common/error.h"
+#include "eval/metrics.h"
+#include "fill/fill.h"
+#include "gaussians/gaussians.h"
+#include "io/image.h"
+#include "io/splat_file.h"
+#include "render/rasterizer.h"
+#include "tensor/image_tensor.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+using test::error_message;
+
+// A floor (y = 0) with a smooth colour ramp, a back wall, and a red box standing on the floor
+// at the origin. `under_box`: whether the floor goes on under the box (the truth after removal)
+// or stops there (what a capture that never saw under the object holds).
+SplatCloud room(bool with_box, bool under_box) {
+  SplatCloud c;
+  auto add = [&](double x, double y, double z, double r, double g, double b, Eigen::Vector3d scale) {
+    c.means.insert(c.means.end(), {float(x), float(y), float(z)});
+    for (double v : {r, g, b}) c.sh_dc.push_back(float((v - 0.5) / kSh0));
+    c.opacity_logit.push_back(4.f);
+    for (int k = 0; k < 3; ++k) c.log_scales.push_back(float(std::log(scale[k])));
+    c.rotations.insert(c.rotations.end(), {1.f, 0.f, 0.f, 0.f});
+  };
+  const double step = 0.05;
+  for (double x = -1.5; x <= 1.5 + 1e-9; x += step)
+    for (double z = -1.5; z <= 1.5 + 1e-9; z += step) {
+      if (!under_box && std::abs(x) < 0.25 && std::abs(z) < 0.25) continue;
+      add(x, 0, z, 0.3 + 0.2 * (x + 1.5) / 3, 0.5, 0.4 + 0.2 * (z + 1.5) / 3, {0.035, 0.004, 0.035});
+    }
+  for (double x = -1.5; x <= 1.5 + 1e-9; x += step)
+    for (double y = 0; y <= 1.5 + 1e-9; y += step) add(x, y, -1.5, 0.8, 0.8, 0.75, {0.035, 0.035, 0.004});
+  if (with_box)
+    for (double x = -0.2; x <= 0.2 + 1e-9; x += step)
+      for (double y = 0.025; y <= 0.4 + 1e-9; y += step)
+        for (double z = -0.2; z <= 0.2 + 1e-9; z += step) add(x, y, z, 0.8, 0.1, 0.1, {0.03, 0.03, 0.03});
+  c.sh_rest_per_channel = 0;
+  return c;
+}
+
+const OrientedBox kObjectBox = [] {
+  OrientedBox b;
+  b.centre = {0, 0.225, 0};
+  b.size = {0.5, 0.43, 0.5};
+  return b;
+}();
+
+Camera camera_at(const Eigen::Vector3d& eye, int width = 96, int height = 72) {
+  Camera c;
+  c.K = Intrinsics::from_fov(width, height, 2 * std::atan(std::tan(25 * M_PI / 180) * width / height), 50 * M_PI / 180);
+  c.c2w = look_at(eye, {0, 0.1, 0}, {0, 1, 0});
+  return c;
+}
+
+std::vector<NamedCamera> capture_cameras() {
+  std::vector<NamedCamera> cameras;
+  for (int i = 0; i < 6; ++i) {
+    const double a = (i - 2.5) * 0.25;
+    cameras.push_back({"cam" + std::to_string(i), camera_at({1.6 * std::sin(a), 1.1, 1.6 * std::cos(a)}, 128, 96)});
+  }
+  return cameras;
+}
+
+const Predictor& cpu_predictor() {
+  static const Predictor predictor("", torch::kCPU, Precision::Float32);
+  return predictor;
+}
+
+FillOptions box_fill(int views = 3) {
+  FillOptions o;
+  o.box = kObjectBox;
+  o.camera_options.views = views;
+  o.camera_options.height = 64;
+  o.scene_name = "room.ply";
+  return o;
+}
+
+TEST(FillRegion, BoxesParseAndHoldTheirSplats) {
+  const OrientedBox b = parse_box("0,0.225,0,0.5,0.43,0.5");
+  EXPECT_EQ(b.centre, Eigen::Vector3d(0, 0.225, 0));
+  EXPECT_TRUE(parse_box("1,2,3,1,1,1,0,45,0").contains({1, 2, 3.6}));   // the diagonal of a turned box reaches further
+  EXPECT_FALSE(parse_box("1,2,3,1,1,1,0,0,0").contains({1, 2, 3.6}));
+  EXPECT_EQ(error_message([] { parse_box("1,2,x,1,1,1"); }),
+            "--box '1,2,x,1,1,1': 'x' is not a number (expected cx,cy,cz,sx,sy,sz[,rx,ry,rz])");
+  EXPECT_EQ(error_message([] { parse_box("1,2,3,1,1"); }),
+            "--box '1,2,3,1,1': 5 numbers, expected 6 (centre, size) or 9 (centre, size, rotation in degrees)");
+  EXPECT_EQ(error_message([] { parse_box("1,2,3,1,0,1"); }), "--box '1,2,3,1,0,1': the size must be positive along every axis");
+
+  const SplatCloud with = room(true, false), without = room(false, false);
+  EXPECT_EQ(region_count(region_in_box(with, kObjectBox)), static_cast<int64_t>(with.size() - without.size()));
+}
+
+TEST(FillRegion, ASelectionFileNamesTheSplatsItLacks) {
+  const SplatCloud with = room(true, false), without = room(false, false);
+  const RegionMask exact = region_missing_from(with, without, "without.ply");
+  EXPECT_EQ(exact, region_in_box(with, kObjectBox));
+  // Re-quantised positions (a compressed format's) match by the nearest.
+  SplatCloud moved = without;
+  for (float& v : moved.means) v += 2e-5f;
+  EXPECT_EQ(region_missing_from(with, moved, "moved.ply"), exact);
+  SplatCloud other = without;
+  for (float& v : other.means) v += 0.5f;
+  EXPECT_EQ(error_message([&] { region_missing_from(with, other, "other.ply"); }),
+            fmt::format("--selection other.ply: {} of its {} splats are not in the scene: it is not this scene with "
+                        "some splats deleted",
+                        other.size(), other.size()));
+}
+
+TEST(FillRegion, AStrokeSelectsTheSurfaceItCoversAndWhatIsBehindIt) {
+  const SplatCloud with = room(true, false);
+  const Camera camera = camera_at({0, 0.9, 1.6});
+  // The stroke: where the box is seen (its splats' render), as a user would paint over it.
+  const RegionMask truth = region_in_box(with, kObjectBox);
+  GaussianSet g = gaussians_from_splats(with, 0);
+  std::vector<float> w(truth.begin(), truth.end());
+  g.colors = torch::tensor(w).unsqueeze(1).expand({g.size(), 3}).contiguous();
+  g.sh_degree = -1;
+  RenderOptions black;
+  black.background = {0, 0, 0};
+  const Image stroke = image_from_hwc((render(g, {camera}, black).rgb.narrow(2, 0, 1) > 0.5).to(torch::kFloat32));
+  const RegionMask picked = region_under_stroke(with, camera, stroke);
+  int64_t both = 0;
+  for (size_t i = 0; i < truth.size(); ++i) both += truth[i] && picked[i];
+  EXPECT_GT(double(both) / double(region_count(truth)), 0.95);   // the box, its back too
+  EXPECT_GT(double(both) / double(region_count(picked)), 0.75);  // and little of the floor around it
+  EXPECT_EQ(error_message([&] { region_under_stroke(with, camera, Image(10, 10, 1)); }),
+            "--mask: 10x10 pixels, but the view's camera is 96x72");
+  EXPECT_EQ(error_message([&] { region_under_stroke(with, camera, Image(96, 72, 1)); }),
+            "--mask: the stroke covers no surface of the scene in this view (nothing is drawn there)");
+}
+
+TEST(FillCameras, GivenCamerasThatSeeTheRegionBestComeFirst) {
+  const SplatCloud with = room(true, false);
+  std::vector<NamedCamera> cameras = capture_cameras();
+  cameras.push_back({"away", camera_at({0, 1, 1.6})});
+  cameras.back().camera.c2w = look_at({0, 1, 1.6}, {0, 1, 5}, {0, 1, 0});  // looks out of the room
+  FillCameraOptions options;
+  options.views = 3;
+  options.height = 64;
+  const ChosenCameras chosen = choose_given_cameras(gaussians_from_splats(with, 0), region_in_box(with, kObjectBox), cameras, options);
+  ASSERT_EQ(chosen.cameras.size(), 3u);
+  for (const NamedCamera& c : chosen.cameras) {
+    EXPECT_NE(c.name, "away");
+    EXPECT_EQ(c.camera.K.height, 64);
+    EXPECT_EQ(c.camera.K.width % 8, 0);
+  }
+  EXPECT_GE(chosen.visible[0], chosen.visible[1]);
+  const std::vector<NamedCamera> blind = {cameras.back()};
+  EXPECT_EQ(error_message([&] {
+              choose_given_cameras(gaussians_from_splats(with, 0), region_in_box(with, kObjectBox), blind, options);
+            }),
+            "none of the 1 cameras sees the region (its centre (0, 0.2, 0) is outside every view, or hidden): give "
+            "cameras that see it, or none (automatic views)");
+}
+
+TEST(FillCameras, AutomaticCamerasLookAtTheRegionFromAbove) {
+  const SplatCloud with = room(true, false);
+  const RegionMask region = region_in_box(with, kObjectBox);
+  const Eigen::Vector3d up = guess_up(with, region);
+  EXPECT_EQ(up, Eigen::Vector3d(0, 1, 0));  // the room is thinnest along y, the box stands on the floor
+  FillCameraOptions options;
+  options.up = up;
+  options.height = 64;
+  const ChosenCameras chosen = choose_automatic_cameras(gaussians_from_splats(with, 0), region, options);
+  ASSERT_EQ(chosen.cameras.size(), 4u);
+  for (const NamedCamera& c : chosen.cameras) {
+    EXPECT_GT(c.camera.center().y(), 0.1) << c.name;   // above the floor
+    EXPECT_GT(c.camera.center().z(), -1.5) << c.name;  // in front of the wall
+  }
+}
+
+TEST(Fill, KeepsEverySplatBitForBitAndFillsTheHoleInTheScenesFrame) {
+  const SplatCloud with = room(true, false);
+  const FillOptions options = box_fill();
+  const FillResult r = fill_splats(with, options, cpu_predictor());
+  const RegionMask region = region_in_box(with, kObjectBox);
+  EXPECT_EQ(r.removed, region_count(region));
+  EXPECT_GT(r.added, 0);
+  ASSERT_EQ(r.splats.size(), with.size() - r.removed + r.added);
+  // The kept splats first, in their order, every value as it was.
+  size_t k = 0;
+  for (size_t i = 0; i < with.size(); ++i) {
+    if (region[i]) continue;
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(r.splats.means[3 * k + c], with.means[3 * i + c]);
+    for (int c = 0; c < 4; ++c) ASSERT_EQ(r.splats.rotations[4 * k + c], with.rotations[4 * i + c]);
+    ASSERT_EQ(r.splats.opacity_logit[k], with.opacity_logit[i]);
+    ++k;
+  }
+  // The new ones where the hole is, in the scene's frame: near the floor under the box.
+  int64_t near_hole = 0;
+  for (size_t i = with.size() - r.removed; i < r.splats.size(); ++i) {
+    const Eigen::Vector3d p(r.splats.means[3 * i], r.splats.means[3 * i + 1], r.splats.means[3 * i + 2]);
+    near_hole += std::abs(p.x()) < 0.6 && std::abs(p.z()) < 0.6 && p.y() > -0.3 && p.y() < 0.5;
+  }
+  EXPECT_GT(double(near_hole) / double(r.added), 0.8);
+  EXPECT_EQ(r.before.size(), 3u);
+  EXPECT_EQ(r.report()["splats"]["removed"], r.removed);
+  EXPECT_GT(r.stages.waited_ms(), 0);
+}
+
+TEST(Fill, TheHoleComesCloserToTheTruthThanDeletionAlone) {
+  const SplatCloud with = room(true, false), truth_cloud = room(false, true);
+  const FillResult r = fill_splats(with, box_fill(), cpu_predictor());
+  const GaussianSet truth = gaussians_from_splats(truth_cloud, 0);
+  double deleted_error = 0, filled_error = 0;
+  for (size_t v = 0; v < r.after.size(); ++v) {
+    const torch::Tensor mask = image_to_tensor(r.masks[v]) > 0.5;
+    const torch::Tensor t = image_to_tensor(image_from_hwc(render(truth, {r.cameras.cameras[v].camera}).rgb));
+    auto error = [&](const Image& image) { return (image_to_tensor(image) - t).abs().mean(1, true).index({mask}).mean().item<double>(); };
+    deleted_error += error(r.deleted[v]);
+    filled_error += error(r.after[v]);
+  }
+  EXPECT_LT(filled_error, 0.6 * deleted_error) << "deleted " << deleted_error << ", filled " << filled_error;
+}
+
+TEST(Fill, RefinementMovesTheNewSplatsAloneAndKeepsTheRest) {
+  const SplatCloud with = room(true, false);
+  FillOptions options = box_fill(2);
+  options.cameras = capture_cameras();
+  RefineOptions refine;
+  refine.steps = 4;
+  options.refine = refine;
+  const FillResult r = fill_splats(with, options, cpu_predictor());
+  EXPECT_EQ(r.cameras.how.rfind("given", 0), 0u);
+  EXPECT_EQ(r.refine_report["steps"], 4);
+  const RegionMask region = region_in_box(with, kObjectBox);
+  size_t k = 0;
+  for (size_t i = 0; i < with.size(); ++i)
+    if (!region[i]) {
+      ASSERT_EQ(r.splats.means[3 * k++], with.means[3 * i]);
+    }
+  EXPECT_GT(r.added, 0);
+}
+
+TEST(Fill, BadRegionsAndFilesSayWhatIsWrong) {
+  const SplatCloud with = room(true, false);
+  FillOptions nothing = box_fill();
+  nothing.box = parse_box("5,5,5,0.1,0.1,0.1");
+  EXPECT_EQ(error_message([&] { fill_splats(with, nothing, cpu_predictor()); }),
+            "the box (centre (5, 5, 5), size (0.1, 0.1, 0.1)) holds no splat of room.ply: its splats lie within "
+            "x -1.5 to 1.5, y 0 to 1.45, z -1.5 to 1.45");
+  FillOptions everything = box_fill();
+  everything.box = parse_box("0,0,0,10,10,10");
+  EXPECT_EQ(error_message([&] { fill_splats(with, everything, cpu_predictor()); }),
+            fmt::format("the box (centre (0, 0, 0), size (10, 10, 10)) holds all {} splats of room.ply: nothing would "
+                        "be left to fill the hole from",
+                        with.size()));
+  SplatCloud broken = with;
+  broken.log_scales[3 * 7 + 1] = std::nanf("");
+  EXPECT_EQ(error_message([&] { fill_splats(broken, box_fill(), cpu_predictor()); }),
+            "room.ply: splat 7 has a non-finite scale (nan): the file is damaged");
+  FillOptions two = box_fill();
+  two.selection = with;
+  EXPECT_EQ(error_message([&] { fill_splats(with, two, cpu_predictor()); }),
+            "fill: name the region one way: a box, a selection file, or a view and its mask (2 given)");
+  FillOptions stroke = box_fill();
+  stroke.box.reset();
+  stroke.stroke_view = "nope";
+  stroke.stroke = Image(8, 8, 1, 1.f);
+  EXPECT_EQ(error_message([&] { fill_splats(with, stroke, cpu_predictor()); }),
+            "--view nope: no camera of that name (the cameras come from --scene or --cameras)");
+}
+
+TEST(FillCli, WritesTheSplatsAndTheReportAndRefusesBadInputWithoutWriting) {
+  const std::filesystem::path dir = test::temp_dir("fill-cli");
+  write_splats(dir / "room.ply", room(true, false));
+  const std::string cli = test::cli_executable().string();
+  ASSERT_EQ(test::run_command(cli + " fill " + (dir / "room.ply").string() + " --box 0,0.22,0,0.5,0.44,0.5 --height 64" +
+                                  " --views 2 --device cpu --out " + (dir / "filled.spz").string(),
+                              dir / "log.txt"),
+            0)
+      << test::file_bytes(dir / "log.txt");
+  EXPECT_GT(read_splats(dir / "filled.spz").size(), 0u);
+  const nlohmann::json report = nlohmann::json::parse(test::file_bytes(dir / "filled-fill" / "fill.json"));
+  EXPECT_EQ(report["splats"]["input"], room(true, false).size());
+  EXPECT_TRUE(std::filesystem::exists(dir / "filled-fill" / "compare.png"));
+  EXPECT_EQ(read_camera_json(dir / "filled-fill" / "cameras.json").size(), 2u);
+
+  EXPECT_NE(test::run_command(cli + " fill " + (dir / "room.ply").string() + " --box 9,9,9,1,1,1 --device cpu --out " +
+                                  (dir / "nothing.ply").string(),
+                              dir / "bad.txt"),
+            0);
+  EXPECT_NE(test::file_bytes(dir / "bad.txt").find("holds no splat of"), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(dir / "nothing.ply"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "nothing-fill"));
+}
+
+}  // namespace
+}  // namespace ii
