@@ -49,7 +49,7 @@ step "4/6 the same model given the object (no masks), to compare with"
 
 step "5/6 novel views (the scene's held-out test cameras) and an orbit video"
 for ply in with-object/gaussians inpainted/gaussians-unrefined inpainted/gaussians; do
-  "$BIN" render --ply "$OUT/$ply.ply" --scene "$SCENE" --normalize --test-views \
+  "$BIN" render --ply "$OUT/$ply.ply" --scene "$SCENE" --test-views \
     --no-video --out "$OUT/$ply-novel" > /dev/null
 done
 # One row per test view: with the object | object removed | refined | ground truth
@@ -66,7 +66,7 @@ for truth in "$SCENE"/images_4/test_*.png; do
 done
 ffmpeg -loglevel error -y "${inputs[@]}" \
   -filter_complex "${rows}${row_labels}vstack=$n,scale=iw*2:ih*2:flags=neighbor" "$OUT/novel-views.png"
-"$BIN" render --ply "$OUT/inpainted/gaussians.ply" --scene "$SCENE" --normalize --trajectory orbit \
+"$BIN" render --ply "$OUT/inpainted/gaussians.ply" --scene "$SCENE" --trajectory orbit \
   --frames 60 --width $((2 * SIZE)) --height $((2 * SIZE)) --out "$OUT/orbit" > /dev/null
 
 step "6/6 metrics on the object-free test views: the model, refined, and two 2D baselines"
@@ -99,6 +99,6 @@ on one view in the browser (or marked in a file, that photo painted out by any 2
   $BIN capture my_video.mp4 --out my_capture
   $BIN serve --scene my_capture
   $BIN infer --scene my_capture --view IMG_0001 --mask object.png --reference my_inpainted_IMG_0001.png --out out/my_capture
-  $BIN render --ply out/my_capture/gaussians.ply --scene my_capture --normalize --trajectory orbit --out out/video
+  $BIN render --ply out/my_capture/gaussians.ply --scene my_capture --trajectory orbit --out out/video
   $BIN --help    (every command; the released official checkpoint: --checkpoint instainpaint.pth)
 TXT

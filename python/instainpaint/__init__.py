@@ -63,8 +63,9 @@ class Gaussians:
 
     Attributes (NumPy arrays over the library's memory): means (N, 3), quats (N, 4; w, x, y, z),
     scales (N, 3), opacities (N,), colors (N, 3) RGB or (N, K, 3) spherical harmonics.
-    A prediction lives in the frame the network normalised the scene's poses to; render()
-    takes the scene's own cameras and save() writes that frame, as `instainpaint infer` does.
+    A prediction's arrays live in the frame the network normalised the scene's poses to; render()
+    takes the scene's own cameras and save() writes the scene's own frame, as `instainpaint
+    infer` does, so that the file lines up with the capture and other tools' splats.
     """
 
     def __init__(self, core: "_core.Gaussians"):
@@ -92,9 +93,10 @@ class Gaussians:
         text = self._g._refine_report
         return json.loads(text) if text else None
 
-    def save(self, path: PathLike) -> None:
-        """Writes a splat file, the format by name: .ply, .compressed.ply, .spz, .sog or meta.json."""
-        self._g.save(os.fspath(path))
+    def save(self, path: PathLike, *, normalized: bool = False) -> None:
+        """Writes a splat file, the format by name: .ply, .compressed.ply, .spz, .sog or meta.json,
+        in the scene's frame (normalized=True: the network's pose-normalised one, as the arrays)."""
+        self._g.save(os.fspath(path), normalized)
 
     def render(self, camera: Camera, *, background: Sequence[float] = (1.0, 1.0, 1.0), depth: bool = False):
         """Renders the Gaussians seen by `camera` (in the scene's frame): H x W x 3 float32 RGB;
@@ -124,6 +126,44 @@ class Gaussians:
             def call(step, fraction, loss, eta_s, count):
                 progress({"step": step, "fraction": fraction, "loss": loss, "eta_s": eta_s, "gaussians": count})
         return Gaussians(self._g._refine(scene, str(preset), sh_degree, position_rate, exposure, call))
+
+
+    @property
+    def fill_report(self) -> Optional[dict]:
+        """What the fill that made these did (splats removed and added, cameras, stage times), or None."""
+        text = self._g._fill_report
+        return json.loads(text) if text else None
+
+    def fill(self, *, box: Optional[Sequence[float]] = None, selection: Optional["Gaussians"] = None,
+             view: Optional[str] = None, mask: Union[PathLike, Any, None] = None,
+             scene: Optional[Scene] = None, cameras: Optional[Mapping[str, Camera]] = None,
+             reference: Union[PathLike, Any, None] = None, reference_view: Optional[str] = None,
+             views: int = 4, height: int = 256, up: Optional[Sequence[float]] = None,
+             refine: Optional[str] = None, reference_only: bool = False,
+             predictor: Optional["Predictor"] = None) -> "Gaussians":
+        """Removes a region and fills the hole it leaves, as `instainpaint fill`; returns new
+        Gaussians in the scene's frame (these stay as they are), every other splat as it was.
+
+        The region, one of: box=(cx, cy, cz, sx, sy, sz[, rx, ry, rz]) in the scene's frame;
+        selection= the same Gaussians with the region deleted; view= a camera's name and mask= a
+        stroke over the object on it (an H x W array or a file). Cameras: scene= (its views) and/or
+        cameras= {name: Camera}; none: automatic views around the region (up= the scene's up).
+        reference= the reference view's hole painted by any 2D inpainter (array or file), for
+        reference_view=; refine= "fast", "90s", a step count... optimises the new splats alone.
+        predictor: default the built-in model on the best device.
+        """
+        given: Dict[str, Camera] = {}
+        if scene is not None:
+            for name in scene.views:
+                given[name] = scene.camera(name)
+        given.update(cameras or {})
+        if predictor is None:
+            predictor = Predictor()
+        return Gaussians(_core._fill(
+            self._g, None if box is None else [float(v) for v in box],
+            None if selection is None else selection._g, view or "", mask, given, reference,
+            reference_view or "", views, height, None if up is None else [float(v) for v in up],
+            "" if refine is None else str(refine), reference_only, predictor._p))
 
 
 def load_gaussians(path: PathLike) -> Gaussians:

@@ -29,6 +29,7 @@
 #include "common/torch.h"
 #include "edit/scene_masks.h"
 #include "eval/protocol.h"
+#include "fill/fill.h"
 #include "io/image.h"
 #include "io/splat_file.h"
 #include "model/device.h"
@@ -125,7 +126,22 @@ struct PyGaussians {
   std::shared_ptr<const Prediction> prediction;
   std::shared_ptr<const SceneInputOptions> input;
   std::string refine_report;  // JSON of the refinement that made these, if one did
+  std::string fill_report;    // JSON of the fill that made these, if one did
 };
+
+// A splat file's values of Gaussians, in the scene's frame.
+SplatCloud scene_splats(const PyGaussians& g) {
+  return splats_from_gaussians(in_scene_frame(g.set, g.normalization).to(torch::kCPU));
+}
+
+// An image given as a file name or an array.
+Image image_or_file(const nb::object& value, const char* what, int channels) {
+  if (nb::isinstance<nb::str>(value) || nb::hasattr(value, "__fspath__")) {
+    const std::string path = nb::cast<std::string>(nb::str(value));
+    return channels == 1 ? read_mask(path) : read_image_rgb(path);
+  }
+  return image_of(nb::cast<AnyArray>(value), what, channels);
+}
 
 SceneInputOptions input_options(const std::vector<std::string>& context, int views, const nb::object& reference,
                                 const std::string& reference_view, int height, bool keep_object,
@@ -276,16 +292,18 @@ NB_MODULE(_core, m) {
         return std::make_pair(std::vector<double>{n.mean.x(), n.mean.y(), n.mean.z()}, n.scale);
       })
       .def_prop_ro("_refine_report", [](const PyGaussians& g) { return g.refine_report; })
+      .def_prop_ro("_fill_report", [](const PyGaussians& g) { return g.fill_report; })
       .def_prop_ro("context", [](const PyGaussians& g) {
         std::vector<std::string> names;  // the views the network saw, reference first
         if (g.prediction)
           for (const PreparedView& v : g.prediction->input.views) names.push_back(v.name);
         return names;
       })
-      .def("save", [](const PyGaussians& g, const std::string& path) {
+      .def("save", [](const PyGaussians& g, const std::string& path, bool normalized) {
         nb::gil_scoped_release release;
-        write_splats(path, splats_from_gaussians(g.set.to(torch::kCPU)));
-      }, "path"_a)
+        const GaussianSet set = normalized ? g.set : in_scene_frame(g.set, g.normalization);
+        write_splats(path, splats_from_gaussians(set.to(torch::kCPU)));
+      }, "path"_a, "normalized"_a)
       .def("_render",
            [](const PyGaussians& g, const Camera& camera, std::array<float, 3> background) {
              RenderCamera rc;
@@ -349,6 +367,53 @@ NB_MODULE(_core, m) {
              return out;
            },
            "scene"_a, "setting"_a, "sh_degree"_a, "position_rate"_a.none(), "exposure"_a, "progress"_a.none());
+
+  m.def("_fill",
+        [](const PyGaussians& g, const std::optional<std::vector<double>>& box, const PyGaussians* selection,
+           const std::string& view, const nb::object& mask, const std::map<std::string, Camera>& cameras,
+           const nb::object& reference, const std::string& reference_view, int views, int height,
+           const std::optional<std::vector<double>>& up, const std::string& refine, bool reference_only,
+           const Predictor& predictor) {
+          FillOptions o;
+          o.scene_name = "the Gaussians";
+          if (box) {
+            std::string text;
+            for (double v : *box) text += (text.empty() ? "" : ",") + fmt::format("{}", v);
+            o.box = parse_box(text);
+          }
+          if (selection) {
+            o.selection = scene_splats(*selection);
+            o.selection_name = "the selection";
+          }
+          for (const auto& [name, camera] : cameras) o.cameras.push_back({name, camera});
+          if (!view.empty()) {
+            o.stroke_view = view;
+            if (mask.is_none()) fail("fill: view= needs mask= (the stroke drawn on that view)");
+            o.stroke = image_or_file(mask, "mask", 1);
+          }
+          if (!reference.is_none()) o.reference_image = image_or_file(reference, "reference", 3);
+          o.camera_options.reference = reference_view;
+          o.camera_options.views = views;
+          o.camera_options.height = height;
+          if (up) {
+            if (up->size() != 3) fail("fill: up= takes 3 numbers, got {}", up->size());
+            o.camera_options.up = {(*up)[0], (*up)[1], (*up)[2]};
+          }
+          o.reference_only = reference_only;
+          const RefineOptions r = refine_setting(refine.empty() ? "0" : refine);
+          if (refine_requested(r)) o.refine = r;
+          PyGaussians out;
+          {
+            nb::gil_scoped_release release;
+            const FillResult result = fill_splats(scene_splats(g), o, predictor);
+            out.set = gaussians_from_splats(result.splats);
+            out.fill_report = result.report().dump();
+          }
+          return out;
+        },
+        "gaussians"_a, "box"_a.none(), "selection"_a.none(), "view"_a, "mask"_a.none(), "cameras"_a,
+        "reference"_a.none(), "reference_view"_a, "views"_a, "height"_a, "up"_a.none(), "refine"_a,
+        "reference_only"_a, "predictor"_a);
 
   m.def("_read_splats", [](const std::string& path) {
     PyGaussians g;

@@ -258,3 +258,25 @@ def test_a_wheel_builds(tmp_path):
     names = zipfile.ZipFile(wheels[0]).namelist()
     assert "instainpaint/__init__.py" in names and "instainpaint/py.typed" in names
     assert any(n.startswith("instainpaint/_core") and n.endswith(".so") for n in names)
+
+
+def test_fill_removes_a_box_and_fills_it_keeping_every_other_splat(tmp_path, statue, predictor):
+    predictor.predict(statue, height=HEIGHT).save(tmp_path / "scene.ply")  # the scene's frame
+    scene = ii.load_gaussians(tmp_path / "scene.ply")
+    means = scene.means.astype(np.float64)
+    centre = np.median(means, axis=0)
+    size = np.percentile(means, 70, axis=0) - np.percentile(means, 30, axis=0)
+    inside = np.all(np.abs(means - centre) <= size / 2, axis=1)
+    filled = scene.fill(box=[*centre, *size], scene=statue, views=2, height=HEIGHT, predictor=predictor)
+    report = filled.fill_report
+    assert report["splats"]["removed"] == inside.sum() > 0
+    assert report["splats"]["added"] > 0
+    assert len(filled) == len(scene) - inside.sum() + report["splats"]["added"]
+    kept = int((~inside).sum())
+    np.testing.assert_array_equal(filled.means[:kept], scene.means[~inside])  # bit for bit, in order
+    new = filled.means[kept:].astype(np.float64)
+    spread = np.linalg.norm(means - centre, axis=1)
+    assert np.median(np.linalg.norm(new - centre, axis=1)) < np.median(spread)  # where the box was
+    assert report["cameras"]["how"].startswith("given")
+    with pytest.raises(ii.Error, match="holds no splat of the Gaussians: its splats lie within"):
+        scene.fill(box=[*(centre + 1e6), 1, 1, 1], scene=statue, predictor=predictor)

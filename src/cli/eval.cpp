@@ -25,6 +25,7 @@ struct EvalArgs {
   int views = 4;
   int height = 512;
   int sh_degree = 3;
+  bool normalized = false;
   std::string quantize = "round";
   int ring_width = 8;
   std::string lpips_vgg, lpips_alex, lpips_heads, inception;
@@ -57,6 +58,8 @@ void run(const EvalArgs& a) {
   o.method = parse_eval_method(a.method);
   o.checkpoint = optional_path(a.checkpoint);
   o.gaussians = optional_path(a.gaussians);
+  o.gaussians_normalized = a.normalized;
+  if (a.normalized && !o.gaussians) fail("--normalized describes a --gaussians file: give one");
   o.reference = optional_path(a.reference);
   o.context = a.context;
   o.reference_view = a.edit.reference_view;
@@ -131,9 +134,12 @@ void add_eval_command(CLI::App& app) {
                   "Model weights: official .pth or safetensors (default: the embedded default model)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--gaussians", a->gaussians,
-                  "Splat file (PLY, compressed PLY, SPZ, SOG) to evaluate instead of running a model, in the pose-normalised frame (as `infer` writes "
-                  "it: camera centres minus their mean over all views, divided by the largest offset)")
+                  "Splat file (PLY, compressed PLY, SPZ, SOG) to evaluate instead of running a model, in the scene's "
+                  "frame (its cameras': as `infer` and `fill` write it, and 3DGS trainers)")
       ->check(CLI::ExistingFile);
+  cmd->add_flag("--normalized", a->normalized,
+                "The --gaussians file is in the pose-normalised frame (infer --normalized, and infer before "
+                "it wrote the scene's frame)");
   cmd->add_option("--reference", a->reference,
                   "The reference view with the object painted out by a 2D inpainter (default: OpenCV Telea)")
       ->check(CLI::ExistingFile);

@@ -39,6 +39,7 @@ struct FillArgs {
   int views = 4;
   int height = 256;
   bool reference_only = false;
+  bool delete_only = false;
   RefineArgs refine;
   RuntimeOptions runtime;
 };
@@ -60,8 +61,7 @@ std::vector<NamedCamera> given_cameras(const FillArgs& a) {
   std::vector<NamedCamera> cameras;
   if (!a.scene_dir.empty()) {
     const Scene scene = load_scene(a.scene_dir, a.scene);
-    for (const auto* list : {&scene.views, &scene.test_views})
-      for (const View& v : *list) cameras.push_back({v.name, v.camera});
+    for (const View& v : scene.views) cameras.push_back({v.name, v.camera});  // not the held-out test views
   }
   if (!a.cameras.empty())
     for (NamedCamera& c : read_camera_json(a.cameras)) cameras.push_back(std::move(c));
@@ -123,6 +123,7 @@ void run(const FillArgs& a) {
   o.camera_options.reference = a.reference_view;
   if (!a.up.empty()) o.camera_options.up = parse_up(a.up);
   o.reference_only = a.reference_only;
+  o.fill = !a.delete_only;
   if (!a.box.empty()) o.box = parse_box(a.box);
   o.cameras = given_cameras(a);
   if (!a.reference.empty()) {
@@ -188,6 +189,7 @@ void add_fill_command(CLI::App& app) {
   cmd->add_option("--views", a->views, "Views the network reads")->capture_default_str();
   cmd->add_option("--height", a->height, "Working height of the views (a multiple of 8)")->capture_default_str();
   cmd->add_flag("--reference-only", a->reference_only, "New splats from the reference view's hole alone");
+  cmd->add_flag("--delete-only", a->delete_only, "Remove the region and add nothing (to compare with the fill)");
   cmd->add_option("--checkpoint", a->checkpoint, "Model (.pth or safetensors; default: the built-in model)");
   add_refine_options(cmd, a->refine);
   add_runtime_options(cmd, a->runtime);

@@ -40,6 +40,7 @@ struct InferArgs {
   EditArgs edit;
   RefineArgs refine;
   bool keep_unrefined = false;
+  bool normalized = false;  // splats in the network's pose-normalised frame (before: the only one)
   std::vector<std::string> splats = {"gaussians.ply"};
   RuntimeOptions runtime;
 };
@@ -90,11 +91,13 @@ void run(const InferArgs& a) {
   stages.restart_lap();  // the prediction's parts are timed above
 
   const fs::path out(a.out);
+  // Written in the scene's frame (its cameras'), unless --normalized.
+  auto in_frame = [&](const GaussianSet& g) { return a.normalized ? g : in_scene_frame(g, p.input.normalization); };
   GaussianSet gaussians = p.gaussians();
   nlohmann::json refine_report;
   const RefineOptions refine = refine_options(a.refine);
   if (refine_requested(refine)) {
-    if (a.keep_unrefined) write_splat_ply(out / "gaussians-unrefined.ply", splats_from_gaussians(gaussians));
+    if (a.keep_unrefined) write_splat_ply(out / "gaussians-unrefined.ply", splats_from_gaussians(in_frame(gaussians)));
     spdlog::info("refining {} Gaussians for {} against every view", gaussians.size(), refine_length(refine));
     gaussians = refine_prediction(scene, p, opts, gaussians.to(render_device(runtime.device)), refine, refine_report);
     write_loss_chart(out, refine_report);
@@ -103,7 +106,7 @@ void run(const InferArgs& a) {
   }
 
   spdlog::info("[4/4] writing {}", a.out);
-  const SplatCloud cloud = splats_from_gaussians(gaussians);
+  const SplatCloud cloud = splats_from_gaussians(in_frame(gaussians));
   stages.lap("gaussians to splats (host)");
   nlohmann::json splat_files = nlohmann::json::array();
   for (const std::string& name : a.splats) {
@@ -135,6 +138,7 @@ void run(const InferArgs& a) {
       {"threads", torch::get_num_threads()},
       {"gaussians", cloud.size()},
       {"normalization", {{"mean", {norm.mean.x(), norm.mean.y(), norm.mean.z()}}, {"scale", norm.scale}}},
+      {"frame", a.normalized ? "normalized: scene = normalized x scale + mean" : "scene"},
       {"outputs", {{"splats", splat_files}, {"depth", depth_files}}},
       {"stages", nlohmann::json()}};
   for (const auto& v : p.input.views) run["context"].push_back(v.name);
@@ -179,6 +183,9 @@ void add_infer_command(CLI::App& app) {
   cmd->add_flag("--keep-object", args->keep_object,
                 "Reconstruct the scene as captured, object included (no masks, no reference): a comparison "
                 "for the inpainted result");
+  cmd->add_flag("--normalized", args->normalized,
+                "Write the splats in the network's pose-normalised frame (scene = normalized x scale + mean, "
+                "run.json's normalization) instead of the scene's own, which its cameras and other tools use");
   cmd->add_option("--out", args->out, "Output folder")->capture_default_str();
   cmd->add_option("--splats", args->splats,
                   "Splat files to write in the output folder, the format following each name: .ply (standard "

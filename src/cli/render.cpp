@@ -182,7 +182,8 @@ void add_render_command(CLI::App& app) {
       "Scene whose cameras to render (any format instainpaint reads); see --normalize");
   cmd->add_flag("--normalize", a->normalize,
                 "Put the scene's cameras in the pose-normalised frame (centres minus their mean, divided by the "
-                "largest offset, over all cameras of the scene): the frame of PLYs written by `infer`");
+                "largest offset, over all cameras of the scene): the frame of splats written by `infer --normalized` "
+                "(infer, fill and 3DGS trainers write the scene's own frame, which needs no flag)");
   cmd->add_option("--views", a->views, "Scene views to render (or to pass through with --trajectory path), by name")
       ->delimiter(',');
   cmd->add_flag("--test-views", a->test_views, "Render the scene's object-free test views instead of its views");
@@ -234,7 +235,7 @@ void add_render_command(CLI::App& app) {
       "  convention \"opengl\" (x right, y up, looking along -z; default) or \"opencv\" (y down, +z).\n"
       "\n"
       "Examples:\n"
-      "  instainpaint render --ply out/statue/gaussians.ply --scene ../shared/data/statue --normalize --trajectory orbit\n"
+      "  instainpaint render --ply out/statue/gaussians.ply --scene ../shared/data/statue --trajectory orbit\n"
       "  instainpaint render --ply guitar.compressed.ply --trajectory turntable --frames 48 --depth");
   cmd->callback([a] { run(*a); });
 }

@@ -193,6 +193,9 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
     info["ply"] = o.gaussians->string();
     stages.lap("read gaussians");
     GaussianSet g = gaussians_from_splats(cloud, o.sh_degree).to(render_on);
+    // Test views are rendered in the pose-normalised frame, as the network's Gaussians are.
+    if (!o.gaussians_normalized) g = in_normalized_frame(g, scene_normalization(scene));
+    info["frame"] = o.gaussians_normalized ? "normalized" : "scene";
     stages.lap("gaussians to the renderer");
     return g;
   }

@@ -51,7 +51,8 @@ struct EvalOptions {
 
   // method model: exactly one of these.
   std::optional<std::filesystem::path> checkpoint;
-  std::optional<std::filesystem::path> gaussians;  // splat PLY in the pose-normalised frame
+  std::optional<std::filesystem::path> gaussians;  // a splat file in the scene's frame (infer's, a 3DGS trainer's)
+  bool gaussians_normalized = false;               // ... in the pose-normalised frame (infer --normalized)
   // Network inputs (checkpoint only).
   std::vector<std::string> context;  // reference first; empty = automatic
   int num_views = 4;

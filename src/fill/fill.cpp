@@ -50,6 +50,12 @@ SplatCloud rows_of(const SplatCloud& cloud, const RegionMask& take) {
   return out;
 }
 
+RegionMask kept_flags(const RegionMask& region) {
+  RegionMask keep(region.size());
+  for (size_t i = 0; i < region.size(); ++i) keep[i] = !region[i];
+  return keep;
+}
+
 // `added` (DC colour only) after `cloud`'s rows, with zero higher SH coefficients and normals.
 void append_rows(SplatCloud& cloud, const SplatCloud& added) {
   const size_t n = cloud.size(), m = added.size();
@@ -222,6 +228,19 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   for (const NamedCamera& c : result.cameras.cameras) views.push_back(render_camera(scene, kept, weights, c.camera));
   stages.lap("render views");
 
+  if (!options.fill) {
+    result.splats = rows_of(cloud, kept_flags(region));
+    for (size_t v = 0; v < views.size(); ++v) {
+      result.before.push_back(views[v].before);
+      result.deleted.push_back(views[v].kept);
+      result.after.push_back(views[v].kept);
+      result.masks.push_back(views[v].mask);
+    }
+    result.reference = views.at(0).kept;
+    stages.lap("assemble the splats");
+    return result;
+  }
+
   // The renders as a scene the predictor reads from memory: views prepared already.
   Scene rendered;
   rendered.root = options.scene_name;
@@ -305,11 +324,7 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
     stages.lap("refine the new Gaussians");
   }
 
-  result.splats = rows_of(cloud, [&] {
-    RegionMask keep(region.size());
-    for (size_t i = 0; i < region.size(); ++i) keep[i] = !region[i];
-    return keep;
-  }());
+  result.splats = rows_of(cloud, kept_flags(region));
   append_rows(result.splats, splats_from_gaussians(added.to(torch::kCPU)));
   result.added = added.size();
   stages.lap("assemble the splats");

@@ -37,6 +37,8 @@ struct FillOptions {
   // Which views' masked pixels become Gaussians: every context view's (false) or the
   // reference's alone (true).
   bool reference_only = false;
+  // false: the region removed and nothing added (deletion alone, to compare with).
+  bool fill = true;
   // Optimise the new Gaussians alone against the views (the rest of the scene fixed).
   std::optional<RefineOptions> refine;
   std::string scene_name = "splats";  // names the input in messages

@@ -115,4 +115,24 @@ SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& opti
   return out;
 }
 
+namespace {
+
+GaussianSet moved(const GaussianSet& g, double scale, const Eigen::Vector3d& shift) {
+  GaussianSet out = g;
+  const torch::Tensor t = torch::tensor({shift.x(), shift.y(), shift.z()}, torch::kFloat64);
+  out.means = (g.means.to(torch::kFloat64) * scale + t.to(g.means.device())).to(g.means.dtype());
+  out.scales = (g.scales.to(torch::kFloat64) * scale).to(g.scales.dtype());
+  return out;
+}
+
+}  // namespace
+
+GaussianSet in_scene_frame(const GaussianSet& gaussians, const PoseNormalization& normalization) {
+  return moved(gaussians, normalization.scale, normalization.mean);
+}
+
+GaussianSet in_normalized_frame(const GaussianSet& gaussians, const PoseNormalization& normalization) {
+  return moved(gaussians, 1.0 / normalization.scale, -normalization.mean / normalization.scale);
+}
+
 }  // namespace ii

@@ -12,6 +12,7 @@
 #include "data/inpaint2d.h"
 #include "data/preprocess.h"
 #include "data/scene.h"
+#include "gaussians/gaussians.h"
 #include "model/model_input.h"
 
 namespace ii {
@@ -62,5 +63,12 @@ Image classical_reference(const Scene& scene, const std::string& view, const Ima
 // The views are read and resized at once, on the thread plan's cores.
 std::vector<PreparedView> prepare_masked_views(const Scene& scene, const std::vector<int>& indices,
                                                const SceneInputOptions& options, const std::string& role);
+
+// Gaussians between the pose-normalised frame the network works in and the scene's own frame
+// (its cameras', as 3DGS trainers write splats): positions scaled and shifted, scales scaled.
+// Files are written in the scene's frame, so that they line up with the capture and with
+// other tools' splats; `infer --normalized` keeps the network's.
+GaussianSet in_scene_frame(const GaussianSet& gaussians, const PoseNormalization& normalization);
+GaussianSet in_normalized_frame(const GaussianSet& gaussians, const PoseNormalization& normalization);
 
 }  // namespace ii

@@ -11,9 +11,11 @@
 #include "common/files.h"
 #include "common/parallel.h"
 #include "common/stopwatch.h"
+#include "common/torch.h"
 #include "io/image.h"
 #include "io/npy.h"
 #include "io/ply.h"
+#include "render/rasterizer.h"
 #include "synth/random.h"
 
 namespace ii::synth {
@@ -21,6 +23,37 @@ namespace ii::synth {
 namespace fs = std::filesystem;
 
 namespace {
+
+// The object and the background splats some view sees: a splat's opacity has a gradient in a
+// view's render exactly when it adds to one of its pixels.
+GaussianSet seen_by_views(const GaussianSet& background, const GaussianSet& object, const std::vector<NamedCamera>& views) {
+  GaussianSet all;
+  all.means = torch::cat({object.means, background.means});
+  all.quats = torch::cat({object.quats, background.quats});
+  all.scales = torch::cat({object.scales, background.scales});
+  auto rgb = [](const GaussianSet& g) { return g.colors.dim() == 3 ? rgb_from_sh_dc(g.colors.select(1, 0)) : g.colors; };
+  all.colors = object.colors.dim() == background.colors.dim() ? torch::cat({object.colors, background.colors})
+                                                              : torch::cat({rgb(object), rgb(background)});
+  all.sh_degree = object.colors.dim() == background.colors.dim() ? background.sh_degree : -1;
+  const torch::Tensor opacities = torch::cat({object.opacities.reshape({-1}), background.opacities.reshape({-1})});
+  torch::Tensor seen = torch::zeros({all.size()}, torch::kBool);
+  for (const NamedCamera& v : views) {
+    all.opacities = opacities.detach().clone().requires_grad_(true);
+    const RenderOutput out = render(all, {v.camera});
+    (out.rgb.sum() + out.alpha.sum()).backward();
+    seen = seen.logical_or(all.opacities.grad().abs() > 0);
+  }
+  seen.narrow(0, 0, object.size()).fill_(true);
+  GaussianSet kept;
+  kept.means = all.means.index({seen});
+  kept.quats = all.quats.index({seen});
+  kept.scales = all.scales.index({seen});
+  kept.colors = all.colors.index({seen});
+  kept.sh_degree = all.sh_degree;
+  kept.opacities = opacities.index({seen});
+  return kept;
+}
+
 
 constexpr uint64_t kReferenceStream = 99;
 
@@ -187,6 +220,7 @@ SynthWriteSummary write_synth_scene(const SynthScene& scene, const fs::path& dir
   if (options.save_gaussians) {
     write_splat_ply(partial / "background.ply", splats_from_gaussians(scene.background));
     write_splat_ply(partial / "object.ply", splats_from_gaussians(scene.object));
+    write_splat_ply(partial / "scene.ply", splats_from_gaussians(seen_by_views(scene.background, scene.object, scene.views)));
   }
 
   summary.views = static_cast<int>(scene.views.size());

@@ -17,6 +17,10 @@
 //   cameras.json             every camera (camera/trajectory.h camera-list format)
 //   synth.json               seed, options, names, reference, context views, mask rule, ...
 //   background.ply, object.ply  the Gaussians (only with save_gaussians)
+//   scene.ply                the room as a splat scene fitted to the training views could hold
+//                            it (only with save_gaussians): the object, and the background
+//                            splats that some training view sees (those it hides in every view
+//                            are not there, as under an object in a capture)
 //
 // Task insert (`task`): the same room the other way round, as ground truth for object
 // insertion. The training views show the room without the object, their label/ masks mark

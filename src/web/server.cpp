@@ -344,7 +344,7 @@ json WebServer::State::info() const {
   if (scene)
     for (size_t i = 0; i < scene->views.size(); ++i) {
       const View& v = scene->views[i];
-      const Camera c = normalization.apply(v.camera);
+      const Camera& c = v.camera;  // the scene's frame, as the splats are written
       json c2w = json::array();
       for (int r = 0; r < 4; ++r)
         for (int k = 0; k < 4; ++k) c2w.push_back(c.c2w(r, k));
@@ -564,8 +564,9 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
 
 json WebServer::State::write_splats_of(const GaussianSet& gaussians, const fs::path& dir, int id, StageTimes& stages,
                                        BehindSteps& behind) {
-  auto cloud = std::make_shared<const SplatCloud>(
-      stages.time("gaussians to splats (host)", [&] { return splats_from_gaussians(gaussians); }));
+  // In the scene's frame, as infer writes them: the downloads line up with the capture.
+  auto cloud = std::make_shared<const SplatCloud>(stages.time(
+      "gaussians to splats (host)", [&] { return splats_from_gaussians(in_scene_frame(gaussians, normalization)); }));
   auto page = std::make_shared<const std::string>(stages.time(
       std::string("encode ") + kPageSplats, [&] { return encode_compressed_splat_ply(*cloud, dir / kPageSplats); }));
   {
@@ -647,9 +648,8 @@ void WebServer::State::stop_worker() {
 
 json WebServer::State::run_video(const JobRequest& job, const fs::path& dir, int id,
                                  const std::function<void(const std::string&, double)>& stage) {
-  // The official orbit around the scene's cameras, in the frame of infer's PLYs.
+  // The official orbit around the scene's cameras, in the scene's frame (infer's PLYs').
   SceneCameraOptions o;
-  o.normalize = true;
   o.trajectory = "orbit";
   o.frames = 48;
   o.width = o.height = std::max(64, options.height);

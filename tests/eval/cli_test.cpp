@@ -69,7 +69,7 @@ TEST(EvalCli, PerfectGaussians) {
   II_REQUIRE_CLI(exe);
   const fs::path dir = test::temp_dir("eval-cli");
   test::write_scene(dir / "scene");
-  ASSERT_EQ(run(fmt::format("'{}' eval --scene '{}' --gaussians '{}' --height {} --device cpu --out '{}'", exe.string(),
+  ASSERT_EQ(run(fmt::format("'{}' eval --scene '{}' --gaussians '{}' --normalized --height {} --device cpu --out '{}'", exe.string(),
                             (dir / "scene").string(), (dir / "scene" / "truth.ply").string(), test::kSceneHeight,
                             (dir / "out").string()),
                 dir / "log.txt"),

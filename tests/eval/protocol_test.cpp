@@ -14,6 +14,7 @@
 #include "eval/protocol.h"
 #include "io/image.h"
 #include "model/default_model.h"
+#include "model/scene_input.h"
 #include "synth/synth_writer.h"
 #include "synthetic_scene.h"
 #include "tensor/image_tensor.h"
@@ -47,6 +48,7 @@ class Protocol : public ::testing::Test {
     o.out = test::temp_dir("eval-" + tag);
     o.height = test::kSceneHeight;
     o.device = torch::kCPU;
+    o.gaussians_normalized = true;  // the test scene's splat files are made in the pose-normalised frame
     return o;
   }
 };
@@ -161,6 +163,25 @@ TEST_F(Protocol, PerfectPredictionScoresInfinity) {
   const std::string html = read_file_text(o.out / "report.html");
   EXPECT_NE(html.find("sheets/00_test.png"), std::string::npos);
   EXPECT_NE(html.find("sheets/01_test.png"), std::string::npos);
+}
+
+TEST_F(Protocol, SplatsInTheScenesFrameRenderAsTheTruth) {
+  // truth.ply moved to the scene's frame (where infer and 3DGS trainers write): evaluated as the
+  // scene's by default, it scores as the truth does; taken for the normalised frame, it does not.
+  const Scene scene = load_scene(scene_dir());
+  const fs::path ply = test::temp_dir("eval-scene-frame") / "truth-scene.ply";
+  write_splat_ply(ply, splats_from_gaussians(
+                           in_scene_frame(gaussians_from_splats(read_splat_ply(scene_dir() / "truth.ply")), scene_normalization(scene))));
+  EvalOptions o = options("scene-frame");
+  o.gaussians = ply;
+  o.gaussians_normalized = false;
+  const json m = run_evaluation(o);
+  EXPECT_EQ(m["prediction"]["frame"], "scene");
+  for (const json& v : m["views"]) EXPECT_TRUE(v["psnr"] == "inf" || v["psnr"].get<double>() > 45) << v["psnr"];
+  o.gaussians_normalized = true;
+  o.out = test::temp_dir("eval-scene-frame-as-normalized");
+  const json wrong = run_evaluation(o);
+  for (const json& v : wrong["views"]) EXPECT_LT(v["psnr"].get<double>(), 25);
 }
 
 TEST_F(Protocol, EmptyPredictionScoresTheWhiteBackground) {

@@ -299,3 +299,45 @@ TEST(FillCli, WritesTheSplatsAndTheReportAndRefusesBadInputWithoutWriting) {
 
 }  // namespace
 }  // namespace ii
+
+namespace ii {
+namespace {
+
+TEST(Fill, DeleteOnlyRemovesTheRegionAndAddsNothing) {
+  const SplatCloud with = room(true, false);
+  FillOptions options = box_fill(2);
+  options.fill = false;
+  const FillResult r = fill_splats(with, options, cpu_predictor());
+  EXPECT_EQ(r.added, 0);
+  EXPECT_EQ(r.splats.size(), with.size() - static_cast<size_t>(r.removed));
+  EXPECT_EQ(r.splats.size(), room(false, false).size());
+}
+
+// infer writes splats in the scene's frame (the capture's cameras'), --normalized in the network's:
+// the same Gaussians, scene = normalized x scale + mean.
+TEST(SceneFrame, InferWritesTheScenesFrameAndNormalizedKeepsTheNetworks) {
+  II_REQUIRE_SHARED(statue, "data/statue");
+  const std::filesystem::path dir = test::temp_dir("scene-frame");
+  const std::string base = test::cli_executable().string() + " infer --scene '" + statue.string() +
+                           "' --height 64 --device cpu --precision fp32 --threads 1 --out '";
+  ASSERT_EQ(test::run_command(base + (dir / "scene").string() + "'", dir / "log.txt"), 0) << test::file_bytes(dir / "log.txt");
+  ASSERT_EQ(test::run_command(base + (dir / "norm").string() + "' --normalized", dir / "log.txt"), 0);
+  const nlohmann::json run = nlohmann::json::parse(test::file_bytes(dir / "scene" / "run.json"));
+  EXPECT_EQ(run["frame"], "scene");
+  const double scale = run["normalization"]["scale"];
+  const SplatCloud in_scene = read_splats(dir / "scene" / "gaussians.ply");
+  const SplatCloud normalized = read_splats(dir / "norm" / "gaussians.ply");
+  ASSERT_EQ(in_scene.size(), normalized.size());
+  double worst = 0;
+  for (size_t i = 0; i < in_scene.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      const double expected = normalized.means[3 * i + k] * scale + run["normalization"]["mean"][k].get<double>();
+      worst = std::max(worst, std::abs(in_scene.means[3 * i + k] - expected) / scale);
+      ASSERT_NEAR(in_scene.log_scales[3 * i + k], normalized.log_scales[3 * i + k] + std::log(scale), 1e-4);
+    }
+  EXPECT_LT(worst, 1e-5);
+  EXPECT_GT(scale, 2);  // the statue's frames differ: the test would not notice otherwise
+}
+
+}  // namespace
+}  // namespace ii

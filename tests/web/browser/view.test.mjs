@@ -38,7 +38,7 @@ try {
   await h.frames(page, 10);  // Spark sorts in a worker: let it settle
   const shot = join(dir, "page-view_001.png");
   writeFileSync(shot, await page.locator("canvas").first().screenshot());
-  h.run(["render", "--ply", ply, "--scene", scene, "--normalize", "--views", "view_001", "--no-video", "--out",
+  h.run(["render", "--ply", ply, "--scene", scene, "--views", "view_001", "--no-video", "--out",
     join(dir, "render")]);
   const m = JSON.parse(h.run(["metrics", shot, join(dir, "render", "rgb", "0000.png"), "--json"]));
   const psnr = m.psnr === "inf" ? Infinity : m.psnr;

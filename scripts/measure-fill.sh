@@ -1,0 +1,92 @@
+#!/usr/bin/env bash
+# Filling the hole in splat scenes with exact ground truth (issue 46): synthetic rooms, each
+# written as the splat scene a fit to its training views could hold (synth --save-gaussians:
+# scene.ply, the object in it, the floor under it never seen), the object's box removed and
+# the hole filled, the held-out views compared inside the object's mask with the room without it.
+#
+# Rows per room: deletion alone (fill --delete-only), fill, fill + --refine fast, and the photo
+# pipeline on the same room (eval --refine fast: the network on the photos, refined). Prints a
+# Markdown table of the masked PSNR / SSIM (means over the test views) and the fills' times.
+#
+# Usage: scripts/measure-fill.sh [--bin build/instainpaint] [--rooms 3] [--seed 11] [--work DIR]
+#        [--refine fast]
+set -euo pipefail
+BIN=build/instainpaint
+ROOMS=3
+SEED=11
+WORK=measure-fill
+REFINE=fast
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --bin) BIN=$2; shift 2 ;;
+    --rooms) ROOMS=$2; shift 2 ;;
+    --seed) SEED=$2; shift 2 ;;
+    --work) WORK=$2; shift 2 ;;
+    --refine) REFINE=$2; shift 2 ;;
+    -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
+    *) echo "unknown argument $1 (see --help)" >&2; exit 2 ;;
+  esac
+done
+mkdir -p "$WORK"
+say() { echo "measure-fill: $*" >&2; }
+
+say "synthetic rooms (seed $SEED) with their splat scenes"
+[ -d "$WORK/rooms/scene_000" ] || "$BIN" synth --out "$WORK/rooms" --scenes "$ROOMS" --seed "$SEED" --views 24 \
+  --test-views 8 --object procedural --save-gaussians --no-depth > "$WORK/synth.log" 2>&1
+
+# The object's box: the bounds of object.ply's splats, 5 % larger each way.
+box_of() {
+  python3 - "$1" <<'EOF'
+import sys, struct
+data = open(sys.argv[1], "rb").read()
+end = data.index(b"end_header\n") + len(b"end_header\n")
+header = data[:end].decode().splitlines()
+n = int([l for l in header if l.startswith("element vertex")][0].split()[-1])
+props = [l.split()[-1] for l in header if l.startswith("property")]
+row = 4 * len(props)
+xyz = [props.index(a) for a in ("x", "y", "z")]
+lo, hi = [1e30] * 3, [-1e30] * 3
+for i in range(n):
+    values = struct.unpack_from("<%df" % len(props), data, end + i * row)
+    for k in range(3):
+        lo[k] = min(lo[k], values[xyz[k]]); hi[k] = max(hi[k], values[xyz[k]])
+c = [(a + b) / 2 for a, b in zip(lo, hi)]
+s = [(b - a) * 1.1 for a, b in zip(lo, hi)]
+print(",".join("%.5g" % v for v in c + s))
+EOF
+}
+
+metric() {  # metric FILE KEY: the mean of KEY in an eval's metrics.json
+  python3 -c "import json,sys; v=json.load(open(sys.argv[1]))['mean'].get(sys.argv[2]); print('%.2f' % v if isinstance(v, float) and sys.argv[2].endswith('psnr') else '%.3f' % v if isinstance(v, float) else v)" "$1" "$2"
+}
+seconds() {  # seconds FILE: a fill.json's total
+  python3 -c "import json,sys; print('%.1f' % (json.load(open(sys.argv[1]))['total_ms'] / 1000))" "$1"
+}
+
+echo "| room | splats | removed | deletion only | fill | fill + refine $REFINE | photo pipeline (eval --refine $REFINE) | fill time, with refine |"
+echo "|---|---|---|---|---|---|---|---|"
+for room in "$WORK"/rooms/scene_*; do
+  name=$(basename "$room")
+  out="$WORK/$name"
+  mkdir -p "$out"
+  box=$(box_of "$room/object.ply")
+  common=(--scene "$room" --box "$box" --height 256 --device cpu)
+  say "$name: box $box"
+  "$BIN" fill "$room/scene.ply" "${common[@]}" --delete-only --out "$out/deleted.ply" > "$out/deleted.log" 2>&1
+  "$BIN" fill "$room/scene.ply" "${common[@]}" --out "$out/filled.ply" > "$out/filled.log" 2>&1
+  "$BIN" fill "$room/scene.ply" "${common[@]}" --refine "$REFINE" --out "$out/refined.ply" > "$out/refined.log" 2>&1
+  for method in deleted filled refined; do
+    "$BIN" eval --scene "$room" --gaussians "$out/$method.ply" --height 256 --device cpu --no-report \
+      --out "$out/eval-$method" > "$out/eval-$method.log" 2>&1
+  done
+  "$BIN" eval --scene "$room" --height 256 --device cpu --no-report --refine "$REFINE" --out "$out/eval-photos" \
+    > "$out/eval-photos.log" 2>&1
+  cells=()
+  for method in deleted filled refined photos; do
+    m="$out/eval-$method/metrics.json"
+    cells+=("$(metric "$m" masked_psnr) dB / $(metric "$m" masked_ssim)")
+  done
+  splats=$(python3 -c "import json; print(json.load(open('$out/filled-fill/fill.json'))['splats']['input'])")
+  removed=$(python3 -c "import json; print(json.load(open('$out/filled-fill/fill.json'))['splats']['removed'])")
+  echo "| $name | $splats | $removed | ${cells[0]} | ${cells[1]} | ${cells[2]} | ${cells[3]} | $(seconds "$out/filled-fill/fill.json") s, $(seconds "$out/refined-fill/fill.json") s |"
+done
