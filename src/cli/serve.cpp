@@ -55,9 +55,10 @@ void run(const ServeArgs& a) {
   if (o.host != "127.0.0.1" && o.host != "localhost" && o.host != "::1")
     spdlog::warn("listening on {}: anyone who can reach this machine can see the scene and run edits", o.host);
 
-  // The model is loaded once, before the first request, when there is a scene to edit.
+  // The model is loaded once, before the first request, when there is a scene to edit or
+  // splats to fill.
   std::optional<Predictor> predictor;
-  if (o.scene_dir) {
+  if (o.scene_dir || !o.plys.empty()) {
     const Runtime runtime = apply_runtime_options(a.runtime);
     predictor.emplace(a.checkpoint, runtime.device, runtime.precision);
     spdlog::info("model {} on {}", predictor->model_name(), runtime.device.str());
@@ -80,7 +81,8 @@ void run(const ServeArgs& a) {
 
 void add_serve_command(CLI::App& app) {
   auto args = std::make_shared<ServeArgs>();
-  auto* cmd = app.add_subcommand("serve", "Look at splats and edit a scene in the browser");
+  auto* cmd = app.add_subcommand("serve", "Look at splats, edit a scene, or fill the hole of an object removed from "
+                                          "any splat file, in the browser");
   cmd->add_option("--scene", args->scene_dir, "Scene to show and edit (its views, cameras and masks)")
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--format", args->scene.format, "Scene format")
@@ -112,6 +114,7 @@ void add_serve_command(CLI::App& app) {
       "Examples:\n"
       "  instainpaint serve --scene ../shared/data/statue --ply out/statue/gaussians.ply\n"
       "  instainpaint serve --ply guitar.compressed.ply --port 0\n"
+      "  instainpaint serve --splats room.ply     (remove an object with a box or a stroke, and fill the hole)\n"
       "Open the printed address (http://127.0.0.1:8080/?token=...): the page then keeps the token in a cookie.\n"
       "Scripts send it as ?token= or as the X-Instainpaint-Token header.");
   cmd->callback([args] { run(*args); });

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <numeric>
 
 #include "common/error.h"
@@ -84,6 +85,23 @@ std::vector<size_t> pick_views(const std::vector<double>& score, const std::vect
   return chosen;
 }
 
+// The 8 best-scoring cameras besides `chosen` that see the region, 128 pixels high.
+std::vector<NamedCamera> observers_besides(const std::vector<size_t>& chosen, const std::vector<double>& score,
+                                           const std::function<NamedCamera(size_t)>& camera) {
+  std::vector<size_t> order(score.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return score[a] > score[b]; });
+  std::vector<NamedCamera> out;
+  for (size_t i : order) {
+    if (score[i] <= 0 || out.size() == 8) break;
+    if (std::find(chosen.begin(), chosen.end(), i) != chosen.end()) continue;
+    NamedCamera c = camera(i);
+    c.camera = c.camera.resized(std::max(8, c.camera.K.width * 128 / std::max(1, c.camera.K.height)), 128);
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
 Camera working_camera(const Camera& camera, int height) {
   PreprocessOptions p;
   p.height = height;
@@ -133,6 +151,7 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
     out.cameras.push_back({given[i].name, working_camera(given[i].camera, options.height)});
     out.visible.push_back(std::min(1.0, score[i]));
   }
+  out.observers = observers_besides(chosen, score, [&](size_t i) { return given[i]; });
   out.how = fmt::format("given: {} of {} cameras see the region's centre, the {} that see most of it", candidates.size(),
                         given.size(), chosen.size());
   return out;
@@ -194,11 +213,12 @@ ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMas
          "hidden by other splats; give cameras (--scene or --cameras)",
          sphere.centre.x(), sphere.centre.y(), sphere.centre.z(), sphere.radius);
   ChosenCameras out;
-  for (size_t k = 0; k < chosen.size(); ++k) {
-    const size_t i = chosen[k];
-    out.cameras.push_back({fmt::format("auto_{:02d}", i), cameras[i]});
+  auto named = [&](size_t i) { return NamedCamera{fmt::format("auto_{:02d}", i), cameras[i]}; };
+  for (size_t i : chosen) {
+    out.cameras.push_back(named(i));
     out.visible.push_back(score[i]);
   }
+  out.observers = observers_besides(chosen, score, named);
   out.how = fmt::format(
       "automatic: {} cameras on rings around the region (up ({:.3g}, {:.3g}, {:.3g})), the {} that see most of it",
       cameras.size(), up.x(), up.y(), up.z(), chosen.size());

@@ -23,6 +23,9 @@ struct FillCameraOptions {
 struct ChosenCameras {
   std::vector<NamedCamera> cameras;  // at the working size, the reference first
   std::vector<double> visible;       // the region's share of each one's pixels
+  // More cameras that see the region (up to 8, 128 pixels high): with the chosen ones, they
+  // tell what of the surfaces behind the region was seen, and so is no hole.
+  std::vector<NamedCamera> observers;
   std::string how;                   // "given (12 of 40 see the region)", "automatic (...)"
 };
 

@@ -81,27 +81,89 @@ GaussianSet rows(const GaussianSet& g, const torch::Tensor& take) {
   return out;
 }
 
+// A camera's render of the whole scene: what it saw of the surfaces behind the region.
+struct Observer {
+  Camera camera;
+  torch::Tensor depth, alpha;  // (H, W) on the CPU
+};
+
+Observer observe(const GaussianSet& scene, const Camera& camera, torch::Tensor* rgb = nullptr) {
+  const RenderOutput out = render(scene, {camera});
+  if (rgb) *rgb = out.rgb.clamp(0, 1).to(torch::kCPU);
+  return {camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous()};
+}
+
+// Which of the world points (N, 3; float64) the observer saw: in its view, on the surface it drew
+// there (within 3 % of the depth).
+torch::Tensor seen_by(const Observer& o, const torch::Tensor& points) {
+  const Eigen::Matrix4d w2c = o.camera.w2c_opencv();
+  torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) R[r][c] = w2c(r, c);
+    t[r] = w2c(r, 3);
+  }
+  const torch::Tensor p = points.matmul(R.t()) + t;
+  const torch::Tensor z = p.select(1, 2);
+  const Intrinsics& K = o.camera.K;
+  const torch::Tensor u = p.select(1, 0) / z.clamp_min(1e-9) * K.fx + K.cx, v = p.select(1, 1) / z.clamp_min(1e-9) * K.fy + K.cy;
+  const torch::Tensor inside = (z > 0).logical_and(u >= 0).logical_and(v >= 0).logical_and(u < K.width).logical_and(v < K.height);
+  const torch::Tensor ui = u.clamp(0, K.width - 1).to(torch::kLong), vi = v.clamp(0, K.height - 1).to(torch::kLong);
+  const torch::Tensor index = vi * K.width + ui;
+  const torch::Tensor d = o.depth.reshape({-1}).index({index}).to(torch::kFloat64);
+  const torch::Tensor a = o.alpha.reshape({-1}).index({index});
+  return inside.logical_and(a > 0.5).logical_and((d - z).abs() <= 0.03 * z);
+}
+
 struct CameraViews {
   Image before, kept, mask;
   torch::Tensor kept_depth, kept_alpha;  // (H, W) on the CPU, scene units
+  torch::Tensor share;                   // (H, W): the region's share of each pixel
+  Observer whole;                        // the whole scene seen from this camera
 };
 
 // One camera: the whole scene, the scene without the region (the network's input and the
-// depth to align with), and where the region was seen (its share of each pixel, grown 2 px).
+// depth to align with), and the region's share of each pixel.
 CameraViews render_camera(const GaussianSet& scene, const GaussianSet& kept, const GaussianSet& weights,
                           const Camera& camera) {
   CameraViews v;
-  v.before = image_from_hwc(render(scene, {camera}).rgb.clamp(0, 1).to(torch::kCPU));
+  torch::Tensor rgb;
+  v.whole = observe(scene, camera, &rgb);
+  v.before = image_from_hwc(rgb);
   const RenderOutput k = render(kept, {camera});
   v.kept = image_from_hwc(k.rgb.clamp(0, 1).to(torch::kCPU));
   v.kept_depth = k.depth.squeeze(2).to(torch::kCPU).contiguous();
   v.kept_alpha = k.alpha.squeeze(2).to(torch::kCPU).contiguous();
   RenderOptions black;
   black.background = {0.f, 0.f, 0.f};
-  const torch::Tensor share = render(weights, {camera}, black).rgb.select(2, 0).to(torch::kCPU);
-  v.mask = image_from_hwc((share > kHoleShare).to(torch::kFloat32).unsqueeze(2));
-  v.mask = dilate_mask(v.mask, 1, 5);
+  v.share = render(weights, {camera}, black).rgb.select(2, 0).to(torch::kCPU);
   return v;
+}
+
+// The hole in view `self`: where the region was seen and what is behind it now was never seen
+// by any other camera (it lay under or inside the object: a table top under a vase, the inside
+// of what remains), or where nothing is behind it. What other cameras saw behind the region (the
+// floor behind a chair) is right already and stays as the network's input. Grown 2 px.
+Image hole_mask(const CameraViews& self, const std::vector<const Observer*>& others) {
+  const Camera& c = self.whole.camera;
+  const torch::Tensor region = self.share > kHoleShare;
+  torch::Tensor hole = region.logical_and(self.kept_alpha < 0.5);
+  const torch::Tensor pixels = region.logical_and(self.kept_alpha >= 0.5).nonzero();
+  if (pixels.size(0) > 0) {
+    const torch::Tensor v = pixels.select(1, 0).to(torch::kFloat64), u = pixels.select(1, 1).to(torch::kFloat64);
+    const torch::Tensor d = self.kept_depth.index({pixels.select(1, 0), pixels.select(1, 1)}).to(torch::kFloat64);
+    const torch::Tensor local = torch::stack({(u + 0.5 - c.K.cx) / c.K.fx * d, (v + 0.5 - c.K.cy) / c.K.fy * d, d}, 1);
+    const Eigen::Matrix4d c2w = c.w2c_opencv().inverse();
+    torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
+    for (int r = 0; r < 3; ++r) {
+      for (int k = 0; k < 3; ++k) R[r][k] = c2w(r, k);
+      t[r] = c2w(r, 3);
+    }
+    const torch::Tensor world = local.matmul(R.t()) + t;
+    torch::Tensor seen = torch::zeros({pixels.size(0)}, torch::kBool);
+    for (const Observer* o : others) seen = seen.logical_or(seen_by(*o, world));
+    hole.index_put_({pixels.select(1, 0), pixels.select(1, 1)}, seen.logical_not());
+  }
+  return dilate_mask(image_from_hwc(hole.to(torch::kFloat32).unsqueeze(2)), 1, 5);
 }
 
 // The factor that brings the network's depth (normalised units) to the scene's around the hole:
@@ -226,6 +288,15 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
 
   std::vector<CameraViews> views;
   for (const NamedCamera& c : result.cameras.cameras) views.push_back(render_camera(scene, kept, weights, c.camera));
+  std::vector<Observer> extra;
+  for (const NamedCamera& c : result.cameras.observers) extra.push_back(observe(scene, c.camera));
+  for (size_t v = 0; v < views.size(); ++v) {
+    std::vector<const Observer*> others;
+    for (size_t o = 0; o < views.size(); ++o)
+      if (o != v) others.push_back(&views[o].whole);
+    for (const Observer& o : extra) others.push_back(&o);
+    views[v].mask = hole_mask(views[v], others);
+  }
   stages.lap("render views");
 
   if (!options.fill) {

@@ -26,6 +26,7 @@
 #include "data/scene_cameras.h"
 #include "edit/scene_masks.h"
 #include "eval/protocol.h"
+#include "fill/fill.h"
 #include "gaussians/gaussians.h"
 #include "io/image.h"
 #include "io/ply.h"
@@ -195,9 +196,47 @@ struct JobRequest {
   Image region;                    // the uploaded mask, checked against the view
   std::optional<Image> reference;  // the uploaded inpainted reference
   RefineOptions refine = refine_setting("0");
-  // video, eval: the PLY, one the server serves
+  // video, eval: the PLY, one the server serves; fill: the splats to fill (a served file, or a
+  // job's standard PLY), and the region: a box, or `region` drawn on `camera`
   fs::path ply;
+  std::optional<OrientedBox> box;
+  std::optional<Camera> camera;
 };
+
+// The form's `refine`: fast, balanced, best, a time up to 10 minutes or up to 5000 steps.
+std::optional<Refusal> parse_refine(const httplib::Request& req, RefineOptions& refine) {
+  if (!req.has_file("refine")) return std::nullopt;
+  try {
+    refine = refine_setting(req.get_file_value("refine").content);
+  } catch (const Error&) {
+    refine.steps = -1;
+  }
+  if (refine.steps < 0 || refine.steps > 5000 || refine.time_budget_s > 600)
+    return Refusal{400, "refine must be fast, balanced or best, a time up to 10m, or a number of steps up to 5000"};
+  return std::nullopt;
+}
+
+// A camera as the page sends it: {"width", "height", "fx", "fy", "cx", "cy", "c2w": 16 numbers,
+// row-major, OpenGL axes} (the form info() gives the scene's views in).
+std::optional<Camera> camera_of(const std::string& text) {
+  const json j = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object() || !j.contains("c2w") || !j["c2w"].is_array() || j["c2w"].size() != 16) return std::nullopt;
+  Camera c;
+  for (const char* key : {"width", "height", "fx", "fy", "cx", "cy"})
+    if (!j.contains(key) || !j[key].is_number() || !(j[key].get<double>() > 0)) return std::nullopt;
+  c.K.width = j["width"].get<int>();
+  c.K.height = j["height"].get<int>();
+  if (c.K.width < 8 || c.K.height < 8 || c.K.width > 8192 || c.K.height > 8192) return std::nullopt;
+  c.K.fx = j["fx"];
+  c.K.fy = j["fy"];
+  c.K.cx = j["cx"];
+  c.K.cy = j["cy"];
+  for (int k = 0; k < 16; ++k) {
+    if (!j["c2w"][k].is_number() || !std::isfinite(j["c2w"][k].get<double>())) return std::nullopt;
+    c.c2w(k / 4, k % 4) = j["c2w"][k];
+  }
+  return c;
+}
 
 const char* content_type_of(const fs::path& file) {
   const std::string ext = file.extension().string();
@@ -294,6 +333,7 @@ struct WebServer::State {
   json info() const;
   std::optional<Refusal> parse_edit(const httplib::Request& req, JobRequest& edit, const fs::path& dir) const;
   std::optional<Refusal> parse_export(const httplib::Request& req, JobRequest& job) const;
+  std::optional<Refusal> parse_fill(const httplib::Request& req, JobRequest& fill, const fs::path& dir) const;
   // A file a job wrote, from its URL path below /api/jobs/ ("3/gaussians.ply"); empty when
   // it is not one (or leads outside `out`).
   fs::path job_file(const std::string& id, const std::string& relative) const;
@@ -308,6 +348,11 @@ struct WebServer::State {
   json run_eval(const JobRequest& job, const fs::path& dir, int id);
   json run_reconstruction(const fs::path& dir, int id, const std::function<void(const std::string&, double)>& stage,
                           StageTimes& stages, BehindSteps& behind);
+  json run_fill(const JobRequest& fill, const fs::path& dir, int id,
+                const std::function<void(const std::string&, double)>& stage, StageTimes& stages, BehindSteps& behind);
+  // Splats (in the scene's frame) as the page's file now, the downloads in `behind`.
+  json write_cloud_of(std::shared_ptr<const SplatCloud> cloud, const fs::path& dir, int id, StageTimes& stages,
+                      BehindSteps& behind);
   // The prediction's Gaussians as splats: the page's file now, the files in `behind`.
   json write_splats_of(const GaussianSet& gaussians, const fs::path& dir, int id, StageTimes& stages,
                        BehindSteps& behind);
@@ -365,6 +410,7 @@ json WebServer::State::info() const {
                           : json()},
           {"plys", plys},
           {"editing", scene.has_value() && predictor != nullptr},
+          {"filling", predictor != nullptr},
           {"model", predictor ? predictor->describe() : json()},
           {"working_height", options.height}};
 }
@@ -426,16 +472,7 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
     if (mode != "remove" && mode != "insert") return Refusal{400, "mode must be remove or insert"};
     edit.mode = parse_edit_mode(mode);
   }
-  if (req.has_file("refine")) {
-    const std::string text = req.get_file_value("refine").content;
-    try {
-      edit.refine = refine_setting(text);
-    } catch (const Error&) {
-      edit.refine.steps = -1;
-    }
-    if (edit.refine.steps < 0 || edit.refine.steps > 5000 || edit.refine.time_budget_s > 600)
-      return Refusal{400, "refine must be fast, balanced or best, a time up to 10m, or a number of steps up to 5000"};
-  }
+  if (auto r = parse_refine(req, edit.refine)) return r;
 
   // Uploaded images: PNG or JPEG, kept in the job's folder under fixed names and decoded now
   // (a broken file is the request's fault, not the job's); errors name the field, not the file.
@@ -475,6 +512,90 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
   if (run_network && edit.mode == EditMode::Insert && !edit.reference)
     return Refusal{400, "insert needs a reference: the view's photo with the new object painted in"};
   return std::nullopt;
+}
+
+std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req, JobRequest& fill,
+                                                    const fs::path& dir) const {
+  if (!req.is_multipart_form_data()) return Refusal{400, "send multipart/form-data with ply and a box or a camera and mask"};
+  // The splats on screen: a served file, or a job's result read from its standard PLY (exact).
+  const std::string url = exported_url(req);
+  std::smatch m;
+  static const std::regex served(R"(/api/plys/(\d{1,6}))"),
+      job_splats(R"(/api/jobs/(\d{1,8})/gaussians(\.compressed)?\.(ply|spz))");
+  if (std::regex_match(url, m, served) && std::stoul(m[1]) < options.plys.size())
+    fill.ply = options.plys[std::stoul(m[1])];
+  else if (std::regex_match(url, m, job_splats))
+    fill.ply = job_file(m[1], "gaussians.ply");
+  if (fill.ply.empty()) return Refusal{400, fmt::format("ply must be the URL of splats this server serves, not '{}'", url)};
+  if (auto r = parse_refine(req, fill.refine)) return r;
+  if (req.has_file("box")) {
+    try {
+      fill.box = parse_box(req.get_file_value("box").content);
+    } catch (const Error& e) {
+      return Refusal{400, std::string(e.what()).replace(0, 5, "box")};  // "--box" is the CLI's name
+    }
+    return std::nullopt;
+  }
+  if (!req.has_file("camera") || !req.has_file("mask"))
+    return Refusal{400, "give the region: box (cx,cy,cz,sx,sy,sz[,rx,ry,rz]), or camera and mask"};
+  fill.camera = camera_of(req.get_file_value("camera").content);
+  if (!fill.camera)
+    return Refusal{400, "camera: expected {width, height, fx, fy, cx, cy, c2w: 16 numbers}, sizes 8 to 8192 pixels"};
+  const std::string& bytes = req.get_file_value("mask").content;
+  const char* type = image_type(bytes);
+  if (!type) return Refusal{415, "mask: not a PNG or JPEG image"};
+  fs::create_directories(dir);
+  const fs::path file = dir / (std::string("mask.") + type);
+  write_file_atomic(file, bytes);
+  const int w = fill.camera->K.width, h = fill.camera->K.height;
+  try {
+    const ImageInfo info = probe_image(file);
+    if (info.width != w || info.height != h)
+      return Refusal{400, fmt::format("mask: {}x{} pixels, but the camera is {}x{}", info.width, info.height, w, h)};
+    fill.region = read_mask(file);
+  } catch (const std::exception& e) {
+    return Refusal{400, fmt::format("mask: {}", e.what())};
+  }
+  return std::nullopt;
+}
+
+json WebServer::State::run_fill(const JobRequest& fill, const fs::path& dir, int id,
+                                const std::function<void(const std::string&, double)>& stage, StageTimes& stages,
+                                BehindSteps& behind) {
+  stage("reading the splats", 0.05);
+  const SplatCloud cloud = stages.time("read splats", [&] { return read_splats(fill.ply); });
+  FillOptions o;
+  o.scene_name = fill.ply.filename().string();
+  o.box = fill.box;
+  if (scene)
+    for (const View& v : scene->views) o.cameras.push_back({v.name, v.camera});
+  if (fill.camera) {
+    o.cameras.push_back({"page view", *fill.camera});
+    o.stroke_view = "page view";
+    o.stroke = fill.region;
+  }
+  o.camera_options.height = options.height;
+  o.camera_options.views = options.views;
+  if (refine_requested(fill.refine)) {
+    o.refine = fill.refine;
+    int shown = -1;
+    o.refine->progress = [&](const RefineProgress& p) {
+      if (static_cast<int>(p.fraction * 100) == shown) return;
+      shown = static_cast<int>(p.fraction * 100);
+      stage(fmt::format("refining the new splats: {:.0f} s left", p.eta_s), 0.4 + 0.5 * p.fraction);
+    };
+  }
+  stage("removing the region and filling the hole", 0.1);
+  FillResult r = fill_splats(cloud, o, *predictor);
+  stages.merge(r.stages);
+  stages.restart_lap();
+  json report = r.report();
+  write_file_atomic(dir / "fill.json", report.dump(2) + "\n");
+  stage("writing the splats", 0.95);
+  json result = write_cloud_of(std::make_shared<const SplatCloud>(std::move(r.splats)), dir, id, stages, behind);
+  result["fill"] = {{"removed", r.removed}, {"added", r.added}, {"cameras", report["cameras"]["how"]},
+                    {"reference", report["cameras"]["reference"]}, {"report", fmt::format("/api/jobs/{}/fill.json", id)}};
+  return result;
 }
 
 json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int id,
@@ -567,6 +688,13 @@ json WebServer::State::write_splats_of(const GaussianSet& gaussians, const fs::p
   // In the scene's frame, as infer writes them: the downloads line up with the capture.
   auto cloud = std::make_shared<const SplatCloud>(stages.time(
       "gaussians to splats (host)", [&] { return splats_from_gaussians(in_scene_frame(gaussians, normalization)); }));
+  json result = write_cloud_of(cloud, dir, id, stages, behind);
+  result["gaussians"] = gaussians.size();
+  return result;
+}
+
+json WebServer::State::write_cloud_of(std::shared_ptr<const SplatCloud> cloud, const fs::path& dir, int id,
+                                      StageTimes& stages, BehindSteps& behind) {
   auto page = std::make_shared<const std::string>(stages.time(
       std::string("encode ") + kPageSplats, [&] { return encode_compressed_splat_ply(*cloud, dir / kPageSplats); }));
   {
@@ -575,7 +703,7 @@ json WebServer::State::write_splats_of(const GaussianSet& gaussians, const fs::p
     while (page_splats.size() > 2) page_splats.erase(page_splats.begin());
   }
   json result = splat_urls(id);
-  result["gaussians"] = gaussians.size();
+  result["gaussians"] = cloud->size();
   behind.emplace_back("splats", [dir, cloud, page, &stages] { write_splat_files(dir, *page, *cloud, stages); });
   return result;
 }
@@ -698,6 +826,8 @@ void WebServer::State::run_job(JobRequest request, fs::path dir) {
       result = run_eval(request, dir, id);
     } else if (request.kind == "reconstruct") {
       result = run_reconstruction(dir, id, stage, *stages, behind);
+    } else if (request.kind == "fill") {
+      result = run_fill(request, dir, id, stage, *stages, behind);
     } else {
       result = run_edit(request, dir, id, stage, *stages, behind);
     }
@@ -908,14 +1038,14 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
 
   auto start_job = [&s](const std::string& kind) {
     return [&s, kind](const httplib::Request& req, httplib::Response& res) {
-      if (!s.scene) return refuse(res, {400, "the server was started without --scene: nothing to edit"});
-      if ((kind == "masks" || kind == "edit") && !s.predictor)
+      if (!s.scene && kind != "fill") return refuse(res, {400, "the server was started without --scene: nothing to edit"});
+      if ((kind == "masks" || kind == "edit" || kind == "fill") && !s.predictor)
         return refuse(res, {400, "the server was started without a model"});
-      // An export of a job's splats, which that job may still be writing behind its answer.
+      // An export or a fill of a job's splats, which that job may still be writing behind its answer.
       static const std::regex job_url(R"(/api/jobs/(\d{1,8})/.*)");
       std::smatch m;
       const std::string ply = exported_url(req);
-      if ((kind == "video" || kind == "eval") && std::regex_match(ply, m, job_url))
+      if ((kind == "video" || kind == "eval" || kind == "fill") && std::regex_match(ply, m, job_url))
         s.wait_for_files(std::stoi(m[1]), "splats");
       std::lock_guard<std::mutex> lock(s.mutex);
       if (s.job.state == "running")
@@ -926,7 +1056,9 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
       request.kind = kind;
       std::optional<Refusal> refusal;
       try {
-        refusal = kind == "video" || kind == "eval" ? s.parse_export(req, request) : s.parse_edit(req, request, dir);
+        refusal = kind == "video" || kind == "eval" ? s.parse_export(req, request)
+                  : kind == "fill"                     ? s.parse_fill(req, request, dir)
+                                                       : s.parse_edit(req, request, dir);
       } catch (const std::exception& e) {
         refusal = Refusal{400, e.what()};
       }
@@ -939,7 +1071,7 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
       reply(res, 202, {{"job", id}});
     };
   };
-  for (const char* kind : {"masks", "edit", "video", "eval"}) http.Post(std::string("/api/") + kind, start_job(kind));
+  for (const char* kind : {"masks", "edit", "video", "eval", "fill"}) http.Post(std::string("/api/") + kind, start_job(kind));
 
   // Last: nothing after it may throw while the job's thread runs.
   if (s.options.reconstruct_at_start && s.scene && s.predictor && s.options.plys.empty()) {

@@ -13,12 +13,16 @@
 // error and leaves the server running.
 //
 // HTTP API (all JSON unless noted):
-//   GET  /api/info                 scene views and cameras (pose-normalised frame, OpenGL
-//                                  axes, as infer's PLYs), PLYs, the current job
+//   GET  /api/info                 scene views and cameras (the scene's frame, OpenGL axes,
+//                                  as infer's and the jobs' splats), PLYs, the current job
 //   GET  /api/views/<i>/image      view i as PNG (decoded, undistorted); /mask its object mask
 //   GET  /api/plys/<i>             the i-th PLY given at start (?download=1: as an attachment)
 //   POST /api/masks                multipart view, mask[, mode]: propagate one mask (a job)
 //   POST /api/edit                 multipart view, mask[, mode, reference, refine]: edit (a job)
+//   POST /api/fill                 multipart ply=<splats on screen>, box=cx,cy,cz,sx,sy,sz[,rx,ry,rz]
+//                                  or camera=<JSON as info's views> and mask (PNG of the camera's
+//                                  size)[, refine]: remove the region and fill the hole (a job;
+//                                  no scene needed, its cameras used when there is one)
 //   POST /api/video, /api/eval     ply=<a served splat file's URL>: an orbit video (a job), the
 //                                  SPIn-NeRF evaluation on the scene's test views (a job)
 //   GET  /api/job[?wait=<id>]      the current or last job: state, stage, progress, result, and

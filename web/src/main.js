@@ -1,5 +1,6 @@
 // The page of `instainpaint serve`: a Gaussian-splat viewer (three.js + Spark) with the scene's
-// cameras, and a one-mask editor that runs the server's edit jobs.
+// cameras, a one-mask editor that runs the server's edit jobs, and "remove and fill" for the
+// splats on screen (a box with handles, or a stroke on the view on screen).
 //
 // URL parameters: ?ply=<i> shows the i-th PLY given to serve first (or ?ply=/api/jobs/<id>/
 // gaussians.ply, an edit's result); ?view=<i>&exact=1 renders from scene view i with its exact
@@ -7,7 +8,8 @@
 // window.instainpaint exposes the state that tests and measurements read.
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
-import { SparkRenderer, SplatMesh } from "@sparkjsdev/spark";
+import { TransformControls } from "three/examples/jsm/controls/TransformControls.js";
+import { SparkRenderer, SplatEdit, SplatEditRgbaBlendMode, SplatEditSdf, SplatEditSdfType, SplatMesh } from "@sparkjsdev/spark";
 
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -23,9 +25,13 @@ const api = {
   ready: null, // resolves when the first PLY is on screen
   job: null, // the running job's last polled state
   lastRun: null, // the last Run or Preview: {id, state, error, result, seconds (click to splats on screen)}
+  lastFill: null, // the last Fill: the job, and seconds from the click to the filled splats on screen
+  fillBox: null, // the box's centre, size and turn (degrees about x, then y, then z), or null
   showPly,
   jumpToView,
   invalidate,
+  setFillBox,
+  screenPoint,
 };
 window.instainpaint = api;
 
@@ -205,7 +211,10 @@ let beforeUrl = null, afterUrl = null;
 function setActive(which) {
   $("before").classList.toggle("on", which === "before");
   $("after").classList.toggle("on", which === "after");
+  showingBefore = which === "before";
+  updateRegionPreview();
 }
+let showingBefore = true;
 
 function listPlys(plys) {
   const box = $("plys");
@@ -251,7 +260,6 @@ $("after").onclick = async () => {
 // ---- views and the editor ------------------------------------------------------------------
 let selected = -1;
 const paintCanvas = $("paint-canvas");
-const paint = paintCanvas.getContext("2d");
 let erasing = false;
 
 function listViews(views) {
@@ -291,39 +299,45 @@ function selectView(i) {
   paintCanvas.height = view.height;
 }
 
-function canvasPoint(event) {
-  const r = paintCanvas.getBoundingClientRect();
-  return [((event.clientX - r.left) * paintCanvas.width) / r.width, ((event.clientY - r.top) * paintCanvas.height) / r.height];
+// A brush on `canvas`: red strokes of radius radiusOf() canvas pixels, or erasing while
+// erasingNow(); returns the canvas's context.
+function attachBrush(canvas, erasingNow, radiusOf) {
+  const ctx = canvas.getContext("2d");
+  let last = null;
+  const point = (event) => {
+    const r = canvas.getBoundingClientRect();
+    return [((event.clientX - r.left) * canvas.width) / r.width, ((event.clientY - r.top) * canvas.height) / r.height];
+  };
+  const stroke = (event) => {
+    const [x, y] = point(event);
+    const radius = radiusOf();
+    ctx.globalCompositeOperation = erasingNow() ? "destination-out" : "source-over";
+    ctx.strokeStyle = ctx.fillStyle = "#ff0000";
+    ctx.lineWidth = 2 * radius;
+    ctx.lineCap = "round";
+    ctx.beginPath();
+    if (last) {
+      ctx.moveTo(last[0], last[1]);
+      ctx.lineTo(x, y);
+      ctx.stroke();
+    } else {
+      ctx.arc(x, y, radius, 0, 2 * Math.PI);
+      ctx.fill();
+    }
+    last = [x, y];
+  };
+  canvas.addEventListener("pointerdown", (e) => {
+    canvas.setPointerCapture(e.pointerId);
+    last = null;
+    stroke(e);
+  });
+  canvas.addEventListener("pointermove", (e) => {
+    if (e.buttons & 1) stroke(e);
+  });
+  canvas.addEventListener("pointerup", () => (last = null));
+  return ctx;
 }
-
-let last = null;
-function stroke(event) {
-  const [x, y] = canvasPoint(event);
-  const radius = (Number($("size").value) * paintCanvas.width) / 400;
-  paint.globalCompositeOperation = erasing ? "destination-out" : "source-over";
-  paint.strokeStyle = paint.fillStyle = "#ff0000";
-  paint.lineWidth = 2 * radius;
-  paint.lineCap = "round";
-  paint.beginPath();
-  if (last) {
-    paint.moveTo(last[0], last[1]);
-    paint.lineTo(x, y);
-    paint.stroke();
-  } else {
-    paint.arc(x, y, radius, 0, 2 * Math.PI);
-    paint.fill();
-  }
-  last = [x, y];
-}
-paintCanvas.addEventListener("pointerdown", (e) => {
-  paintCanvas.setPointerCapture(e.pointerId);
-  last = null;
-  stroke(e);
-});
-paintCanvas.addEventListener("pointermove", (e) => {
-  if (e.buttons & 1) stroke(e);
-});
-paintCanvas.addEventListener("pointerup", () => (last = null));
+const paint = attachBrush(paintCanvas, () => erasing, () => (Number($("size").value) * paintCanvas.width) / 400);
 $("brush").onclick = () => {
   erasing = false;
   $("brush").classList.add("on");
@@ -357,10 +371,10 @@ function drawMaskInRed(ctx, bitmap, alpha) {
   ctx.putImageData(pixels, 0, 0);
 }
 
-// The painted region as a black and white PNG at the view's size.
-async function maskBlob() {
-  const { width, height } = paintCanvas;
-  const painted = paint.getImageData(0, 0, width, height);
+// The region painted on `canvas` as a black and white PNG at its size.
+async function maskBlob(canvas = paintCanvas) {
+  const { width, height } = canvas;
+  const painted = canvas.getContext("2d").getImageData(0, 0, width, height);
   const out = new OffscreenCanvas(width, height);
   const ctx = out.getContext("2d");
   const pixels = ctx.createImageData(width, height);
@@ -484,6 +498,136 @@ $("eval").onclick = () => runExport("eval");
 $("preview").onclick = () => runJob("/api/masks");
 $("run").onclick = () => runJob("/api/edit");
 
+// ---- remove and fill ------------------------------------------------------------------------
+// The region: a box (three.js transform handles; Spark hides the splats inside at once), or a
+// stroke painted over the view on screen. Fill sends it with the splats on screen to the server.
+let fillMode = null; // "box" | "paint"
+let region = null; // the box: {object (centre, turn, scale = size), gizmo, sdf, edit}
+const fillCanvas = $("fill-canvas");
+const fillPaint = attachBrush(fillCanvas, () => false, () => Math.max(4, fillCanvas.width / 40));
+
+function updateRegionPreview() {
+  if (!region) return;
+  region.sdf.position.copy(region.object.position);
+  region.sdf.quaternion.copy(region.object.quaternion);
+  region.sdf.scale.copy(region.object.scale).multiplyScalar(0.5);  // Spark's box: half sizes
+  region.edit.visible = fillMode === "box" && showingBefore && $("fill-preview").checked;
+  region.object.visible = fillMode === "box" && showingBefore;
+  region.gizmo.enabled = region.object.visible;
+  region.helper.visible = region.object.visible;
+  const { position: p, rotation: r, scale: s } = region.object;
+  api.fillBox = { centre: p.toArray(), size: s.toArray(), turn: [r.x, r.y, r.z].map(THREE.MathUtils.radToDeg) };
+  invalidate();
+}
+
+function makeRegionBox() {
+  const bounds = mesh.getBoundingBox(true);
+  const object = new THREE.Object3D();
+  object.rotation.order = "ZYX";  // turned about x, then y, then z, as the server's box
+  object.position.copy(bounds.getCenter(new THREE.Vector3()));
+  object.scale.copy(bounds.getSize(new THREE.Vector3()).multiplyScalar(0.25));
+  const lines = new THREE.LineSegments(new THREE.EdgesGeometry(new THREE.BoxGeometry(1, 1, 1)),
+    new THREE.LineBasicMaterial({ color: 0xff3300 }));
+  object.add(lines);
+  scene.add(object);
+  const gizmo = new TransformControls(camera, renderer.domElement);
+  gizmo.attach(object);
+  const helper = gizmo.getHelper();
+  scene.add(helper);
+  gizmo.addEventListener("dragging-changed", (e) => controls && (controls.enabled = !e.value));
+  gizmo.addEventListener("objectChange", updateRegionPreview);
+  gizmo.addEventListener("change", () => invalidate());
+  const sdf = new SplatEditSdf({ type: SplatEditSdfType.BOX, opacity: 0 });
+  const edit = new SplatEdit({ rgbaBlendMode: SplatEditRgbaBlendMode.MULTIPLY, sdfs: [sdf] });
+  scene.add(edit);
+  region = { object, gizmo, helper, sdf, edit };
+}
+
+// Places the box (scripts and tests; the handles do the same): centre, full size, turn in degrees.
+function setFillBox(centre, size, turn = [0, 0, 0]) {
+  setFillMode("box");
+  region.object.position.fromArray(centre);
+  region.object.scale.fromArray(size);
+  region.object.rotation.set(...turn.map(THREE.MathUtils.degToRad), "ZYX");
+  updateRegionPreview();
+}
+
+function setFillMode(mode) {
+  fillMode = mode;
+  if (mode === "box" && !region) makeRegionBox();
+  $("fill-box").classList.toggle("on", mode === "box");
+  $("fill-paint").classList.toggle("on", mode === "paint");
+  $("gizmo-modes").hidden = mode !== "box";
+  // Painting holds the camera still: the stroke is drawn on the view on screen.
+  fillCanvas.hidden = mode !== "paint";
+  if (controls) controls.enabled = mode !== "paint";
+  if (mode === "paint") {
+    fillCanvas.width = renderer.domElement.width;
+    fillCanvas.height = renderer.domElement.height;
+    fillCanvas.style.width = renderer.domElement.style.width || `${viewer.clientWidth}px`;
+    fillCanvas.style.height = renderer.domElement.style.height || `${viewer.clientHeight}px`;
+    fillPaint.clearRect(0, 0, fillCanvas.width, fillCanvas.height);
+  }
+  updateRegionPreview();
+}
+$("fill-box").onclick = () => setFillMode(fillMode === "box" ? null : "box");
+$("fill-paint").onclick = () => setFillMode(fillMode === "paint" ? null : "paint");
+$("fill-preview").onchange = updateRegionPreview;
+for (const mode of ["translate", "scale", "rotate"])
+  $(`gizmo-${mode}`).onclick = () => {
+    region?.gizmo.setMode(mode);
+    for (const m of ["translate", "scale", "rotate"]) $(`gizmo-${m}`).classList.toggle("on", m === mode);
+  };
+
+// Where a point of the scene is on screen, in the viewer's CSS pixels (scripts and tests).
+function screenPoint(point) {
+  const v = new THREE.Vector3(...point).project(camera);
+  const r = renderer.domElement.getBoundingClientRect();
+  return [((v.x + 1) / 2) * r.width, ((1 - v.y) / 2) * r.height];
+}
+
+// The view on screen as the server takes cameras (info's form: c2w row-major, OpenGL axes).
+function screenCamera() {
+  const width = fillCanvas.width, height = fillCanvas.height;
+  const fy = height / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov) / 2));
+  camera.updateMatrixWorld(true);
+  return { width, height, fx: fy, fy, cx: width / 2, cy: height / 2, c2w: camera.matrixWorld.clone().transpose().toArray() };
+}
+
+async function runFill() {
+  if (!api.loadedUrl) return status("no splats on screen", true);
+  const form = new FormData();
+  form.append("ply", api.loadedUrl);
+  form.append("refine", $("fill-refine").value);
+  if (fillMode === "box" && region) {
+    const { centre, size, turn } = api.fillBox;
+    form.append("box", [...centre, ...size, ...turn].map((v) => +v.toPrecision(7)).join(","));
+  } else if (fillMode === "paint") {
+    form.append("camera", JSON.stringify(screenCamera()));
+    form.append("mask", await maskBlob(fillCanvas), "mask.png");
+  } else {
+    return status("place a box (box) or paint over the object (paint) first", true);
+  }
+  const clicked = performance.now();
+  const job = await startAndWait("/api/fill", form);
+  if (!job) return;
+  const before = api.loadedUrl;
+  afterUrl = job.result.splats;
+  if (!beforeUrl) beforeUrl = before;
+  setActive("after");
+  await showPly(afterUrl);
+  setDownloads();
+  if (fillMode === "paint") fillPaint.clearRect(0, 0, fillCanvas.width, fillCanvas.height);
+  const seconds = (performance.now() - clicked) / 1000;
+  const f = job.result.fill;
+  api.lastFill = { ...job, clientSeconds: seconds };
+  $("fill-result").innerHTML = `${f.removed} splats removed, ${f.added} added; ${seconds.toFixed(2)} s ` +
+    `(<a href="${f.report}" target="_blank">fill.json</a>)`;
+  status(`job ${job.id} done: filled (${f.cameras})`);
+  showStages(job, { job: performance.now() - clicked, splats: 0, masks: 0 });
+}
+$("fill-run").onclick = runFill;
+
 // ---- start -------------------------------------------------------------------------------
 async function start() {
   const info = await (await fetch("/api/info")).json();
@@ -515,6 +659,8 @@ async function start() {
     setActive("before");
     setDownloads();
   }
+  if (reconstruction?.result?.splats) listPlys([first]);  // not "none given": the scene's own
+  $("fill-panel").hidden = !info.filling || !first;
   const reference = views.findIndex((v) => v.name === reconstruction?.result?.reference_view);
   if (reference >= 0 && !exact) selectView(reference);
   $("hud").textContent = first ? first.name : "no splats: serve --ply FILE, or run an edit";
