@@ -28,33 +28,12 @@ while [ $# -gt 0 ]; do
   esac
 done
 mkdir -p "$WORK"
+here=$(cd "$(dirname "$0")" && pwd)
 say() { echo "measure-fill: $*" >&2; }
 
 say "synthetic rooms (seed $SEED) with their splat scenes"
 [ -d "$WORK/rooms/scene_000" ] || "$BIN" synth --out "$WORK/rooms" --scenes "$ROOMS" --seed "$SEED" --views 24 \
   --test-views 8 --object procedural --save-gaussians --no-depth > "$WORK/synth.log" 2>&1
-
-# The object's box: the bounds of object.ply's splats, 5 % larger each way.
-box_of() {
-  python3 - "$1" <<'EOF'
-import sys, struct
-data = open(sys.argv[1], "rb").read()
-end = data.index(b"end_header\n") + len(b"end_header\n")
-header = data[:end].decode().splitlines()
-n = int([l for l in header if l.startswith("element vertex")][0].split()[-1])
-props = [l.split()[-1] for l in header if l.startswith("property")]
-row = 4 * len(props)
-xyz = [props.index(a) for a in ("x", "y", "z")]
-lo, hi = [1e30] * 3, [-1e30] * 3
-for i in range(n):
-    values = struct.unpack_from("<%df" % len(props), data, end + i * row)
-    for k in range(3):
-        lo[k] = min(lo[k], values[xyz[k]]); hi[k] = max(hi[k], values[xyz[k]])
-c = [(a + b) / 2 for a, b in zip(lo, hi)]
-s = [(b - a) * 1.1 for a, b in zip(lo, hi)]
-print(",".join("%.5g" % v for v in c + s))
-EOF
-}
 
 metric() {  # metric FILE KEY: the mean of KEY in an eval's metrics.json
   python3 -c "import json,sys; v=json.load(open(sys.argv[1]))['mean'].get(sys.argv[2]); print('%.2f' % v if isinstance(v, float) and sys.argv[2].endswith('psnr') else '%.3f' % v if isinstance(v, float) else v)" "$1" "$2"
@@ -69,7 +48,7 @@ for room in "$WORK"/rooms/scene_*; do
   name=$(basename "$room")
   out="$WORK/$name"
   mkdir -p "$out"
-  box=$(box_of "$room/object.ply")
+  box=$(python3 "$here/splat-bounds.py" "$room/object.ply" --grow 1.1)
   common=(--scene "$room" --box "$box" --height 256 --device cpu)
   say "$name: box $box"
   "$BIN" fill "$room/scene.ply" "${common[@]}" --delete-only --out "$out/deleted.ply" > "$out/deleted.log" 2>&1

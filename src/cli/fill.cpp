@@ -10,6 +10,8 @@
 #include "cli/runtime.h"
 #include "common/error.h"
 #include "common/files.h"
+#include "common/stage_times.h"
+#include "common/stopwatch.h"
 #include "data/image_ops.h"
 #include "fill/fill.h"
 #include "io/image.h"
@@ -137,7 +139,9 @@ void run(const FillArgs& a) {
   }
   const Runtime runtime = apply_runtime_options(a.runtime);
   spdlog::info("[1/3] reading {}", a.splats);
+  Stopwatch watch;
   const SplatCloud cloud = read_splats(a.splats);
+  const double read_ms = watch.lap();
   if (!a.selection.empty()) {
     o.selection = read_splats(a.selection);
     o.selection_name = a.selection;
@@ -146,9 +150,18 @@ void run(const FillArgs& a) {
   if (refine_requested(refine)) o.refine = refine;
   spdlog::info("[2/3] removing and filling ({} splats, {} views at {} high)", cloud.size(), a.views, a.height);
   const Predictor predictor(a.checkpoint, runtime.device, runtime.precision);
+  const double load_ms = watch.lap();
   FillResult r = fill_splats(cloud, o, predictor);
   spdlog::info("[3/3] writing {}", a.out);
+  watch.lap();
   write_splats(a.out, r.splats);
+  // The whole command's stages: reading the file and the model, the fill's, writing the result.
+  StageTimes stages;
+  stages.add("read " + fs::path(a.splats).filename().string(), read_ms);
+  stages.add("load the model", load_ms);
+  stages.merge(r.stages);
+  stages.add("write " + fs::path(a.out).filename().string(), watch.lap());
+  r.stages = stages;
   const fs::path report = a.report.empty() ? fs::path(a.out).parent_path() / (fs::path(a.out).stem().string() + "-fill")
                                            : fs::path(a.report);
   write_report(report, a, r);

@@ -32,10 +32,13 @@ GaussianSet region_weight_set(const GaussianSet& scene, const torch::Tensor& in_
   return g;
 }
 
-double region_share(const GaussianSet& weights, const Camera& camera) {
+// The region's share of the camera's pixels; `sights` (optional) keeps what the camera saw.
+double region_share(const GaussianSet& weights, const Camera& camera, std::vector<Sight>* sights = nullptr) {
   RenderOptions black;
   black.background = {0.f, 0.f, 0.f};
   const RenderOutput out = render(weights, {camera}, black);
+  if (sights)
+    sights->push_back({camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous()});
   return out.rgb.select(2, 0).mean().item<double>();
 }
 
@@ -85,9 +88,15 @@ std::vector<size_t> pick_views(const std::vector<double>& score, const std::vect
   return chosen;
 }
 
-// The 8 best-scoring cameras besides `chosen` that see the region, 128 pixels high.
+Camera working_camera(const Camera& camera, int height) {
+  PreprocessOptions p;
+  p.height = height;
+  return working_size(camera.K.width, camera.K.height, p).working_camera(camera);
+}
+
+// The 8 best-scoring cameras besides `chosen` that see the region, at the working height.
 std::vector<NamedCamera> observers_besides(const std::vector<size_t>& chosen, const std::vector<double>& score,
-                                           const std::function<NamedCamera(size_t)>& camera) {
+                                           const std::function<NamedCamera(size_t)>& camera, int height) {
   std::vector<size_t> order(score.size());
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return score[a] > score[b]; });
@@ -96,17 +105,12 @@ std::vector<NamedCamera> observers_besides(const std::vector<size_t>& chosen, co
     if (score[i] <= 0 || out.size() == 8) break;
     if (std::find(chosen.begin(), chosen.end(), i) != chosen.end()) continue;
     NamedCamera c = camera(i);
-    c.camera = c.camera.resized(std::max(8, c.camera.K.width * 128 / std::max(1, c.camera.K.height)), 128);
+    c.camera = working_camera(c.camera, height);
     out.push_back(std::move(c));
   }
   return out;
 }
 
-Camera working_camera(const Camera& camera, int height) {
-  PreprocessOptions p;
-  p.height = height;
-  return working_size(camera.K.width, camera.K.height, p).working_camera(camera);
-}
 
 }  // namespace
 
@@ -132,7 +136,8 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
   std::vector<double> score(given.size(), 0.0);
   std::vector<Camera> cameras;
   for (const NamedCamera& c : given) cameras.push_back(c.camera);
-  for (size_t i : candidates) score[i] = region_share(weights, small(given[i].camera));
+  std::vector<Sight> sights;
+  for (size_t i : candidates) score[i] = region_share(weights, small(given[i].camera), &sights);
   if (!options.reference.empty()) {
     const auto named = std::find_if(given.begin(), given.end(), [&](const NamedCamera& c) { return c.name == options.reference; });
     if (named == given.end()) fail("--reference-view {}: no camera of that name", options.reference);
@@ -151,7 +156,8 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
     out.cameras.push_back({given[i].name, working_camera(given[i].camera, options.height)});
     out.visible.push_back(std::min(1.0, score[i]));
   }
-  out.observers = observers_besides(chosen, score, [&](size_t i) { return given[i]; });
+  out.observers = observers_besides(chosen, score, [&](size_t i) { return given[i]; }, options.height);
+  out.sights = std::move(sights);
   out.how = fmt::format("given: {} of {} cameras see the region's centre, the {} that see most of it", candidates.size(),
                         given.size(), chosen.size());
   return out;
@@ -196,6 +202,7 @@ ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMas
                                             50 * M_PI / 180);
   std::vector<Camera> cameras;
   std::vector<double> score;
+  std::vector<Sight> sights;
   for (double distance : {4.0, 7.0})
     for (double elevation : {10.0, 30.0, 50.0})
       for (int azimuth = 0; azimuth < 360; azimuth += 30) {
@@ -205,7 +212,7 @@ ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMas
         c.K = K;
         c.c2w = look_at(sphere.centre + distance * sphere.radius * dir, sphere.centre, up);
         cameras.push_back(c);
-        score.push_back(region_share(weights, small(c)) * (distance == 4.0 ? 1.0 : 0.999));
+        score.push_back(region_share(weights, small(c), &sights) * (distance == 4.0 ? 1.0 : 0.999));
       }
   const std::vector<size_t> chosen = pick_views(score, cameras, sphere.centre, options.views, 12, 60);
   if (chosen.empty())
@@ -218,7 +225,8 @@ ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMas
     out.cameras.push_back(named(i));
     out.visible.push_back(score[i]);
   }
-  out.observers = observers_besides(chosen, score, named);
+  out.observers = observers_besides(chosen, score, named, options.height);
+  out.sights = std::move(sights);
   out.how = fmt::format(
       "automatic: {} cameras on rings around the region (up ({:.3g}, {:.3g}, {:.3g})), the {} that see most of it",
       cameras.size(), up.x(), up.y(), up.z(), chosen.size());

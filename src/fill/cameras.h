@@ -8,6 +8,7 @@
 
 #include "camera/trajectory.h"
 #include "fill/region.h"
+#include "common/torch.h"
 #include "gaussians/gaussians.h"
 
 namespace ii {
@@ -20,12 +21,21 @@ struct FillCameraOptions {
   Eigen::Vector3d up = Eigen::Vector3d::Zero();
 };
 
+// A camera's small render of the whole scene: where it saw the surfaces behind the region.
+struct Sight {
+  Camera camera;
+  torch::Tensor depth, alpha;  // (H, W) float32 on the CPU
+};
+
 struct ChosenCameras {
   std::vector<NamedCamera> cameras;  // at the working size, the reference first
   std::vector<double> visible;       // the region's share of each one's pixels
-  // More cameras that see the region (up to 8, 128 pixels high): with the chosen ones, they
-  // tell what of the surfaces behind the region was seen, and so is no hole.
+  // More cameras that see the region (up to 8, at the working size): with the chosen ones, they
+  // tell what of the surfaces behind the region was seen, and so is no hole; refinement looks
+  // through them too.
   std::vector<NamedCamera> observers;
+  // Every camera scored (64 pixels high): what they saw of the scene is no hole.
+  std::vector<Sight> sights;
   std::string how;                   // "given (12 of 40 see the region)", "automatic (...)"
 };
 

@@ -47,6 +47,7 @@ struct FillOptions {
 struct FillResult {
   SplatCloud splats;                   // kept splats as they were, then the new ones
   int64_t total = 0, removed = 0, added = 0;
+  int64_t dropped = 0;  // the network's splats of hole pixels left out: they would hide what another view saw
   ChosenCameras cameras;               // at the working size, the reference first
   std::vector<Image> before, deleted, after, masks;  // per camera: renders, and where the region was
   Image reference;                     // the inpainted reference the network saw

@@ -23,6 +23,7 @@
 #include "common/parallel.h"
 #include "common/stage_times.h"
 #include "common/stopwatch.h"
+#include "camera/trajectory.h"
 #include "data/scene_cameras.h"
 #include "edit/scene_masks.h"
 #include "eval/protocol.h"
@@ -216,33 +217,12 @@ std::optional<Refusal> parse_refine(const httplib::Request& req, RefineOptions& 
   return std::nullopt;
 }
 
-// A camera as the page sends it: {"width", "height", "fx", "fy", "cx", "cy", "c2w": 16 numbers,
-// row-major, OpenGL axes} (the form info() gives the scene's views in).
-std::optional<Camera> camera_of(const std::string& text) {
-  const json j = json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (!j.is_object() || !j.contains("c2w") || !j["c2w"].is_array() || j["c2w"].size() != 16) return std::nullopt;
-  Camera c;
-  for (const char* key : {"width", "height", "fx", "fy", "cx", "cy"})
-    if (!j.contains(key) || !j[key].is_number() || !(j[key].get<double>() > 0)) return std::nullopt;
-  c.K.width = j["width"].get<int>();
-  c.K.height = j["height"].get<int>();
-  if (c.K.width < 8 || c.K.height < 8 || c.K.width > 8192 || c.K.height > 8192) return std::nullopt;
-  c.K.fx = j["fx"];
-  c.K.fy = j["fy"];
-  c.K.cx = j["cx"];
-  c.K.cy = j["cy"];
-  for (int k = 0; k < 16; ++k) {
-    if (!j["c2w"][k].is_number() || !std::isfinite(j["c2w"][k].get<double>())) return std::nullopt;
-    c.c2w(k / 4, k % 4) = j["c2w"][k];
-  }
-  return c;
-}
-
 const char* content_type_of(const fs::path& file) {
   const std::string ext = file.extension().string();
   if (ext == ".png") return "image/png";
   if (ext == ".html") return "text/html; charset=utf-8";
   if (ext == ".mp4") return "video/mp4";
+  if (ext == ".json") return "application/json";
   return "application/octet-stream";
 }
 
@@ -538,16 +518,26 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
   }
   if (!req.has_file("camera") || !req.has_file("mask"))
     return Refusal{400, "give the region: box (cx,cy,cz,sx,sy,sz[,rx,ry,rz]), or camera and mask"};
-  fill.camera = camera_of(req.get_file_value("camera").content);
-  if (!fill.camera)
-    return Refusal{400, "camera: expected {width, height, fx, fy, cx, cy, c2w: 16 numbers}, sizes 8 to 8192 pixels"};
+  // The camera in the camera-list JSON (camera/trajectory.h), read by that list's reader.
+  fs::create_directories(dir);
+  write_file_atomic(dir / "camera.json", req.get_file_value("camera").content);
+  try {
+    const std::vector<NamedCamera> cameras = read_camera_json(dir / "camera.json");
+    if (cameras.size() != 1) return Refusal{400, "camera: give one camera"};
+    fill.camera = cameras[0].camera;
+  } catch (const Error& e) {
+    std::string what = e.what();
+    const std::string file = (dir / "camera.json").string() + ": ";
+    if (what.rfind(file, 0) == 0) what.erase(0, file.size());
+    return Refusal{400, "camera: " + what};
+  }
+  const int w = fill.camera->K.width, h = fill.camera->K.height;
+  if (w > 8192 || h > 8192) return Refusal{400, fmt::format("camera: {}x{} pixels, at most 8192 each way", w, h)};
   const std::string& bytes = req.get_file_value("mask").content;
   const char* type = image_type(bytes);
   if (!type) return Refusal{415, "mask: not a PNG or JPEG image"};
-  fs::create_directories(dir);
   const fs::path file = dir / (std::string("mask.") + type);
   write_file_atomic(file, bytes);
-  const int w = fill.camera->K.width, h = fill.camera->K.height;
   try {
     const ImageInfo info = probe_image(file);
     if (info.width != w || info.height != h)
@@ -1004,7 +994,7 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
     send_file(req, res, s.options.plys[index], "application/octet-stream");
   });
   // What jobs wrote: their PLY, masks, video and evaluation report (with its sheets and renders).
-  http.Get(R"(/api/jobs/(\d{1,8})/(gaussians\.(?:ply|spz|compressed\.ply)|masks/\d{1,6}\.png|orbit\.mp4|eval/report\.html|eval/(sheets|renders)/[^/]+\.png))",
+  http.Get(R"(/api/jobs/(\d{1,8})/(gaussians\.(?:ply|spz|compressed\.ply)|masks/\d{1,6}\.png|orbit\.mp4|fill\.json|eval/report\.html|eval/(sheets|renders)/[^/]+\.png))",
            [&s](const httplib::Request& req, httplib::Response& res) {
              const int id = std::stoi(req.matches[1]);
              if (req.matches[2] == kPageSplats) {

@@ -20,8 +20,8 @@
 //   POST /api/masks                multipart view, mask[, mode]: propagate one mask (a job)
 //   POST /api/edit                 multipart view, mask[, mode, reference, refine]: edit (a job)
 //   POST /api/fill                 multipart ply=<splats on screen>, box=cx,cy,cz,sx,sy,sz[,rx,ry,rz]
-//                                  or camera=<JSON as info's views> and mask (PNG of the camera's
-//                                  size)[, refine]: remove the region and fill the hole (a job;
+//                                  or camera=<a camera list of one (render --cameras' JSON)> and
+//                                  mask (PNG of the camera's size)[, refine]: remove the region and fill the hole (a job;
 //                                  no scene needed, its cameras used when there is one)
 //   POST /api/video, /api/eval     ply=<a served splat file's URL>: an orbit video (a job), the
 //                                  SPIn-NeRF evaluation on the scene's test views (a job)

@@ -2,6 +2,7 @@
 // (with the SPIn-NeRF label folders), the camera-list JSON, and a mask folder.
 #include <fmt/format.h>
 
+#include "camera/box.h"
 #include "camera/trajectory.h"
 #include "common/error.h"
 #include "data/scene.h"
@@ -119,6 +120,17 @@ const bool camera_json = register_target({
       const fs::path path = scratch_dir() / "cameras.json";
       write_file(path, data, size);
       read_camera_json(path);
+    }});
+
+// ---- a box (fill --box, the page's box) ------------------------------------------------------
+
+const bool box = register_target({
+    "box",
+    [] { return std::vector<std::string>{"0,0.2,0,0.5,0.4,0.5", "1,-2,3e2,1,1,1,0,45.5,-90"}; },
+    [](const uint8_t* data, size_t size) {
+      const OrientedBox b = parse_box(std::string(reinterpret_cast<const char*>(data), size));
+      b.contains(Eigen::Vector3d::Zero());
+      b.describe();
     }});
 
 // ---- a mask folder ------------------------------------------------------------------------

@@ -10,6 +10,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include "camera/trajectory.h"
 #include "io/image.h"
 #include "io/ply.h"
 #include "io/splat_file.h"
@@ -469,6 +470,78 @@ TEST(Serve, OrbitVideoAndEvaluationReportOfAServedPly) {
     EXPECT_EQ(json::parse(r->body)["error"],
               std::string("ply must be the URL of a PLY this server serves, not '") + bad + "'");
   }
+}
+
+// Splats alone (serve --splats FILE): a box removes the object and fills the hole; the result
+// can be filled again with a stroke on a camera; bad regions are refused with the reason.
+TEST(Serve, FillOnSplatsAlone) {
+  static const fs::path dir = [] {
+    synth::SynthOptions so;
+    so.views = 4;
+    so.test_views = 1;
+    so.width = 48;
+    so.height = 40;
+    so.object = synth::ObjectSource::procedural;
+    const fs::path d = test::temp_dir("serve-fill") / "room";
+    synth::SynthWriteOptions wo;
+    wo.save_gaussians = true;
+    wo.write_depth = false;
+    synth::write_synth_scene(synth::generate_scene(so, 7), d, wo);
+    return d;
+  }();
+  ServeOptions o;
+  o.plys = {dir / "scene.ply"};
+  o.height = 40;
+  o.views = 2;
+  o.out = test::temp_dir("serve-fill-out");
+  RunningServer s(o);
+  EXPECT_TRUE(json::parse(s.client->Get("/api/info")->body)["filling"]);
+  const json bounds = json::parse(test::file_bytes(dir / "synth.json"))["object_bounds"];
+  const double r = 2.2 * bounds["radius"].get<double>();
+  const std::string box = fmt::format("{},{},{},{},{},{}", bounds["centre"][0].get<double>(), bounds["centre"][1].get<double>(),
+                                      bounds["centre"][2].get<double>(), r, r, r);
+  auto r1 = s.client->Post("/api/fill", httplib::MultipartFormDataItems{{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}});
+  ASSERT_EQ(r1->status, 202) << r1->body;
+  json job = s.finished_job();
+  ASSERT_EQ(job["state"], "done") << job;
+  EXPECT_EQ(job["kind"], "fill");
+  EXPECT_GT(job["result"]["fill"]["removed"].get<int>(), 0);
+  EXPECT_GT(job["result"]["fill"]["added"].get<int>(), 0);
+  const std::string filled = job["result"]["splats"];
+  const auto report = s.client->Get(job["result"]["fill"]["report"].get<std::string>());
+  ASSERT_EQ(report->status, 200);
+  EXPECT_EQ(json::parse(report->body)["splats"]["removed"], job["result"]["fill"]["removed"]);
+  const size_t output = json::parse(report->body)["splats"]["output"];
+  EXPECT_EQ(read_splats(s.out / "jobs" / std::to_string(job["id"].get<int>()) / "gaussians.ply").size(), output);
+
+  // Again on the result, with a stroke over the view of the first camera: the object's mask there.
+  const std::vector<NamedCamera> cameras = read_camera_json(dir / "cameras.json");
+  const NamedCamera& view = cameras.back();
+  write_camera_json(o.out / "one.json", {view});
+  const std::string camera = test::file_bytes(o.out / "one.json");
+  const std::string mask = test::file_bytes(dir / "images_4" / "label" / (view.name + ".png"));
+  auto r2 = s.client->Post("/api/fill", httplib::MultipartFormDataItems{
+      {"ply", filled, "", ""}, {"camera", camera, "", ""}, {"mask", mask, "mask.png", "image/png"}});
+  ASSERT_EQ(r2->status, 202) << r2->body;
+  job = s.finished_job();
+  EXPECT_EQ(job["state"], "done") << job;
+
+  auto post = [&](httplib::MultipartFormDataItems items) { return s.client->Post("/api/fill", items); };
+  EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", "1,2", "", ""}})),
+            "box '1,2': 2 numbers, expected 6 (centre, size) or 9 (centre, size, rotation in degrees)");
+  EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}})),
+            "give the region: box (cx,cy,cz,sx,sy,sz[,rx,ry,rz]), or camera and mask");
+  EXPECT_EQ(error_of(post({{"ply", "/etc/passwd", "", ""}, {"box", box, "", ""}})),
+            "ply must be the URL of splats this server serves, not '/etc/passwd'");
+  EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""},
+                           {"mask", test::file_bytes(dir / "images_4" / "label" / "test_000.png").substr(0, 10), "m.png", ""}})),
+            "mask: not a PNG or JPEG image");
+  write_png(o.out / "small.png", Image(10, 10, 1, 1.f));
+  EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""},
+                           {"mask", test::file_bytes(o.out / "small.png"), "m.png", ""}})),
+            fmt::format("mask: 10x10 pixels, but the camera is {}x{}", view.camera.K.width, view.camera.K.height));
+  EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"camera", "{", "", ""},
+                           {"mask", mask, "m.png", ""}})).rfind("camera: ", 0), 0u);
 }
 
 TEST(Serve, WithoutASceneItOnlyShows) {

@@ -586,12 +586,14 @@ function screenPoint(point) {
   return [((v.x + 1) / 2) * r.width, ((1 - v.y) / 2) * r.height];
 }
 
-// The view on screen as the server takes cameras (info's form: c2w row-major, OpenGL axes).
+// The view on screen as a camera list of one (render --cameras' JSON: c2w rows, OpenGL axes).
 function screenCamera() {
   const width = fillCanvas.width, height = fillCanvas.height;
   const fy = height / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov) / 2));
   camera.updateMatrixWorld(true);
-  return { width, height, fx: fy, fy, cx: width / 2, cy: height / 2, c2w: camera.matrixWorld.clone().transpose().toArray() };
+  const m = camera.matrixWorld.clone().transpose().toArray();
+  const c2w = [0, 4, 8, 12].map((k) => m.slice(k, k + 4));
+  return { convention: "opengl", cameras: [{ name: "page view", width, height, fx: fy, fy, cx: width / 2, cy: height / 2, c2w }] };
 }
 
 async function runFill() {
