@@ -2,7 +2,7 @@
 # Compressed splat formats against the float PLY (issue 32), for splat PLYs that `infer` wrote:
 # each converted to SPZ, SOG and compressed PLY (`instainpaint convert`: write time), converted
 # back (read time), its bytes per Gaussian and ratio to the PLY, and the PSNR of its renders
-# against the PLY's renders from every camera of the PLY's scene (`render --normalize`).
+# against the PLY's renders from every camera of the PLY's scene (`render --scene`: infer writes the scene's frame).
 #
 #   scripts/measure-splat-formats.sh [--bin build/instainpaint] [--out splat-formats] PLY=SCENE ...
 #   e.g. scripts/measure-splat-formats.sh demo-out/inpainted/gaussians.ply=demo-out/data/scene_000
@@ -39,7 +39,7 @@ for case in "${CASES[@]}"; do
   name=$(basename "$(dirname "$ply")")-$(basename "$ply" .ply)
   work="$OUT/$name"
   mkdir -p "$work"
-  "$BIN" render --splats "$ply" --scene "$scene" --normalize --no-video --out "$work/render-ply" > "$work/render-ply.log" 2>&1
+  "$BIN" render --splats "$ply" --scene "$scene" --no-video --out "$work/render-ply" > "$work/render-ply.log" 2>&1
   ply_bytes=$(stat -c %s "$ply")
   for format in spz sog compressed.ply; do
     file="$work/gaussians.$format"
@@ -50,7 +50,7 @@ for case in "${CASES[@]}"; do
     read_ms=$(sed -n 's/.*; read \([0-9.]*\) ms.*/\1/p' "$work/read-$format.log")
     splats=$(sed -n 's/.*(\([0-9]*\) splats.*/\1/p' "$work/write-$format.log")
     bytes=$(stat -c %s "$file")
-    "$BIN" render --splats "$file" --scene "$scene" --normalize --no-video --out "$work/render-$format" > "$work/render-$format.log" 2>&1
+    "$BIN" render --splats "$file" --scene "$scene" --no-video --out "$work/render-$format" > "$work/render-$format.log" 2>&1
     quality=$(psnr "$work/render-ply/rgb" "$work/render-$format/rgb")
     row=$(python3 -c "print(f'$ply\t$format\t$splats\t{$bytes / $splats:.1f}\t{$ply_bytes / $bytes:.2f}\t$write_ms\t$read_ms')")
     printf '%s\t%s\n' "$row" "$quality" | tee -a "$OUT/results.tsv"

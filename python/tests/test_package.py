@@ -91,8 +91,13 @@ def test_render_of_a_saved_and_reloaded_prediction(tmp_path, statue, predictor):
     g.save(tmp_path / "g.ply")
     loaded = ii.load_gaussians(tmp_path / "g.ply")
     assert len(loaded) == len(g) and loaded.context == []
-    # The file holds the prediction's frame; a loaded set renders the same from that frame's camera.
-    np.testing.assert_allclose(loaded.means, g.means, atol=1e-6)
+    # The file holds the scene's frame (the prediction's arrays are in the network's): loaded, it
+    # renders the same from the scene's camera.
+    mean, scale = g._g._normalization
+    np.testing.assert_allclose(loaded.means, g.means * scale + np.array(mean), rtol=1e-5, atol=1e-5 * scale)
+    np.testing.assert_allclose(loaded.render(camera), rgb, atol=2e-3)
+    g.save(tmp_path / "n.ply", normalized=True)
+    np.testing.assert_allclose(ii.load_gaussians(tmp_path / "n.ply").means, g.means, atol=1e-6)
 
 
 def test_bad_arguments_raise_clear_errors(tmp_path, statue, predictor):
