@@ -41,20 +41,23 @@ open(out, "wb").write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBB
 EOF
 }
 
-# scene, the view to draw on, its mask, the held-out views to look from
+# scene, the view to draw on, its mask, what to look from: "--hold-out-every 8 --test-views" (held-out
+# views, a scene with masks) or "--views A,B" (input views: a scene without masks holds none out)
 fill_scene() {
-  local name=$1 scene=$2 view=$3 mask=$4
+  local name=$1 scene=$2 view=$3 mask=$4 look=$5
+  local hold=""
+  case "$look" in --hold-out-every*) hold="--hold-out-every 8" ;; esac
   local out="$WORK/$name"
   mkdir -p "$out"
   say "$name: the capture refined into splats, object kept ($REFINE)"
-  [ -f "$out/scene/gaussians.ply" ] || "$BIN" infer --scene "$scene" --keep-object --hold-out-every 8 --height "$HEIGHT" \
+  [ -f "$out/scene/gaussians.ply" ] || "$BIN" infer --scene "$scene" --keep-object $hold --height "$HEIGHT" \
     --refine "$REFINE" --out "$out/scene" > "$out/infer.log" 2>&1
   say "$name: one stroke on $view, removed and filled"
   "$BIN" fill "$out/scene/gaussians.ply" --scene "$scene" --view "$view" --mask "$mask" --height "$HEIGHT" \
     --out "$out/filled.ply" > "$out/fill.log" 2>&1
   tail -1 "$out/fill.log"
   for ply in scene/gaussians filled; do
-    "$BIN" render --ply "$out/$ply.ply" --scene "$scene" --hold-out-every 8 --test-views --height "$HEIGHT" --no-video \
+    "$BIN" render --ply "$out/$ply.ply" --scene "$scene" $look --height "$HEIGHT" --no-video \
       --out "$out/held-out-$(basename $ply)" > /dev/null 2>&1
   done
   "$BIN" render --ply "$out/filled.ply" --scene "$scene" --trajectory orbit --frames 48 --height "$HEIGHT" \
@@ -73,8 +76,8 @@ fill_scene() {
 }
 
 statue="$SHARED/data/statue"
-fill_scene statue "$statue" IMG_2712 "$statue/images_2/label/IMG_2712.png"
+fill_scene statue "$statue" IMG_2712 "$statue/images_2/label/IMG_2712.png" "--hold-out-every 8 --test-views"
 fern="$SHARED/data/fern"
 first=$(ls "$fern"/images_8/*.png | sed -n 5p)
 disk_mask "$first" "$WORK/fern-stroke.png" 0.42 0.45 0.12
-fill_scene fern "$fern" "$(basename "$first" .png)" "$WORK/fern-stroke.png"
+fill_scene fern "$fern" "$(basename "$first" .png)" "$WORK/fern-stroke.png" "--views image008,image016"

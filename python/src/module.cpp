@@ -372,7 +372,7 @@ NB_MODULE(_core, m) {
         [](const PyGaussians& g, const std::optional<std::vector<double>>& box, const PyGaussians* selection,
            const std::string& view, const nb::object& mask, const std::map<std::string, Camera>& cameras,
            const nb::object& reference, const std::string& reference_view, int views, int height,
-           const std::optional<std::vector<double>>& up, const std::string& refine, bool reference_only,
+           const std::optional<std::vector<double>>& up, const std::string& refine, bool all_views,
            const Predictor& predictor) {
           FillOptions o;
           o.scene_name = "the Gaussians";
@@ -399,7 +399,7 @@ NB_MODULE(_core, m) {
             if (up->size() != 3) fail("fill: up= takes 3 numbers, got {}", up->size());
             o.camera_options.up = {(*up)[0], (*up)[1], (*up)[2]};
           }
-          o.reference_only = reference_only;
+          o.reference_only = !all_views;
           const RefineOptions r = refine_setting(refine.empty() ? "0" : refine);
           if (refine_requested(r)) o.refine = r;
           PyGaussians out;
@@ -413,7 +413,7 @@ NB_MODULE(_core, m) {
         },
         "gaussians"_a, "box"_a.none(), "selection"_a.none(), "view"_a, "mask"_a.none(), "cameras"_a,
         "reference"_a.none(), "reference_view"_a, "views"_a, "height"_a, "up"_a.none(), "refine"_a,
-        "reference_only"_a, "predictor"_a);
+        "all_views"_a, "predictor"_a);
 
   m.def("_read_splats", [](const std::string& path) {
     PyGaussians g;

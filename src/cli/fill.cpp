@@ -40,7 +40,7 @@ struct FillArgs {
   std::string checkpoint;
   int views = 4;
   int height = 256;
-  bool reference_only = false;
+  bool all_views = false;
   bool delete_only = false;
   RefineArgs refine;
   RuntimeOptions runtime;
@@ -124,7 +124,7 @@ void run(const FillArgs& a) {
   o.camera_options.height = a.height;
   o.camera_options.reference = a.reference_view;
   if (!a.up.empty()) o.camera_options.up = parse_up(a.up);
-  o.reference_only = a.reference_only;
+  o.reference_only = !a.all_views;
   o.fill = !a.delete_only;
   if (!a.box.empty()) o.box = parse_box(a.box);
   o.cameras = given_cameras(a);
@@ -201,7 +201,8 @@ void add_fill_command(CLI::App& app) {
                                                           "most of the region)");
   cmd->add_option("--views", a->views, "Views the network reads")->capture_default_str();
   cmd->add_option("--height", a->height, "Working height of the views (a multiple of 8)")->capture_default_str();
-  cmd->add_flag("--reference-only", a->reference_only, "New splats from the reference view's hole alone");
+  cmd->add_flag("--all-views", a->all_views, "New splats from every chosen view's hole (default: the reference's, "
+                                             "where the inpainted picture is)");
   cmd->add_flag("--delete-only", a->delete_only, "Remove the region and add nothing (to compare with the fill)");
   cmd->add_option("--checkpoint", a->checkpoint, "Model (.pth or safetensors; default: the built-in model)");
   add_refine_options(cmd, a->refine);

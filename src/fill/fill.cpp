@@ -306,78 +306,61 @@ nlohmann::json FillResult::report() const {
   return j;
 }
 
-FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, const Predictor& predictor) {
-  FillResult result;
-  StageTimes& stages = result.stages;
-  check_splats_finite(cloud, options.scene_name);
-  const RegionMask region = choose_region(cloud, options);
-  result.total = static_cast<int64_t>(cloud.size());
-  result.removed = region_count(region);
-  result.region_how = options.box ? "box: " + options.box->describe()
-                      : options.selection ? "selection: the splats missing from " + options.selection_name
-                                          : "mask on view " + options.stroke_view;
-  stages.lap("select region");
+namespace {
 
-  torch::NoGradGuard no_grad;
-  const torch::Device device = render_device(predictor.device());
-  const GaussianSet scene = gaussians_from_splats(cloud, 3).to(device);
+// The scene as the renderer draws it: all of it, without the region, and the region's weight
+// (white on black: a render's red channel is the region's share of each pixel).
+struct SceneSets {
+  GaussianSet scene, kept, weights;
+};
+
+SceneSets scene_sets(const SplatCloud& cloud, const RegionMask& region, const torch::Device& device) {
+  SceneSets s;
+  s.scene = gaussians_from_splats(cloud, 3).to(device);
   std::vector<uint8_t> flags(region.begin(), region.end());
   const torch::Tensor in_region =
       torch::from_blob(flags.data(), {static_cast<int64_t>(flags.size())}, torch::kUInt8).to(torch::kBool).to(device);
-  const GaussianSet kept = rows(scene, in_region.logical_not());
-  GaussianSet weights = scene;
-  weights.colors = in_region.to(torch::kFloat32).unsqueeze(1).expand({scene.size(), 3}).contiguous();
-  weights.sh_degree = -1;
-  stages.lap("splats to Gaussians");
+  s.kept = rows(s.scene, in_region.logical_not());
+  s.weights = s.scene;
+  s.weights.colors = in_region.to(torch::kFloat32).unsqueeze(1).expand({s.scene.size(), 3}).contiguous();
+  s.weights.sh_degree = -1;
+  return s;
+}
 
-  FillCameraOptions camera_options = options.camera_options;
-  if (options.cameras.empty() && camera_options.up.norm() == 0) camera_options.up = guess_up(cloud, region);
-  result.cameras = options.cameras.empty() ? choose_automatic_cameras(scene, region, camera_options)
-                                           : choose_given_cameras(scene, region, options.cameras, camera_options);
-  stages.lap("choose cameras");
-
+// Every chosen camera's renders and its hole; `extra` gets the observers' whole renders at the
+// working size when a refinement will look through them (else their small renders among the
+// sights tell what they saw: 8 renders fewer, a second of a 0.7 M-splat fill).
+std::vector<CameraViews> render_views(const SceneSets& sets, const ChosenCameras& cameras, bool refining,
+                                      std::vector<Observer>& extra) {
   std::vector<CameraViews> views;
-  for (const NamedCamera& c : result.cameras.cameras) views.push_back(render_camera(scene, kept, weights, c.camera));
-  // The observers at the working size supervise a refinement; without one, their small renders
-  // among the sights tell what they saw (8 renders fewer: a second of a 0.7 M-splat fill).
-  std::vector<Observer> extra;
-  if (options.refine)
-    for (const NamedCamera& c : result.cameras.observers) extra.push_back(observe(scene, c.camera));
+  for (const NamedCamera& c : cameras.cameras) views.push_back(render_camera(sets.scene, sets.kept, sets.weights, c.camera));
+  if (refining)
+    for (const NamedCamera& c : cameras.observers) extra.push_back(observe(sets.scene, c.camera));
   for (size_t v = 0; v < views.size(); ++v) {
     std::vector<const Observer*> others;
     for (size_t o = 0; o < views.size(); ++o)
       if (o != v) others.push_back(&views[o].whole);
     for (const Observer& o : extra) others.push_back(&o);
-    for (const Observer& o : result.cameras.sights) others.push_back(&o);
+    for (const Observer& o : cameras.sights) others.push_back(&o);
     views[v].mask = hole_mask(views[v], others);
   }
-  stages.lap("render views");
+  return views;
+}
 
-  if (!options.fill) {
-    result.splats = rows_of(cloud, kept_flags(region));
-    for (size_t v = 0; v < views.size(); ++v) {
-      result.before.push_back(views[v].before);
-      result.deleted.push_back(views[v].kept);
-      result.after.push_back(views[v].kept);
-      result.masks.push_back(views[v].mask);
-    }
-    result.reference = views.at(0).kept;
-    stages.lap("assemble the splats");
-    return result;
-  }
-
-  // The renders as a scene the predictor reads from memory: views prepared already.
+// The network on the renders, read from memory as a scene whose views are prepared already.
+Prediction predict_holes(const std::vector<CameraViews>& views, const ChosenCameras& cameras,
+                         const FillOptions& options, const Predictor& predictor) {
   Scene rendered;
   rendered.root = options.scene_name;
   rendered.format = "renders";
   PreparedViewCache cache;
   SceneInputOptions input;
-  input.preprocess.height = camera_options.height;
+  input.preprocess.height = options.camera_options.height;
   input.num_views = static_cast<int>(views.size());
   input.inpainter = options.inpainter;
   input.view_cache = &cache;
   for (size_t i = 0; i < views.size(); ++i) {
-    const NamedCamera& c = result.cameras.cameras[i];
+    const NamedCamera& c = cameras.cameras[i];
     View view;
     view.name = c.name;
     view.image_path = c.name + " (render)";
@@ -387,17 +370,17 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
     input.context.push_back(c.name);
     input.masks[c.name] = views[i].mask;
   }
-  if (options.reference_image) input.reference_image = reference_at_working_size(*options.reference_image, options, result.cameras);
-  Prediction p = predictor.predict(rendered, input);
-  stages.merge(p.stages);
-  stages.restart_lap();
-  result.reference = p.input.views.at(0).rgb;
-  result.dropped = 0;
+  if (options.reference_image) input.reference_image = reference_at_working_size(*options.reference_image, options, cameras);
+  return predictor.predict(rendered, input);
+}
 
-  // The masked pixels' Gaussians, in the scene's frame: normalised -> scene, each view's depth
-  // scaled about its camera to meet the scene's around the hole.
+// The hole pixels' Gaussians in the scene's frame: normalised -> scene, each view's depth scaled
+// about its camera to meet the scene's around its hole, less those in another view's way.
+GaussianSet hole_gaussians(const Prediction& p, const std::vector<CameraViews>& views, const FillOptions& options,
+                           FillResult& result) {
   const PoseNormalization& norm = p.input.normalization;
   const GaussianMaps& maps = p.maps;
+  const torch::Tensor mean = torch::tensor({norm.mean.x(), norm.mean.y(), norm.mean.z()}, torch::kFloat64);
   std::vector<torch::Tensor> means, scales, quats, opacities, colours;
   for (size_t v = 0; v < views.size(); ++v) {
     if (options.reference_only && v > 0) break;
@@ -405,12 +388,11 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
     const double s = depth_scale(views[v], maps.depth[0][vi][0], norm.scale);
     result.depth_scales.push_back(s);
     const torch::Tensor take = (image_to_tensor(views[v].mask)[0][0] > 0.5).reshape({-1}).to(maps.xyz.device());
-    auto pixels = [&](const torch::Tensor& map) {  // (C, H, W) -> (masked pixels, C)
+    auto pixels = [&](const torch::Tensor& map) {  // (C, H, W) -> (hole pixels, C)
       return map[0][vi].flatten(1).t().index({take}).to(torch::kCPU, torch::kFloat64);
     };
     const Eigen::Vector3d c = result.cameras.cameras[v].camera.center();
     const torch::Tensor centre = torch::tensor({c.x(), c.y(), c.z()}, torch::kFloat64);
-    const torch::Tensor mean = torch::tensor({norm.mean.x(), norm.mean.y(), norm.mean.z()}, torch::kFloat64);
     const torch::Tensor world = centre + s * (pixels(maps.xyz) * norm.scale + mean - centre);
     const torch::Tensor keep = in_no_ones_way(world, views, v);
     result.dropped += keep.numel() - keep.sum().item<int64_t>();
@@ -426,68 +408,124 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   added.quats = torch::cat(quats).to(torch::kFloat32);
   added.opacities = torch::cat(opacities).to(torch::kFloat32);
   added.colors = torch::cat(colours).to(torch::kFloat32);
-  stages.lap("new Gaussians to the scene's frame");
+  return added;
+}
 
-  if (options.refine) {
-    const GaussianSet filled_now = joined(kept, added.to(device));
-    std::vector<RefineView> targets;
-    for (size_t v = 0; v < views.size(); ++v) {
-      RefineView t;
-      t.name = result.cameras.cameras[v].name;
-      t.camera = result.cameras.cameras[v].camera;
-      // The reference view's hole is held to a 2D inpainter's picture of it (--reference), else
-      // to the fill as the network made it: the built-in stand-in (Telea's blur) is a worse
-      // guess than the network's splats (synthetic rooms, 1 minute: left free, the new splats
-      // drifted, 2 of 3 holes lost 2-10 dB). The views keep them in line outside their holes.
-      if (v == 0 && options.reference_image) {
-        t.rgb = result.reference;
-      } else if (v == 0) {
-        t.rgb = image_from_hwc(render(filled_now, {views[v].whole.camera}).rgb.clamp(0, 1).to(torch::kCPU));
-      } else {
-        t.rgb = views[v].kept;
-        t.mask = views[v].mask;
-      }
-      targets.push_back(std::move(t));
-    }
-    // The other cameras that see the region supervise too, outside their holes: the new splats
-    // may not cover what they saw there (a few views alone let floaters through).
-    for (size_t k = 0; k < extra.size(); ++k) {
-      CameraViews v = render_camera(scene, kept, weights, extra[k].camera);
-      std::vector<const Observer*> others;
-      for (const CameraViews& c : views) others.push_back(&c.whole);
-      for (size_t o = 0; o < extra.size(); ++o)
-        if (o != k) others.push_back(&extra[o]);
-      for (const Observer& o : result.cameras.sights) others.push_back(&o);
-      targets.push_back({result.cameras.observers[k].name, v.kept, hole_mask(v, others), extra[k].camera});
-    }
-    torch::AutoGradMode gradients(true);  // the rest of the fill runs without
-    RefineOptions refine = *options.refine;
-    refine.fixed = kept;
-    refine.cover = false;  // the rest of the scene covers what the views see
-    refine.opacity_resets.clear();  // they would fade the new splats to let the views' holes decide
-    const RefineResult refined = refine_gaussians(added.to(device), targets, refine);
-    result.refine_report = refinement_report(refined, refine);
-    added = refined.gaussians.to(torch::kCPU);
-    if (added.colors.dim() == 3) {  // SH: the DC term alone (the new splats carry one colour)
-      added.colors = rgb_from_sh_dc(added.colors.select(1, 0));
-      added.sh_degree = -1;
-    }
-    stages.lap("refine the new Gaussians");
-  }
-
-  result.splats = rows_of(cloud, kept_flags(region));
-  append_rows(result.splats, splats_from_gaussians(added.to(torch::kCPU)));
-  result.added = added.size();
-  stages.lap("assemble the splats");
-
-  const GaussianSet filled = gaussians_from_splats(result.splats, 3).to(device);
+// The new Gaussians optimised alone, drawn with the rest, against the chosen cameras and the
+// observers outside their holes.
+GaussianSet refine_new(const GaussianSet& added, const SceneSets& sets, const std::vector<CameraViews>& views,
+                       const std::vector<Observer>& extra, const FillOptions& options, FillResult& result) {
+  const torch::Device device = sets.scene.means.device();
+  const GaussianSet filled_now = joined(sets.kept, added.to(device));
+  std::vector<RefineView> targets;
   for (size_t v = 0; v < views.size(); ++v) {
-    const Camera& c = result.cameras.cameras[v].camera;
+    RefineView t;
+    t.name = result.cameras.cameras[v].name;
+    t.camera = result.cameras.cameras[v].camera;
+    // The reference view's hole is held to a 2D inpainter's picture of it (--reference), else
+    // to the fill as the network made it: the built-in stand-in (Telea's blur) is a worse
+    // guess than the network's splats (synthetic rooms, 1 minute: left free, the new splats
+    // drifted: 2 holes of 3 lost 5 and 11 dB). The views keep them in line outside their holes.
+    if (v == 0 && options.reference_image) {
+      t.rgb = result.reference;
+    } else if (v == 0) {
+      t.rgb = image_from_hwc(render(filled_now, {views[v].whole.camera}).rgb.clamp(0, 1).to(torch::kCPU));
+    } else {
+      t.rgb = views[v].kept;
+      t.mask = views[v].mask;
+    }
+    targets.push_back(std::move(t));
+  }
+  // The other cameras that see the region supervise too, outside their holes: the new splats
+  // may not cover what they saw there (a few views alone let floaters through).
+  for (size_t k = 0; k < extra.size(); ++k) {
+    const CameraViews v = render_camera(sets.scene, sets.kept, sets.weights, extra[k].camera);
+    std::vector<const Observer*> others;
+    for (const CameraViews& c : views) others.push_back(&c.whole);
+    for (size_t o = 0; o < extra.size(); ++o)
+      if (o != k) others.push_back(&extra[o]);
+    for (const Observer& o : result.cameras.sights) others.push_back(&o);
+    targets.push_back({result.cameras.observers[k].name, v.kept, hole_mask(v, others), extra[k].camera});
+  }
+  torch::AutoGradMode gradients(true);  // the rest of the fill runs without
+  RefineOptions refine = *options.refine;
+  refine.fixed = sets.kept;
+  refine.cover = false;           // the rest of the scene covers what the views see
+  refine.opacity_resets.clear();  // they would fade the new splats to let the views' holes decide
+  const RefineResult refined = refine_gaussians(added.to(device), targets, refine);
+  result.refine_report = refinement_report(refined, refine);
+  GaussianSet out = refined.gaussians.to(torch::kCPU);
+  if (out.colors.dim() == 3) {  // SH: the DC term alone (the new splats carry one colour)
+    out.colors = rgb_from_sh_dc(out.colors.select(1, 0));
+    out.sh_degree = -1;
+  }
+  return out;
+}
+
+// The pictures of fill.json's cameras: before, the region removed, the hole, and `after` drawn.
+void add_pictures(FillResult& result, const std::vector<CameraViews>& views, const GaussianSet* after) {
+  for (size_t v = 0; v < views.size(); ++v) {
     result.before.push_back(views[v].before);
     result.deleted.push_back(views[v].kept);
     result.masks.push_back(views[v].mask);
-    result.after.push_back(image_from_hwc(render(filled, {c}).rgb.clamp(0, 1).to(torch::kCPU)));
+    result.after.push_back(after ? image_from_hwc(render(*after, {result.cameras.cameras[v].camera}).rgb.clamp(0, 1).to(torch::kCPU))
+                                 : views[v].kept);
   }
+}
+
+}  // namespace
+
+FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, const Predictor& predictor) {
+  FillResult result;
+  StageTimes& stages = result.stages;
+  check_splats_finite(cloud, options.scene_name);
+  const RegionMask region = choose_region(cloud, options);
+  result.total = static_cast<int64_t>(cloud.size());
+  result.removed = region_count(region);
+  result.region_how = options.box ? "box: " + options.box->describe()
+                      : options.selection ? "selection: the splats missing from " + options.selection_name
+                                          : "mask on view " + options.stroke_view;
+  stages.lap("select region");
+
+  torch::NoGradGuard no_grad;
+  const torch::Device device = render_device(predictor.device());
+  const SceneSets sets = scene_sets(cloud, region, device);
+  stages.lap("splats to Gaussians");
+
+  FillCameraOptions camera_options = options.camera_options;
+  if (options.cameras.empty() && camera_options.up.norm() == 0) camera_options.up = guess_up(cloud, region);
+  result.cameras = options.cameras.empty() ? choose_automatic_cameras(sets.scene, region, camera_options)
+                                           : choose_given_cameras(sets.scene, region, options.cameras, camera_options);
+  stages.lap("choose cameras");
+
+  std::vector<Observer> extra;
+  const std::vector<CameraViews> views = render_views(sets, result.cameras, options.refine.has_value(), extra);
+  stages.lap("render views");
+
+  result.splats = rows_of(cloud, kept_flags(region));  // bit for bit, in their order
+  if (!options.fill) {
+    result.reference = views.at(0).kept;
+    add_pictures(result, views, nullptr);
+    stages.lap("assemble the splats");
+    return result;
+  }
+
+  const Prediction p = predict_holes(views, result.cameras, options, predictor);
+  stages.merge(p.stages);
+  stages.restart_lap();
+  result.reference = p.input.views.at(0).rgb;
+  GaussianSet added = hole_gaussians(p, views, options, result);
+  stages.lap("new Gaussians to the scene's frame");
+  if (options.refine) {
+    added = refine_new(added, sets, views, extra, options, result);
+    stages.lap("refine the new Gaussians");
+  }
+
+  append_rows(result.splats, splats_from_gaussians(added.to(torch::kCPU)));
+  result.added = added.size();
+  stages.lap("assemble the splats");
+  const GaussianSet filled = gaussians_from_splats(result.splats, 3).to(device);
+  add_pictures(result, views, &filled);
   stages.lap("render after");
   return result;
 }

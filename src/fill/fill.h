@@ -34,9 +34,11 @@ struct FillOptions {
   // size); none: the built-in inpainter's.
   std::optional<Image> reference_image;
   ClassicalInpainter inpainter = ClassicalInpainter::Telea;
-  // Which views' masked pixels become Gaussians: every context view's (false) or the
-  // reference's alone (true).
-  bool reference_only = false;
+  // Which views' hole pixels become Gaussians: the reference's alone (true), or every chosen
+  // view's. The reference's hole holds the inpainted picture, the others' nothing: a model that
+  // adds its input's colour (the built-in one) gives them a grey guess. Synthetic rooms: equal or
+  // better in every room (26.2 dB against 24.9 in one); the statue: grass and bush, not grey.
+  bool reference_only = true;
   // false: the region removed and nothing added (deletion alone, to compare with).
   bool fill = true;
   // Optimise the new Gaussians alone against the views (the rest of the scene fixed).

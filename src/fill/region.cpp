@@ -134,7 +134,7 @@ RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, co
   if (depths.empty()) fail("--mask: the stroke covers no surface of the scene in this view (nothing is drawn there)");
   const double width = std::max({percentile(xs, 0.98) - percentile(xs, 0.02), percentile(ys, 0.98) - percentile(ys, 0.02),
                                  1e-6});
-  const double far = percentile(depths, 0.98) + width, margin = 0.1 * width;
+  const double margin = 0.1 * width, near = percentile(depths, 0.02) - margin, far = percentile(depths, 0.98) + width;
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
   RegionMask region(cloud.size());
   for (size_t i = 0; i < cloud.size(); ++i) {
@@ -144,10 +144,9 @@ RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, co
     if (!(u >= 0 && v >= 0 && u < W && v < H)) continue;
     const size_t pixel = static_cast<size_t>(v) * W + static_cast<size_t>(u);
     if (stroke.pixels[pixel] <= 0.5f) continue;
-    // From the surface seen at that pixel (what is in front of it is not what was marked) to
-    // as far behind the marked surface as it is wide.
-    const double surface = a[pixel] >= 0.5f ? d[pixel] : percentile(depths, 0.02);
-    region[i] = p.z() >= surface - margin && p.z() <= far;
+    // From the nearest of the marked surface (a pixel's depth is an average over the splats it
+    // draws: the front ones lie nearer) to as far behind it as it is wide.
+    region[i] = p.z() >= near && p.z() <= far;
   }
   return region;
 }

@@ -29,8 +29,8 @@ RegionMask region_missing_from(const SplatCloud& cloud, const SplatCloud& kept, 
 
 // The Gaussians that make the visible surface under `stroke` (> 0.5, at the camera's image
 // size) seen from `camera`, grown in 3D as one-mask editing grows a region: the splats whose
-// centres project into the stroke, from the surface the camera sees there to as far behind it
-// as the marked surface is wide.
+// centres project into the stroke, from the nearest of the surface the camera sees there to as
+// far behind it as the marked surface is wide.
 RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, const Image& stroke);
 
 int64_t region_count(const RegionMask& region);

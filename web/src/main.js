@@ -39,7 +39,7 @@ window.instainpaint = api;
 const viewer = $("viewer");
 const renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
 renderer.setPixelRatio(exact ? 1 : window.devicePixelRatio);
-viewer.appendChild(renderer.domElement);
+viewer.prepend(renderer.domElement);  // the first canvas: the painting one goes over it
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0xffffff);
 // As instainpaint's rasterizer (gsplat's classic mode) draws: 0.3 px² added to every

@@ -14,7 +14,8 @@ h.run(["synth", "--out", join(dir, "rooms"), "--scenes", "1", "--seed", "5", "--
 const room = join(dir, "rooms", "scene_000");
 const splats = join(room, "scene.ply");
 const bounds = JSON.parse(readFileSync(join(room, "synth.json"), "utf8")).object_bounds;
-const server = await h.serve(["--splats", splats, "--height", "64", "--views", "3", "--out", join(dir, "serve")]);
+// 128 rows: at 64 the network's splats of a hole this small leave gaps (the white below shows).
+const server = await h.serve(["--splats", splats, "--height", "128", "--views", "3", "--out", join(dir, "serve")]);
 const browser = await h.browser();
 try {
   const page = await browser.newPage({ viewport: { width: 900, height: 600 } });
@@ -49,7 +50,7 @@ try {
   h.check(downloads.some((d) => d.endsWith(".spz?download=1")) && downloads.some((d) => d.endsWith(".sog?download=1")),
     `downloads offer PLY, SPZ and SOG (${downloads})`);
   console.log(`measured: Fill (box) to filled splats on screen ${fill.clientSeconds.toFixed(2)} s (server ` +
-    `${fill.seconds.toFixed(2)} s; CPU, 64 rows)`);
+    `${fill.seconds.toFixed(2)} s; CPU, 128 rows)`);
 
   // Seen from the room's held-out camera: the filled scene against the room without the object,
   // inside the object's mask, beside the scene with the object.
