@@ -267,21 +267,17 @@ std::vector<NamedCamera> read_camera_json(const std::filesystem::path& path) {
   }
 }
 
+nlohmann::json camera_list_entry(const NamedCamera& camera) {
+  const Camera& c = camera.camera;
+  nlohmann::json m = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) m.push_back({c.c2w(r, 0), c.c2w(r, 1), c.c2w(r, 2), c.c2w(r, 3)});
+  return {{"name", camera.name}, {"width", c.K.width}, {"height", c.K.height}, {"fx", c.K.fx},
+          {"fy", c.K.fy},        {"cx", c.K.cx},       {"cy", c.K.cy},         {"c2w", m}};
+}
+
 void write_camera_json(const std::filesystem::path& path, const std::vector<NamedCamera>& cameras) {
   nlohmann::json list = nlohmann::json::array();
-  for (const NamedCamera& nc : cameras) {
-    const Camera& c = nc.camera;
-    nlohmann::json m = nlohmann::json::array();
-    for (int r = 0; r < 4; ++r) m.push_back({c.c2w(r, 0), c.c2w(r, 1), c.c2w(r, 2), c.c2w(r, 3)});
-    list.push_back({{"name", nc.name},
-                    {"width", c.K.width},
-                    {"height", c.K.height},
-                    {"fx", c.K.fx},
-                    {"fy", c.K.fy},
-                    {"cx", c.K.cx},
-                    {"cy", c.K.cy},
-                    {"c2w", m}});
-  }
+  for (const NamedCamera& nc : cameras) list.push_back(camera_list_entry(nc));
   const nlohmann::json root = {{"convention", "opengl"}, {"cameras", list}};
   write_file_atomic(path, root.dump(1) + "\n");
 }

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <nlohmann/json.hpp>
 
 #include "camera/camera.h"
 
@@ -66,7 +67,9 @@ Eigen::Matrix4d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& targe
 //                     (y down, looking along +z); may also be given once at the top level.
 // Errors name the file and the camera.
 std::vector<NamedCamera> read_camera_json(const std::filesystem::path& path);
-// Writes {"convention": "opengl", "cameras": [...]} with fx, fy, cx, cy and c2w (atomic).
+// One camera of that list: name, width, height, fx, fy, cx, cy and c2w (OpenGL axes, rows).
+nlohmann::json camera_list_entry(const NamedCamera& camera);
+// Writes {"convention": "opengl", "cameras": [...]} of camera_list_entry()s (atomic).
 void write_camera_json(const std::filesystem::path& path, const std::vector<NamedCamera>& cameras);
 
 }  // namespace ii

@@ -189,14 +189,7 @@ ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMas
   const double reach = 7 * sphere.radius + sphere.radius;
   const torch::Tensor centre = torch::tensor({sphere.centre.x(), sphere.centre.y(), sphere.centre.z()}).to(torch::kFloat32);
   const torch::Tensor near = (scene.means - centre).norm(2, 1) <= reach;
-  GaussianSet local;
-  local.means = scene.means.index({near});
-  local.quats = scene.quats.index({near});
-  local.scales = scene.scales.index({near});
-  local.opacities = scene.opacities.index({near});
-  local.colors = scene.colors.index({near});
-  local.sh_degree = scene.sh_degree;
-  const GaussianSet weights = region_weight_set(local, in_region.index({near}));
+  const GaussianSet weights = region_weight_set(select_rows(scene, near), in_region.index({near}));
   const int height = options.height, width = std::max(8, height * 4 / 3 / 8 * 8);
   const Intrinsics K = Intrinsics::from_fov(width, height, 2 * std::atan(std::tan(25 * M_PI / 180) * width / height),
                                             50 * M_PI / 180);

@@ -70,17 +70,6 @@ void append_rows(SplatCloud& cloud, const SplatCloud& added) {
   if (!cloud.normals.empty()) cloud.normals.resize((n + m) * 3, 0.f);
 }
 
-GaussianSet rows(const GaussianSet& g, const torch::Tensor& take) {
-  GaussianSet out;
-  out.means = g.means.index({take});
-  out.quats = g.quats.index({take});
-  out.scales = g.scales.index({take});
-  out.opacities = g.opacities.index({take});
-  out.colors = g.colors.index({take});
-  out.sh_degree = g.sh_degree;
-  return out;
-}
-
 // A camera's render of the whole scene (cameras.h): what it saw of the surfaces behind the region.
 using Observer = Sight;
 
@@ -277,19 +266,10 @@ RegionMask choose_region(const SplatCloud& cloud, const FillOptions& options) {
 nlohmann::json FillResult::report() const {
   nlohmann::json cams = nlohmann::json::array();
   for (size_t i = 0; i < cameras.cameras.size(); ++i) {
-    const Camera& c = cameras.cameras[i].camera;
-    nlohmann::json rows = nlohmann::json::array();
-    for (int r = 0; r < 4; ++r) rows.push_back({c.c2w(r, 0), c.c2w(r, 1), c.c2w(r, 2), c.c2w(r, 3)});
-    cams.push_back({{"name", cameras.cameras[i].name},
-                    {"width", c.K.width},
-                    {"height", c.K.height},
-                    {"fx", c.K.fx},
-                    {"fy", c.K.fy},
-                    {"cx", c.K.cx},
-                    {"cy", c.K.cy},
-                    {"c2w_opengl", rows},
-                    {"region_share", cameras.visible[i]},
-                    {"depth_scale", i < depth_scales.size() ? depth_scales[i] : 1.0}});
+    nlohmann::json camera = camera_list_entry(cameras.cameras[i]);  // c2w in OpenGL axes
+    camera["region_share"] = cameras.visible[i];
+    camera["depth_scale"] = i < depth_scales.size() ? depth_scales[i] : 1.0;
+    cams.push_back(camera);
   }
   nlohmann::json j = {{"splats",
                        {{"input", total},
@@ -320,7 +300,7 @@ SceneSets scene_sets(const SplatCloud& cloud, const RegionMask& region, const to
   std::vector<uint8_t> flags(region.begin(), region.end());
   const torch::Tensor in_region =
       torch::from_blob(flags.data(), {static_cast<int64_t>(flags.size())}, torch::kUInt8).to(torch::kBool).to(device);
-  s.kept = rows(s.scene, in_region.logical_not());
+  s.kept = select_rows(s.scene, in_region.logical_not());
   s.weights = s.scene;
   s.weights.colors = in_region.to(torch::kFloat32).unsqueeze(1).expand({s.scene.size(), 3}).contiguous();
   s.weights.sh_degree = -1;

@@ -116,4 +116,15 @@ SplatCloud splats_from_gaussians(const GaussianSet& g) {
   return c;
 }
 
+GaussianSet select_rows(const GaussianSet& g, const torch::Tensor& take) {
+  GaussianSet out;
+  out.means = g.means.index({take});
+  out.quats = g.quats.index({take});
+  out.scales = g.scales.index({take});
+  out.opacities = g.opacities.index({take});
+  out.colors = g.colors.index({take});
+  out.sh_degree = g.sh_degree;
+  return out;
+}
+
 }  // namespace ii

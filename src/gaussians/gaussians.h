@@ -42,6 +42,9 @@ struct GaussianSet {
   GaussianSet to(const torch::Device& device) const;
 };
 
+// The rows where `take` (N, bool) is true, every attribute alike.
+GaussianSet select_rows(const GaussianSet& gaussians, const torch::Tensor& take);
+
 // The network output (B = 1) in the official flattening order (view, row, column), RGB
 // colours used as they are (no activation; spec §3.1). The rows are views of the maps.
 GaussianSet gaussians_from_maps(const GaussianMaps& maps);

@@ -44,14 +44,8 @@ GaussianSet seen_by_views(const GaussianSet& background, const GaussianSet& obje
     seen = seen.logical_or(all.opacities.grad().abs() > 0);
   }
   seen.narrow(0, 0, object.size()).fill_(true);
-  GaussianSet kept;
-  kept.means = all.means.index({seen});
-  kept.quats = all.quats.index({seen});
-  kept.scales = all.scales.index({seen});
-  kept.colors = all.colors.index({seen});
-  kept.sh_degree = all.sh_degree;
-  kept.opacities = opacities.index({seen});
-  return kept;
+  all.opacities = opacities;
+  return select_rows(all, seen);
 }
 
 
