@@ -503,8 +503,17 @@ $("run").onclick = () => runJob("/api/edit");
 // stroke painted over the view on screen. Fill sends it with the splats on screen to the server.
 let fillMode = null; // "box" | "paint"
 let region = null; // the box: {object (centre, turn, scale = size), gizmo, sdf, edit}
-const fillCanvas = $("fill-canvas");
-const fillPaint = attachBrush(fillCanvas, () => false, () => Math.max(4, fillCanvas.width / 40));
+// The canvas painted on over the viewer, made when painting first starts.
+let fillCanvas = null, fillPaint = null;
+function paintingCanvas() {
+  if (!fillCanvas) {
+    fillCanvas = document.createElement("canvas");
+    fillCanvas.id = "fill-canvas";
+    viewer.appendChild(fillCanvas);
+    fillPaint = attachBrush(fillCanvas, () => false, () => Math.max(4, fillCanvas.width / 40));
+  }
+  return fillCanvas;
+}
 
 function updateRegionPreview() {
   if (!region) return;
@@ -559,7 +568,8 @@ function setFillMode(mode) {
   $("fill-paint").classList.toggle("on", mode === "paint");
   $("gizmo-modes").hidden = mode !== "box";
   // Painting holds the camera still: the stroke is drawn on the view on screen.
-  fillCanvas.hidden = mode !== "paint";
+  if (mode === "paint") paintingCanvas();
+  if (fillCanvas) fillCanvas.hidden = mode !== "paint";
   if (controls) controls.enabled = mode !== "paint";
   if (mode === "paint") {
     fillCanvas.width = renderer.domElement.width;
