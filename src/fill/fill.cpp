@@ -79,26 +79,41 @@ Observer observe(const GaussianSet& scene, const Camera& camera, torch::Tensor* 
   return {camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous()};
 }
 
+// Points (N, 3; float64) moved by a 4 x 4 rigid transform.
+torch::Tensor transformed(const Eigen::Matrix4d& m, const torch::Tensor& points) {
+  torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) R[r][c] = m(r, c);
+    t[r] = m(r, 3);
+  }
+  return points.matmul(R.t()) + t;
+}
+
+// Where world points (N, 3; float64) land in a camera's image: their camera z, whether they are in
+// front of it and inside the image, and the flat index of their pixel (clamped to the image).
+struct PixelHit {
+  torch::Tensor z, inside, index;
+};
+PixelHit project(const Camera& camera, const torch::Tensor& points) {
+  const torch::Tensor p = transformed(camera.w2c_opencv(), points);
+  const Intrinsics& K = camera.K;
+  PixelHit hit;
+  hit.z = p.select(1, 2);
+  const torch::Tensor u = p.select(1, 0) / hit.z.clamp_min(1e-9) * K.fx + K.cx;
+  const torch::Tensor v = p.select(1, 1) / hit.z.clamp_min(1e-9) * K.fy + K.cy;
+  hit.inside = (hit.z > 0).logical_and(u >= 0).logical_and(v >= 0).logical_and(u < K.width).logical_and(v < K.height);
+  hit.index = v.clamp(0, K.height - 1).to(torch::kLong) * K.width + u.clamp(0, K.width - 1).to(torch::kLong);
+  return hit;
+}
+
 // Which of the world points (N, 3; float64) the observer saw: in its view, on the surface it drew
 // there, within 3 % of the depth (synthetic rooms at 10 %: one hole 0.3 dB better, another 4.8 dB
 // worse, more of it taken for seen).
 torch::Tensor seen_by(const Observer& o, const torch::Tensor& points) {
-  const Eigen::Matrix4d w2c = o.camera.w2c_opencv();
-  torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) R[r][c] = w2c(r, c);
-    t[r] = w2c(r, 3);
-  }
-  const torch::Tensor p = points.matmul(R.t()) + t;
-  const torch::Tensor z = p.select(1, 2);
-  const Intrinsics& K = o.camera.K;
-  const torch::Tensor u = p.select(1, 0) / z.clamp_min(1e-9) * K.fx + K.cx, v = p.select(1, 1) / z.clamp_min(1e-9) * K.fy + K.cy;
-  const torch::Tensor inside = (z > 0).logical_and(u >= 0).logical_and(v >= 0).logical_and(u < K.width).logical_and(v < K.height);
-  const torch::Tensor ui = u.clamp(0, K.width - 1).to(torch::kLong), vi = v.clamp(0, K.height - 1).to(torch::kLong);
-  const torch::Tensor index = vi * K.width + ui;
-  const torch::Tensor d = o.depth.reshape({-1}).index({index}).to(torch::kFloat64);
-  const torch::Tensor a = o.alpha.reshape({-1}).index({index});
-  return inside.logical_and(a > 0.5).logical_and((d - z).abs() <= 0.03 * z);
+  const PixelHit hit = project(o.camera, points);
+  const torch::Tensor d = o.depth.reshape({-1}).index({hit.index}).to(torch::kFloat64);
+  const torch::Tensor a = o.alpha.reshape({-1}).index({hit.index});
+  return hit.inside.logical_and(a > 0.5).logical_and((d - hit.z).abs() <= 0.03 * hit.z);
 }
 
 // `added` (RGB colours) drawn with `kept` (any colours): one set, colours as SH when kept's are.
@@ -157,13 +172,7 @@ Image hole_mask(const CameraViews& self, const std::vector<const Observer*>& oth
     const torch::Tensor v = pixels.select(1, 0).to(torch::kFloat64), u = pixels.select(1, 1).to(torch::kFloat64);
     const torch::Tensor d = self.kept_depth.index({pixels.select(1, 0), pixels.select(1, 1)}).to(torch::kFloat64);
     const torch::Tensor local = torch::stack({(u + 0.5 - c.K.cx) / c.K.fx * d, (v + 0.5 - c.K.cy) / c.K.fy * d, d}, 1);
-    const Eigen::Matrix4d c2w = c.w2c_opencv().inverse();
-    torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
-    for (int r = 0; r < 3; ++r) {
-      for (int k = 0; k < 3; ++k) R[r][k] = c2w(r, k);
-      t[r] = c2w(r, 3);
-    }
-    const torch::Tensor world = local.matmul(R.t()) + t;
+    const torch::Tensor world = transformed(c.w2c_opencv().inverse(), local);
     torch::Tensor seen = torch::zeros({pixels.size(0)}, torch::kBool);
     for (const Observer* o : others) seen = seen.logical_or(seen_by(*o, world));
     hole.index_put_({pixels.select(1, 0), pixels.select(1, 1)}, seen.logical_not());
@@ -178,23 +187,12 @@ torch::Tensor in_no_ones_way(const torch::Tensor& points, const std::vector<Came
   torch::Tensor keep = torch::ones({points.size(0)}, torch::kBool);
   for (size_t w = 0; w < views.size(); ++w) {
     if (w == self) continue;
-    const Camera& c = views[w].whole.camera;
-    const Eigen::Matrix4d w2c = c.w2c_opencv();
-    torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
-    for (int r = 0; r < 3; ++r) {
-      for (int k = 0; k < 3; ++k) R[r][k] = w2c(r, k);
-      t[r] = w2c(r, 3);
-    }
-    const torch::Tensor p = points.matmul(R.t()) + t;
-    const torch::Tensor z = p.select(1, 2);
-    const torch::Tensor u = p.select(1, 0) / z.clamp_min(1e-9) * c.K.fx + c.K.cx;
-    const torch::Tensor v = p.select(1, 1) / z.clamp_min(1e-9) * c.K.fy + c.K.cy;
-    const torch::Tensor inside = (z > 0).logical_and(u >= 0).logical_and(v >= 0).logical_and(u < c.K.width).logical_and(v < c.K.height);
-    const torch::Tensor index = v.clamp(0, c.K.height - 1).to(torch::kLong) * c.K.width + u.clamp(0, c.K.width - 1).to(torch::kLong);
-    const torch::Tensor hole = image_to_tensor(views[w].mask).reshape({-1}).index({index}) > 0.5;
-    const torch::Tensor seen = (views[w].kept_alpha.reshape({-1}).index({index}) > 0.5);
-    const torch::Tensor surface = views[w].kept_depth.reshape({-1}).index({index}).to(torch::kFloat64);
-    const torch::Tensor hides = inside.logical_and(hole.logical_not()).logical_and(seen).logical_and(z < 0.97 * surface);
+    const PixelHit hit = project(views[w].whole.camera, points);
+    const torch::Tensor hole = image_to_tensor(views[w].mask).reshape({-1}).index({hit.index}) > 0.5;
+    const torch::Tensor seen = views[w].kept_alpha.reshape({-1}).index({hit.index}) > 0.5;
+    const torch::Tensor surface = views[w].kept_depth.reshape({-1}).index({hit.index}).to(torch::kFloat64);
+    const torch::Tensor hides =
+        hit.inside.logical_and(hole.logical_not()).logical_and(seen).logical_and(hit.z < 0.97 * surface);
     keep = keep.logical_and(hides.logical_not());
   }
   return keep;
