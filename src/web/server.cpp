@@ -217,6 +217,31 @@ std::optional<Refusal> parse_refine(const httplib::Request& req, RefineOptions& 
   return std::nullopt;
 }
 
+// An uploaded image (form field `field`): PNG or JPEG by its first bytes, kept in `dir` under the
+// field's name, its header checked by `refuse_size` (a reason, or none) before `decode` reads it,
+// so that a few kilobytes claiming gigabytes of pixels are never decoded; errors name the field,
+// not the file.
+std::optional<Refusal> read_upload(const httplib::Request& req, const char* field, const fs::path& dir,
+                                   const std::function<std::optional<std::string>(const ImageInfo&)>& refuse_size,
+                                   const std::function<Image(const fs::path&)>& decode, Image& into) {
+  const std::string& bytes = req.get_file_value(field).content;
+  const char* type = image_type(bytes);
+  if (!type) return Refusal{415, fmt::format("{}: not a PNG or JPEG image", field)};
+  fs::create_directories(dir);
+  const fs::path file = dir / (std::string(field) + "." + type);
+  write_file_atomic(file, bytes);
+  try {
+    if (const std::optional<std::string> reason = refuse_size(probe_image(file)))
+      return Refusal{400, fmt::format("{}: {}", field, *reason)};
+    into = decode(file);
+  } catch (const std::exception& e) {
+    std::string what = e.what();
+    if (what.rfind(file.string() + ": ", 0) == 0) what.erase(0, file.string().size() + 2);
+    return Refusal{400, fmt::format("{}: {}", field, what)};
+  }
+  return std::nullopt;
+}
+
 const char* content_type_of(const fs::path& file) {
   const std::string ext = file.extension().string();
   if (ext == ".png") return "image/png";
@@ -460,34 +485,18 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
   // larger than 4 times the view is decoded.
   const int view_width = view.camera.K.width, view_height = view.camera.K.height;
   const int64_t max_pixels = 4 * static_cast<int64_t>(view_width) * view_height;
-  auto read_upload = [&](const char* field, const std::function<Image(const fs::path&)>& decode,
-                         Image& into) -> std::optional<Refusal> {
-    const std::string& bytes = req.get_file_value(field).content;
-    const char* type = image_type(bytes);
-    if (!type) return Refusal{415, fmt::format("{}: not a PNG or JPEG image", field)};
-    fs::create_directories(dir);
-    const fs::path file = dir / (std::string(field) + "." + type);
-    write_file_atomic(file, bytes);
-    try {
-      const ImageInfo info = probe_image(file);
-      if (static_cast<int64_t>(info.width) * info.height > max_pixels)
-        return Refusal{400, fmt::format("{}: {}x{} pixels, more than this server decodes for view {} ({}x{}: at "
-                                        "most 4 times its pixels)",
-                                        field, info.width, info.height, view.name, view_width, view_height)};
-      into = decode(file);
-    } catch (const std::exception& e) {
-      std::string what = e.what();
-      if (what.rfind(file.string() + ": ", 0) == 0) what.erase(0, file.string().size() + 2);
-      return Refusal{400, fmt::format("{}: {}", field, what)};
-    }
-    return std::nullopt;
+  const auto at_most_4_views = [&](const ImageInfo& info) -> std::optional<std::string> {
+    if (static_cast<int64_t>(info.width) * info.height <= max_pixels) return std::nullopt;
+    return fmt::format("{}x{} pixels, more than this server decodes for view {} ({}x{}: at most 4 times its pixels)",
+                       info.width, info.height, view.name, view_width, view_height);
   };
   if (!req.has_file("mask")) return Refusal{400, "no mask given (a PNG of the view's size, white = region)"};
-  if (auto r = read_upload("mask", [&](const fs::path& f) { return read_region_mask(f, view); }, edit.region))
+  if (auto r = read_upload(req, "mask", dir, at_most_4_views, [&](const fs::path& f) { return read_region_mask(f, view); },
+                           edit.region))
     return r;
   if (run_network && req.has_file("reference") && !req.get_file_value("reference").content.empty()) {
     edit.reference.emplace();
-    if (auto r = read_upload("reference", read_image_rgb, *edit.reference)) return r;
+    if (auto r = read_upload(req, "reference", dir, at_most_4_views, read_image_rgb, *edit.reference)) return r;
   }
   if (run_network && edit.mode == EditMode::Insert && !edit.reference)
     return Refusal{400, "insert needs a reference: the view's photo with the new object painted in"};
@@ -533,20 +542,11 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
   }
   const int w = fill.camera->K.width, h = fill.camera->K.height;
   if (w > 8192 || h > 8192) return Refusal{400, fmt::format("camera: {}x{} pixels, at most 8192 each way", w, h)};
-  const std::string& bytes = req.get_file_value("mask").content;
-  const char* type = image_type(bytes);
-  if (!type) return Refusal{415, "mask: not a PNG or JPEG image"};
-  const fs::path file = dir / (std::string("mask.") + type);
-  write_file_atomic(file, bytes);
-  try {
-    const ImageInfo info = probe_image(file);
-    if (info.width != w || info.height != h)
-      return Refusal{400, fmt::format("mask: {}x{} pixels, but the camera is {}x{}", info.width, info.height, w, h)};
-    fill.region = read_mask(file);
-  } catch (const std::exception& e) {
-    return Refusal{400, fmt::format("mask: {}", e.what())};
-  }
-  return std::nullopt;
+  const auto camera_sized = [w, h](const ImageInfo& info) -> std::optional<std::string> {
+    if (info.width == w && info.height == h) return std::nullopt;
+    return fmt::format("{}x{} pixels, but the camera is {}x{}", info.width, info.height, w, h);
+  };
+  return read_upload(req, "mask", dir, camera_sized, read_mask, fill.region);
 }
 
 json WebServer::State::run_fill(const JobRequest& fill, const fs::path& dir, int id,
