@@ -337,6 +337,9 @@ struct WebServer::State {
 
   json info() const;
   std::optional<Refusal> parse_edit(const httplib::Request& req, JobRequest& edit, const fs::path& dir) const;
+  // The file behind a URL of splats this server serves (a PLY given at start, a job's splats;
+  // with standard_ply, that job's standard PLY whichever of its files was named), or empty.
+  fs::path splats_of_url(const std::string& url, bool standard_ply) const;
   std::optional<Refusal> parse_export(const httplib::Request& req, JobRequest& job) const;
   std::optional<Refusal> parse_fill(const httplib::Request& req, JobRequest& fill, const fs::path& dir) const;
   // A file a job wrote, from its URL path below /api/jobs/ ("3/gaussians.ply"); empty when
@@ -446,15 +449,18 @@ fs::path WebServer::State::job_file(const std::string& id, const std::string& re
   return real;
 }
 
+fs::path WebServer::State::splats_of_url(const std::string& url, bool standard_ply) const {
+  std::smatch m;
+  static const std::regex served(R"(/api/plys/(\d{1,6}))"),
+      job_splats(R"(/api/jobs/(\d{1,8})/(gaussians\.(ply|spz|compressed\.ply)))");
+  if (std::regex_match(url, m, served) && std::stoul(m[1]) < options.plys.size()) return options.plys[std::stoul(m[1])];
+  if (std::regex_match(url, m, job_splats)) return job_file(m[1], standard_ply ? "gaussians.ply" : m[2].str());
+  return {};
+}
+
 std::optional<Refusal> WebServer::State::parse_export(const httplib::Request& req, JobRequest& job) const {
   const std::string url = exported_url(req);
-  std::smatch m;
-  static const std::regex served_ply(R"(/api/plys/(\d{1,6}))"),
-      job_splats(R"(/api/jobs/(\d{1,8})/(gaussians\.(ply|spz|compressed\.ply)))");
-  if (std::regex_match(url, m, served_ply) && std::stoul(m[1]) < options.plys.size())
-    job.ply = options.plys[std::stoul(m[1])];
-  else if (std::regex_match(url, m, job_splats))
-    job.ply = job_file(m[1], m[2]);
+  job.ply = splats_of_url(url, /*standard_ply=*/false);
   if (job.ply.empty()) return Refusal{400, fmt::format("ply must be the URL of a PLY this server serves, not '{}'", url)};
   if (job.kind == "eval" && scene->test_views.empty())
     return Refusal{400, "the scene has no test views to evaluate on (SPIn-NeRF test_label/, or serve --hold-out-every N)"};
@@ -508,13 +514,7 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
   if (!req.is_multipart_form_data()) return Refusal{400, "send multipart/form-data with ply and a box or a camera and mask"};
   // The splats on screen: a served file, or a job's result read from its standard PLY (exact).
   const std::string url = exported_url(req);
-  std::smatch m;
-  static const std::regex served(R"(/api/plys/(\d{1,6}))"),
-      job_splats(R"(/api/jobs/(\d{1,8})/gaussians(\.compressed)?\.(ply|spz))");
-  if (std::regex_match(url, m, served) && std::stoul(m[1]) < options.plys.size())
-    fill.ply = options.plys[std::stoul(m[1])];
-  else if (std::regex_match(url, m, job_splats))
-    fill.ply = job_file(m[1], "gaussians.ply");
+  fill.ply = splats_of_url(url, /*standard_ply=*/true);
   if (fill.ply.empty()) return Refusal{400, fmt::format("ply must be the URL of splats this server serves, not '{}'", url)};
   if (auto r = parse_refine(req, fill.refine)) return r;
   if (req.has_file("box")) {
