@@ -19,6 +19,19 @@ fs::path shared_path(const std::string& relative) {
   return root / relative;
 }
 
+std::string shared_missing(const std::string& relative) {
+  const fs::path path = shared_path(relative);
+  const fs::path rel(relative);
+  auto part = rel.begin();
+  if (part != rel.end() && *part == "data" && ++part != rel.end()) {
+    const fs::path folder = shared_path("data") / *part;
+    if (!fs::exists(folder / "PROVENANCE.md"))
+      return "shared data missing: " + folder.string() + " is absent or incomplete (no PROVENANCE.md)";
+  }
+  if (!fs::exists(path)) return "shared data missing: " + path.string();
+  return {};
+}
+
 namespace {
 struct TempRoot {
   fs::path path;

@@ -16,6 +16,11 @@ namespace ii::test {
 // or $INSTAINPAINT_SHARED).
 std::filesystem::path shared_path(const std::string& relative);
 
+// Why the shared file or folder `relative` cannot be used, or "" when it can. One rule for every
+// test: under data/<folder>/ the folder counts only when it is whole, i.e. holds its PROVENANCE.md
+// (an empty or half-copied folder is as absent as a removed one), and then the path must exist.
+std::string shared_missing(const std::string& relative);
+
 // A fresh empty temporary folder, removed at exit of the test process.
 std::filesystem::path temp_dir(const std::string& tag);
 
@@ -55,9 +60,10 @@ std::string error_message(Fn&& fn);
 }  // namespace ii::test
 
 // Skips the current test, with the reason, when a shared file or folder is missing.
-#define II_REQUIRE_SHARED(var, relative)                                               \
-  const std::filesystem::path var = ::ii::test::shared_path(relative);                 \
-  if (!std::filesystem::exists(var)) GTEST_SKIP() << "shared data missing: " << var.string()
+#define II_REQUIRE_SHARED(var, relative)                                                   \
+  const std::filesystem::path var = ::ii::test::shared_path(relative);                     \
+  if (const std::string why_missing = ::ii::test::shared_missing(relative); !why_missing.empty()) \
+  GTEST_SKIP() << why_missing
 
 // Skips the current test when the CLI has not been built; binds its path to `var`.
 #define II_REQUIRE_CLI(var)                                         \

@@ -9,15 +9,21 @@ REPO = pathlib.Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="session")
 def shared() -> pathlib.Path:
-    path = pathlib.Path(os.environ.get("INSTAINPAINT_SHARED", REPO.parent / "shared"))
-    if not (path / "data" / "statue").is_dir():
-        pytest.fail(f"the shared data is missing: {path}/data/statue (set INSTAINPAINT_SHARED)")
+    return pathlib.Path(os.environ.get("INSTAINPAINT_SHARED", REPO.parent / "shared"))
+
+
+def shared_data(shared: pathlib.Path, folder: str) -> pathlib.Path:
+    """The shared data folder, or a skip: as the C++ tests, a folder counts only when it is
+    whole (holds its PROVENANCE.md); an empty or half-copied one is as absent as a removed one."""
+    path = shared / "data" / folder
+    if not (path / "PROVENANCE.md").is_file():
+        pytest.skip(f"shared data missing: {path} is absent or incomplete (no PROVENANCE.md)")
     return path
 
 
 @pytest.fixture(scope="session")
 def statue_dir(shared) -> pathlib.Path:
-    return shared / "data" / "statue"
+    return shared_data(shared, "statue")
 
 
 @pytest.fixture(scope="session")

@@ -85,7 +85,7 @@ class SplatFormats : public ::testing::Test {
   void SetUp() override {
     if (!fs::exists(kSplatTransform)) GTEST_SKIP() << "not installed: " << kSplatTransform << " (make deps)";
     if (find_executable("node").empty()) GTEST_SKIP() << "node is not installed (make deps)";
-    if (!fs::exists(test::shared_path("data/splats/guitar.compressed.ply"))) GTEST_SKIP() << "shared data missing";
+    if (const std::string why = test::shared_missing("data/splats/guitar.compressed.ply"); !why.empty()) GTEST_SKIP() << why;
   }
   fs::path dir = test::temp_dir("splat-formats");
 };

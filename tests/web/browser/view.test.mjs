@@ -2,7 +2,7 @@
 // from a scene camera matches `instainpaint render` of the same PLY from that camera, also when
 // the page is given the SPZ or compressed PLY written here (Spark decodes them).
 import { existsSync, writeFileSync } from "node:fs";
-import { join, resolve } from "node:path";
+import { dirname, join, resolve } from "node:path";
 import * as h from "./harness.mjs";
 
 // The share of the viewer's pixels that are not the white background (runs in the page).
@@ -73,7 +73,8 @@ try {
 
   // A shared real capture in SuperSplat's compressed PLY, served without a scene: framed and drawn.
   const guitar = resolve("../shared/data/splats/guitar.compressed.ply");
-  if (existsSync(guitar)) {
+  // As every test: a shared data folder counts only when whole (its PROVENANCE.md is there).
+  if (existsSync(guitar) && existsSync(join(dirname(guitar), "PROVENANCE.md"))) {
     const other = await h.serve(["--ply", guitar, "--out", join(dir, "serve-guitar")]);
     const gpage = await browser.newPage({ viewport: { width: 640, height: 480 } });
     const gerrors = h.collectErrors(gpage);
