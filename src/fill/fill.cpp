@@ -11,6 +11,7 @@
 #include "data/preprocess.h"
 #include "gaussians/gaussians.h"
 #include "model/device.h"
+#include "render/projection.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
 
@@ -79,33 +80,6 @@ Observer observe(const GaussianSet& scene, const Camera& camera, torch::Tensor* 
   return {camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous()};
 }
 
-// Points (N, 3; float64) moved by a 4 x 4 rigid transform.
-torch::Tensor transformed(const Eigen::Matrix4d& m, const torch::Tensor& points) {
-  torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) R[r][c] = m(r, c);
-    t[r] = m(r, 3);
-  }
-  return points.matmul(R.t()) + t;
-}
-
-// Where world points (N, 3; float64) land in a camera's image: their camera z, whether they are in
-// front of it and inside the image, and the flat index of their pixel (clamped to the image).
-struct PixelHit {
-  torch::Tensor z, inside, index;
-};
-PixelHit project(const Camera& camera, const torch::Tensor& points) {
-  const torch::Tensor p = transformed(camera.w2c_opencv(), points);
-  const Intrinsics& K = camera.K;
-  PixelHit hit;
-  hit.z = p.select(1, 2);
-  const torch::Tensor u = p.select(1, 0) / hit.z.clamp_min(1e-9) * K.fx + K.cx;
-  const torch::Tensor v = p.select(1, 1) / hit.z.clamp_min(1e-9) * K.fy + K.cy;
-  hit.inside = (hit.z > 0).logical_and(u >= 0).logical_and(v >= 0).logical_and(u < K.width).logical_and(v < K.height);
-  hit.index = v.clamp(0, K.height - 1).to(torch::kLong) * K.width + u.clamp(0, K.width - 1).to(torch::kLong);
-  return hit;
-}
-
 // Which of the world points (N, 3; float64) the observer saw: in its view, on the surface it drew
 // there, within 3 % of the depth (synthetic rooms at 10 %: one hole 0.3 dB better, another 4.8 dB
 // worse, more of it taken for seen).
@@ -114,24 +88,6 @@ torch::Tensor seen_by(const Observer& o, const torch::Tensor& points) {
   const torch::Tensor d = o.depth.reshape({-1}).index({hit.index}).to(torch::kFloat64);
   const torch::Tensor a = o.alpha.reshape({-1}).index({hit.index});
   return hit.inside.logical_and(a > 0.5).logical_and((d - hit.z).abs() <= 0.03 * hit.z);
-}
-
-// `added` (RGB colours) drawn with `kept` (any colours): one set, colours as SH when kept's are.
-GaussianSet joined(const GaussianSet& kept, const GaussianSet& added) {
-  GaussianSet out;
-  out.means = torch::cat({kept.means, added.means});
-  out.scales = torch::cat({kept.scales, added.scales});
-  out.quats = torch::cat({kept.quats, added.quats});
-  out.opacities = torch::cat({kept.opacities.reshape({-1}), added.opacities.reshape({-1})});
-  out.sh_degree = kept.sh_degree;
-  if (kept.sh_degree < 0) {
-    out.colors = torch::cat({kept.colors, added.colors});
-  } else {
-    torch::Tensor sh = torch::zeros({added.size(), kept.colors.size(1), 3}, kept.colors.options());
-    sh.select(1, 0).copy_(sh_dc_from_rgb(added.colors));
-    out.colors = torch::cat({kept.colors, sh});
-  }
-  return out;
 }
 
 struct CameraViews {
@@ -169,10 +125,8 @@ Image hole_mask(const CameraViews& self, const std::vector<const Observer*>& oth
   torch::Tensor hole = region.logical_and(self.kept_alpha < 0.5);
   const torch::Tensor pixels = region.logical_and(self.kept_alpha >= 0.5).nonzero();
   if (pixels.size(0) > 0) {
-    const torch::Tensor v = pixels.select(1, 0).to(torch::kFloat64), u = pixels.select(1, 1).to(torch::kFloat64);
-    const torch::Tensor d = self.kept_depth.index({pixels.select(1, 0), pixels.select(1, 1)}).to(torch::kFloat64);
-    const torch::Tensor local = torch::stack({(u + 0.5 - c.K.cx) / c.K.fx * d, (v + 0.5 - c.K.cy) / c.K.fy * d, d}, 1);
-    const torch::Tensor world = transformed(c.w2c_opencv().inverse(), local);
+    const torch::Tensor d = self.kept_depth.index({pixels.select(1, 0), pixels.select(1, 1)});
+    const torch::Tensor world = unproject(c, pixels.select(1, 0), pixels.select(1, 1), d);
     torch::Tensor seen = torch::zeros({pixels.size(0)}, torch::kBool);
     for (const Observer* o : others) seen = seen.logical_or(seen_by(*o, world));
     hole.index_put_({pixels.select(1, 0), pixels.select(1, 1)}, seen.logical_not());

@@ -42,6 +42,23 @@ BoundingSphere visible_bounds(const GaussianSet& g) {
 torch::Tensor rgb_from_sh_dc(const torch::Tensor& dc) { return 0.5 + kSh0 * dc; }
 torch::Tensor sh_dc_from_rgb(const torch::Tensor& rgb) { return (rgb - 0.5) / kSh0; }
 
+GaussianSet joined(const GaussianSet& kept, const GaussianSet& added) {
+  GaussianSet out;
+  out.means = torch::cat({kept.means, added.means});
+  out.scales = torch::cat({kept.scales, added.scales});
+  out.quats = torch::cat({kept.quats, added.quats});
+  out.opacities = torch::cat({kept.opacities.reshape({-1}), added.opacities.reshape({-1})});
+  out.sh_degree = kept.sh_degree;
+  if (kept.sh_degree < 0) {
+    out.colors = torch::cat({kept.colors, added.colors});
+  } else {
+    torch::Tensor sh = torch::zeros({added.size(), kept.colors.size(1), 3}, kept.colors.options());
+    sh.select(1, 0).copy_(sh_dc_from_rgb(added.colors));
+    out.colors = torch::cat({kept.colors, sh});
+  }
+  return out;
+}
+
 GaussianSet gaussians_from_maps(const GaussianMaps& maps) {
   if (!maps.xyz.defined() || maps.xyz.dim() != 5 || maps.xyz.size(0) != 1)
     fail("gaussians_from_maps: expected maps of shape (1, V, C, H, W)");

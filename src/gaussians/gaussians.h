@@ -45,6 +45,10 @@ struct GaussianSet {
 // The rows where `take` (N, bool) is true, every attribute alike.
 GaussianSet select_rows(const GaussianSet& gaussians, const torch::Tensor& take);
 
+// `added` (RGB colours) drawn with `kept` (any colours): one set, `kept`'s rows first, colours as
+// SH (the DC term alone) when kept's are.
+GaussianSet joined(const GaussianSet& kept, const GaussianSet& added);
+
 // The network output (B = 1) in the official flattening order (view, row, column), RGB
 // colours used as they are (no activation; spec §3.1). The rows are views of the maps.
 GaussianSet gaussians_from_maps(const GaussianMaps& maps);

@@ -1,0 +1,23 @@
+#pragma once
+// Between world points and a camera's pixels, as render() draws them (pinhole, OpenCV axes,
+// pixel centres at +0.5). Float64 CPU tensors.
+#include "common/torch.h"
+
+#include "camera/camera.h"
+
+namespace ii {
+
+// Points (N, 3) moved by a 4 x 4 rigid transform.
+torch::Tensor transformed(const Eigen::Matrix4d& m, const torch::Tensor& points);
+
+// Where world points (N, 3) land in a camera's image: their camera z, whether they are in front
+// of it and inside the image, and the flat index of their pixel (clamped to the image).
+struct PixelHit {
+  torch::Tensor z, inside, index;
+};
+PixelHit project(const Camera& camera, const torch::Tensor& points);
+
+// The world points (N, 3) of pixels (rows `v`, columns `u`, N each) at camera z-depths `z`.
+torch::Tensor unproject(const Camera& camera, const torch::Tensor& v, const torch::Tensor& u, const torch::Tensor& z);
+
+}  // namespace ii
