@@ -108,8 +108,9 @@ std::vector<NamedPose> poses_of(const ColmapModel& model) {
   return out;
 }
 
-std::vector<NamedPose> poses_of_scene(const fs::path& scene_dir) {
-  const Scene scene = load_scene(scene_dir);
+std::vector<NamedPose> poses_of_scene(const fs::path& scene_dir) { return poses_of_scene(load_scene(scene_dir)); }
+
+std::vector<NamedPose> poses_of_scene(const Scene& scene) {
   std::vector<NamedPose> out;
   for (const auto* views : {&scene.views, &scene.test_views})
     for (const View& v : *views) out.push_back({v.name, v.camera.w2c_opencv()});
@@ -174,6 +175,24 @@ PoseComparison compare_poses(const std::vector<NamedPose>& posed, const std::vec
   return c;
 }
 
+nlohmann::json comparison_json(const PoseComparison& c, const std::string& scene) {
+  return {{"scene", scene},
+          {"matched", c.matched},
+          {"median_rotation_deg", c.median_rotation_deg},
+          {"max_rotation_deg", c.max_rotation_deg},
+          {"median_position", c.median_position},
+          {"max_position", c.max_position},
+          {"position_unit", "largest distance between two reference cameras"}};
+}
+
+std::string comparison_line(const nlohmann::json& c) {
+  return fmt::format("against {} ({} views matched): rotation median {:.3f} deg (max {:.3f}), position median {:.4f} "
+                     "(max {:.4f}) of the camera spread",
+                     c["scene"].get<std::string>(), c["matched"].get<int>(), c["median_rotation_deg"].get<double>(),
+                     c["max_rotation_deg"].get<double>(), c["median_position"].get<double>(),
+                     c["max_position"].get<double>());
+}
+
 nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const CaptureOptions& o) {
   Stopwatch total, stage;
   auto begin = [&](int k, const std::string& what) {
@@ -184,8 +203,11 @@ nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const C
   if (o.frames < 3) fail("--frames {}: posing needs at least 3 frames", o.frames);
   if (o.max_size < 64) fail("--max-size {}: too small to pose (at least 64 pixels)", o.max_size);
   const bool video = !fs::is_directory(input);
-  const std::string matcher = o.matcher == "auto" ? (video ? "sequential" : "exhaustive") : o.matcher;
-  if (matcher != "sequential" && matcher != "exhaustive")
+  // Photos are matched in name order first (cameras and phones number them as taken); only when
+  // that leaves some unposed are the other pairs matched too. A video's frames are in order.
+  const std::string matcher =
+      o.matcher == "auto" ? (video ? "sequential" : "sequential+exhaustive") : o.matcher;
+  if (o.matcher != "auto" && matcher != "sequential" && matcher != "exhaustive")
     fail("unknown matcher '{}' (auto, sequential or exhaustive)", o.matcher);
   const fs::path colmap_exe = find_colmap(o.colmap);
   if (colmap_exe.empty())
@@ -214,17 +236,31 @@ nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const C
   report["images"] = inputs;
   timings["frames_s"] = stage.ms() / 1000;
 
-  begin(2, fmt::format("posing {} images with COLMAP ({} matching; log: {})", inputs, matcher,
+  begin(2, fmt::format("posing {} images with COLMAP ({} matching; log: {})", inputs,
+                       matcher == "sequential+exhaustive" ? "name-order, then every pair if some are left unposed"
+                                                          : matcher,
                        (work / "colmap.log").string()));
   ColmapRunOptions colmap;
   colmap.executable = o.colmap;
   colmap.matcher = matcher;
+  // COLMAP's own default camera (focal, centre, one radial term): the 8 numbers of OPENCV made
+  // mapping 24 % slower on 60 photos for no better poses (docs/benchmarks.md, issue 47). A
+  // global bundle adjustment when the model has grown by 40 % rather than 10 %: most of the
+  // mapper's time, for what the local adjustments and the final global one settle anyway.
+  colmap.camera_model = "SIMPLE_RADIAL";
+  colmap.mapper_options = {"--Mapper.ba_global_images_ratio", "1.4", "--Mapper.ba_global_points_ratio", "1.4"};
   colmap.progress = o.on_colmap_progress;
-  const fs::path model_dir = run_colmap(work, colmap);
-  const ColmapModel raw = read_colmap_model(model_dir);
-  const int registered = static_cast<int>(raw.images.size());
+  const ColmapRun run = run_colmap_steps(work, colmap);
+  const fs::path& model_dir = run.model;
+  const int registered = run.registered;
   report["registered"] = registered;
+  std::string matchers;
+  for (const std::string& m : run.matchers) matchers += (matchers.empty() ? "" : ", then ") + m;
+  report["matcher"] = matchers;
   timings["colmap_s"] = stage.ms() / 1000;
+  timings["colmap_features_s"] = run.features_s;
+  timings["colmap_matching_s"] = run.matching_s;
+  timings["colmap_mapping_s"] = run.mapping_s;
   if (registered < 3 || 2 * registered < inputs)
     fail("COLMAP registered {} of {} images (log: {}): too few to trust. Try more overlap between neighbouring "
          "frames, slower motion, more texture in view, or --matcher exhaustive",
@@ -255,14 +291,8 @@ nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const C
   report["transform"]["rotation"] = rot;
   report["points"] = model.points.size();
   if (!o.compare.empty()) {
-    const PoseComparison c = compare_poses(poses_of(model), poses_of_scene(o.compare));
-    report["compared_with"] = {{"scene", o.compare.string()},
-                               {"matched", c.matched},
-                               {"median_rotation_deg", c.median_rotation_deg},
-                               {"max_rotation_deg", c.max_rotation_deg},
-                               {"median_position", c.median_position},
-                               {"max_position", c.max_position},
-                               {"position_unit", "largest distance between two reference cameras"}};
+    report["compared_with"] =
+        comparison_json(compare_poses(poses_of(model), poses_of_scene(o.compare)), o.compare.string());
   }
   timings["write_s"] = stage.ms() / 1000;
   timings["total_s"] = total.ms() / 1000;

@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "data/scene.h"
 #include "io/colmap.h"
 
 namespace ii {
@@ -19,7 +20,9 @@ namespace ii {
 struct CaptureOptions {
   int frames = 100;                 // frames taken from a video (all images of a folder are used)
   int max_size = 1008;              // long side of the posed images, in pixels
-  std::string matcher = "auto";     // auto (sequential for a video, exhaustive for a folder) | ...
+  // auto (sequential for a video; for a folder sequential in name order, then the other pairs when
+  // that leaves images unposed) | sequential | exhaustive
+  std::string matcher = "auto";
   std::string colmap = "colmap";    // the colmap executable (PATH lookup unless it has a '/')
   std::filesystem::path compare;    // a posed scene of the same views: its poses against ours
                                     // go into capture.json as "compared_with" (compare_poses)
@@ -53,6 +56,7 @@ struct NamedPose {
 std::vector<NamedPose> poses_of(const ColmapModel& model);
 // The views (test views too) of a scene in any format load_scene reads.
 std::vector<NamedPose> poses_of_scene(const std::filesystem::path& scene_dir);
+std::vector<NamedPose> poses_of_scene(const Scene& scene);
 
 // Camera poses of `posed` against `reference` after the best similarity between their camera
 // centres (views matched by name, else in name order, as the frames of a video made from the
@@ -65,5 +69,9 @@ struct PoseComparison {
   double median_position = 0, max_position = 0;
 };
 PoseComparison compare_poses(const std::vector<NamedPose>& posed, const std::vector<NamedPose>& reference);
+// capture.json's "compared_with" (and scene-info --compare's JSON): the comparison against `scene`.
+nlohmann::json comparison_json(const PoseComparison& comparison, const std::string& scene);
+// One line: "against SCENE (N views matched): rotation median ... of the camera spread".
+std::string comparison_line(const nlohmann::json& compared_with);
 
 }  // namespace ii

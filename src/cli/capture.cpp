@@ -34,13 +34,7 @@ void run(const CaptureArgs& a) {
                  eta_s >= 0 ? fmt::format(", about {:.0f} s left", eta_s) : std::string());
   };
   const nlohmann::json report = capture_scene(a.input, a.out, o);
-  if (report.contains("compared_with")) {
-    const nlohmann::json& c = report["compared_with"];
-    fmt::print("against {} ({} views matched): rotation median {:.3f} deg (max {:.3f}), position median {:.4f} "
-               "(max {:.4f}) of the camera spread\n",
-               c["scene"].get<std::string>(), c["matched"].get<int>(), c["median_rotation_deg"].get<double>(),
-               c["max_rotation_deg"].get<double>(), c["median_position"].get<double>(), c["max_position"].get<double>());
-  }
+  if (report.contains("compared_with")) fmt::print("{}\n", comparison_line(report["compared_with"]));
   fmt::print("{}: {} of {} images posed, {} points, in {:.0f} s (frames {:.0f} s, COLMAP {:.0f} s, undistortion {:.0f} s)\n",
              a.out, report["registered"].get<int>(), report["images"].get<int>(), report["points"].get<size_t>(),
              report["timings"]["total_s"].get<double>(), report["timings"]["frames_s"].get<double>(),
@@ -62,7 +56,8 @@ void add_capture_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(64, 8192));
   cmd->add_option("--matcher", a->options.matcher,
-                  "COLMAP matching: auto (sequential for a video, exhaustive for photos), sequential or exhaustive")
+                  "COLMAP matching: auto (a video's frames in turn; photos in name order first, every pair only when "
+                  "that leaves some unposed), sequential or exhaustive (every pair: photos in no order)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "sequential", "exhaustive"}));
   cmd->add_option("--colmap", a->options.colmap, "The colmap executable")->capture_default_str();

@@ -1,4 +1,5 @@
 // instainpaint: feed-forward 3D inpainting. Thin command-line front end over the library.
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
@@ -21,6 +22,8 @@ int main(int argc, char** argv) {
   bool verbose = false;
   app.add_flag("-v,--verbose", verbose, "Print debug messages");
   ii::keep_large_allocations();
+  // Messages on stderr: stdout carries what a command prints as its result (--json, tables).
+  spdlog::set_default_logger(spdlog::stderr_color_mt("instainpaint"));
   spdlog::set_pattern("%^%l%$: %v");
   // Set before parsing: subcommands run inside parse().
   for (int i = 1; i < argc; ++i)

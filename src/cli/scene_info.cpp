@@ -5,6 +5,7 @@
 #include <cmath>
 #include <iostream>
 
+#include "capture/capture.h"
 #include "cli/commands.h"
 #include "data/scene.h"
 
@@ -55,11 +56,22 @@ void add_scene_info_command(CLI::App& app) {
   auto scene_dir = std::make_shared<std::string>();
   auto options = std::make_shared<SceneOptions>();
   auto as_json = std::make_shared<bool>(false);
+  auto compare = std::make_shared<std::string>();
   add_scene_options(cmd, *scene_dir, *options);
   cmd->add_flag("--json", *as_json, "Print JSON instead of a table");
-  cmd->footer("Example: instainpaint scene-info --scene ../shared/data/statue");
+  cmd->add_option("--compare", *compare,
+                  "Another posing of the same views (any scene format): the cameras' rotation and position errors "
+                  "after the best similarity, views matched by name (as capture --compare)")
+      ->check(CLI::ExistingDirectory);
+  cmd->footer(
+      "Examples:\n"
+      "  instainpaint scene-info --scene ../shared/data/statue\n"
+      "  instainpaint scene-info --scene my_capture --compare the_datasets_poses --json");
   cmd->callback([=] {
     const Scene scene = load_scene(*scene_dir, *options);
+    nlohmann::json compared;
+    if (!compare->empty())
+      compared = comparison_json(compare_poses(poses_of_scene(scene), poses_of_scene(*compare)), *compare);
     if (*as_json) {
       nlohmann::json j = {{"root", scene.root.string()}, {"format", scene.format}};
       j["views"] = nlohmann::json::array();
@@ -70,6 +82,7 @@ void add_scene_info_command(CLI::App& app) {
       if (scene.far) j["far"] = *scene.far;
       j["warnings"] = scene.warnings;
       j["notes"] = scene.notes;
+      if (!compared.is_null()) j["compared_with"] = compared;
       std::cout << j.dump(2) << "\n";
       return;
     }
@@ -80,6 +93,7 @@ void add_scene_info_command(CLI::App& app) {
     if (scene.near && scene.far) fmt::print("depth   near {:.3f}, far {:.3f}\n", *scene.near, *scene.far);
     print_views("views", scene.views);
     print_views("test views (object-free ground truth)", scene.test_views);
+    if (!compared.is_null()) fmt::print("{}\n", comparison_line(compared));
   });
 }
 

@@ -3,9 +3,13 @@
 #include <algorithm>
 #include <chrono>
 #include <regex>
+#include <tuple>
 #include <vector>
 
+#include <spdlog/spdlog.h>
+
 #include "common/error.h"
+#include "common/stopwatch.h"
 #include "common/process.h"
 #include "io/colmap.h"
 
@@ -35,18 +39,36 @@ std::pair<int, int> step_counter(const std::string& tail, const std::string& ste
   return last;
 }
 
+// The numbered model folder with the most images, and their count (empty path, 0: none).
+std::pair<fs::path, int> largest_model(const fs::path& sparse) {
+  std::pair<fs::path, int> best{{}, 0};
+  for (const auto& e : fs::directory_iterator(sparse)) {
+    if (!e.is_directory()) continue;
+    const fs::path p = e.path();
+    if (!fs::exists(p / "cameras.bin") && !fs::exists(p / "cameras.txt")) continue;
+    const int n = static_cast<int>(read_colmap_model(p).images.size());
+    if (n > best.second) best = {p, n};
+  }
+  return best;
+}
+
 }  // namespace
 
 fs::path find_colmap(const std::string& executable) { return find_executable(executable); }
 
 fs::path run_colmap(const fs::path& scene_dir, const ColmapRunOptions& options) {
+  return run_colmap_steps(scene_dir, options).model;
+}
+
+ColmapRun run_colmap_steps(const fs::path& scene_dir, const ColmapRunOptions& options) {
   const fs::path exe = find_colmap(options.executable);
   if (exe.empty())
     fail("COLMAP is not installed ('{}' not found{}): install it (e.g. `apt install colmap`) or give the path to the "
          "executable, or pose the images with another tool and use its transforms.json / sparse model",
          options.executable, options.executable.find('/') == std::string::npos ? " on PATH" : "");
-  if (options.matcher != "exhaustive" && options.matcher != "sequential")
-    fail("unknown COLMAP matcher '{}' (expected exhaustive or sequential)", options.matcher);
+  const bool fallback = options.matcher == "sequential+exhaustive";
+  if (options.matcher != "exhaustive" && options.matcher != "sequential" && !fallback)
+    fail("unknown COLMAP matcher '{}' (expected exhaustive, sequential or sequential+exhaustive)", options.matcher);
   const fs::path dir = fs::absolute(scene_dir);
   const fs::path images = dir / options.image_folder;
   if (!fs::is_directory(images)) fail_file(images, "image folder not found");
@@ -75,28 +97,40 @@ fs::path run_colmap(const fs::path& scene_dir, const ColmapRunOptions& options) 
       };
     run_logged(exe, args, log, "colmap " + args[0], poll);
   };
+  ColmapRun run;
+  Stopwatch step;
   run_step({"feature_extractor", "--database_path", db.string(), "--image_path", images.string(),
             "--ImageReader.camera_model", options.camera_model, "--ImageReader.single_camera",
-            options.single_camera ? "1" : "0", "--SiftExtraction.use_gpu", gpu});
-  run_step({options.matcher + "_matcher", "--database_path", db.string(), "--SiftMatching.use_gpu", gpu});
-  run_step({"mapper", "--database_path", db.string(), "--image_path", images.string(), "--output_path", sparse.string()});
-
-  // The mapper writes one numbered folder per disconnected reconstruction.
-  fs::path best;
-  size_t best_images = 0;
-  for (const auto& e : fs::directory_iterator(sparse)) {
-    if (!e.is_directory()) continue;
-    const fs::path p = e.path();
-    if (!fs::exists(p / "cameras.bin") && !fs::exists(p / "cameras.txt")) continue;
-    const size_t n = read_colmap_model(p).images.size();
-    if (n > best_images) {
-      best_images = n;
-      best = p;
-    }
+            options.single_camera ? "1" : "0", "--SiftExtraction.use_gpu", gpu, "--SiftExtraction.max_num_features",
+            std::to_string(options.max_features)});
+  run.features_s = step.lap() / 1000;
+  auto match = [&](const std::string& matcher) {
+    run_step({matcher + "_matcher", "--database_path", db.string(), "--SiftMatching.use_gpu", gpu});
+    run.matchers.push_back(matcher);
+    run.matching_s += step.lap() / 1000;
+  };
+  auto map = [&] {
+    std::vector<std::string> args = {"mapper", "--database_path", db.string(), "--image_path", images.string(),
+                                     "--output_path", sparse.string()};
+    args.insert(args.end(), options.mapper_options.begin(), options.mapper_options.end());
+    run_step(args);
+    run.mapping_s += step.lap() / 1000;
+    // The mapper writes one numbered folder per disconnected reconstruction.
+    std::tie(run.model, run.registered) = largest_model(sparse);
+  };
+  match(fallback ? "sequential" : options.matcher);
+  map();
+  if (fallback && run.registered < images_count) {
+    spdlog::info("sequential matching posed {} of {} images: matching the other pairs too", run.registered,
+                 images_count);
+    match("exhaustive");
+    fs::remove_all(sparse);
+    fs::create_directories(sparse);
+    map();
   }
-  if (best.empty())
+  if (run.model.empty())
     fail_file(sparse, "COLMAP reconstructed nothing (too few matches between the images?); see {}", log.string());
-  return best;
+  return run;
 }
 
 }  // namespace ii

@@ -485,9 +485,65 @@ TEST(ColmapRun, RunsTheThreeStepsAndFindsTheModel) {
             "colmap exhaustive_matcher exited with status 3 (log: " + (fs::absolute(dir) / "colmap.log").string() +
                 "); last lines:\nfake colmap feature_extractor --database_path " +
                 (fs::absolute(dir) / "database.db").string() + " --image_path " + (fs::absolute(dir) / "images").string() +
-                " --ImageReader.camera_model OPENCV --ImageReader.single_camera 1 --SiftExtraction.use_gpu 0\n"
+                " --ImageReader.camera_model OPENCV --ImageReader.single_camera 1 --SiftExtraction.use_gpu 0"
+                " --SiftExtraction.max_num_features 8192\n"
                 "fake colmap exhaustive_matcher --database_path " + (fs::absolute(dir) / "database.db").string() +
                 " --SiftMatching.use_gpu 0\nboom: no features");
+}
+
+// Photos in name order: sequential matching first; when its model leaves an image out, the
+// other pairs are matched too and the mapper runs again (here the second model has both).
+TEST(ColmapRun, SequentialThenExhaustiveWhenImagesAreLeftOut) {
+  ColmapModel both = one_camera("OPENCV", {30, 31, 16, 12, 0.01, 0, 0, 0});
+  both.images[1] = look_at(1, "a.png", Eigen::Vector3d(0, 0, -5), Eigen::Vector3d::Zero());
+  both.images[2] = look_at(2, "b.png", Eigen::Vector3d(1, 0, -5), Eigen::Vector3d::Zero());
+  ColmapModel one = both;
+  one.images.erase(2);
+  const fs::path models = test::temp_dir("colmap-two-models");
+  write_colmap_model(models / "one", one, true);
+  write_colmap_model(models / "both", both, true);
+  const fs::path dir = test::temp_dir("colmap-fallback");
+  for (const char* name : {"a.png", "b.png"}) {
+    fs::create_directories(dir / "images");
+    write_png(dir / "images" / name, Image(32, 24, 3, 0.5f));
+  }
+  // The mapper gives `one` until the exhaustive matcher has run, then `both`.
+  const fs::path script = test::temp_dir("fake-colmap-fallback") / "colmap";
+  const fs::path marker = script.parent_path() / "exhaustive-ran";
+  write_file_atomic(script, "#!/bin/sh\n"
+                            "echo \"fake colmap $*\"\n"
+                            "if [ \"$1\" = exhaustive_matcher ]; then touch '" + marker.string() + "'; fi\n"
+                            "prev=\"\"; out=\"\"\n"
+                            "for a in \"$@\"; do [ \"$prev\" = \"--output_path\" ] && out=\"$a\"; prev=\"$a\"; done\n"
+                            "model='" + (models / "one").string() + "'; [ -e '" + marker.string() + "' ] && model='" +
+                                (models / "both").string() + "'\n"
+                            "if [ \"$1\" = mapper ]; then mkdir -p \"$out/0\" && cp \"$model\"/* \"$out/0/\"; fi\n");
+  fs::permissions(script, fs::perms::owner_all);
+  ColmapRunOptions o;
+  o.executable = script.string();
+  o.matcher = "sequential+exhaustive";
+  const ColmapRun run = run_colmap_steps(dir, o);
+  EXPECT_EQ(run.registered, 2);
+  EXPECT_EQ(run.matchers, (std::vector<std::string>{"sequential", "exhaustive"}));
+  EXPECT_EQ(run.model, fs::absolute(dir) / "sparse" / "0");
+  const std::string log = read_file_text(dir / "colmap.log");
+  const size_t sequential = log.find("fake colmap sequential_matcher"), exhaustive = log.find("fake colmap exhaustive_matcher");
+  ASSERT_NE(sequential, std::string::npos) << log;
+  ASSERT_NE(exhaustive, std::string::npos) << log;
+  EXPECT_LT(sequential, exhaustive);
+  EXPECT_NE(log.find("fake colmap mapper", exhaustive), std::string::npos) << log;  // mapped again
+
+  // When sequential matching poses them all, nothing more runs.
+  fs::remove_all(dir / "sparse");
+  fs::remove(marker);
+  o.executable = fake_colmap(models / "both").string();
+  const ColmapRun direct = run_colmap_steps(dir, o);
+  EXPECT_EQ(direct.matchers, std::vector<std::string>{"sequential"});
+  EXPECT_EQ(direct.registered, 2);
+
+  o.matcher = "vocab_tree";
+  EXPECT_EQ(test::error_message([&] { run_colmap_steps(dir, o); }),
+            "unknown COLMAP matcher 'vocab_tree' (expected exhaustive, sequential or sequential+exhaustive)");
 }
 
 }  // namespace
