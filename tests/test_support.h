@@ -17,8 +17,8 @@ namespace ii::test {
 std::filesystem::path shared_path(const std::string& relative);
 
 // Why the shared file or folder `relative` cannot be used, or "" when it can. One rule for every
-// test: under data/<folder>/ the folder counts only when it is whole, i.e. holds its PROVENANCE.md
-// (an empty or half-copied folder is as absent as a removed one), and then the path must exist.
+// test: under data/<folder>/ the folder counts only when it holds its PROVENANCE.md (an emptied
+// folder is as absent as a removed one), and then the path must exist.
 std::string shared_missing(const std::string& relative);
 
 // A fresh empty temporary folder, removed at exit of the test process.

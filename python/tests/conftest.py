@@ -13,8 +13,8 @@ def shared() -> pathlib.Path:
 
 
 def shared_data(shared: pathlib.Path, folder: str) -> pathlib.Path:
-    """The shared data folder, or a skip: as the C++ tests, a folder counts only when it is
-    whole (holds its PROVENANCE.md); an empty or half-copied one is as absent as a removed one."""
+    """The shared data folder, or a skip: as in the C++ tests, a folder counts only when it holds
+    its PROVENANCE.md (an emptied one is as absent as a removed one)."""
     path = shared / "data" / folder
     if not (path / "PROVENANCE.md").is_file():
         pytest.skip(f"shared data missing: {path} is absent or incomplete (no PROVENANCE.md)")
