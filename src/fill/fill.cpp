@@ -259,6 +259,21 @@ SceneSets scene_sets(const SplatCloud& cloud, const RegionMask& region, const to
   return s;
 }
 
+constexpr size_t kNone = static_cast<size_t>(-1);
+
+// What the cameras other than one saw: the chosen views' whole renders, the observers' (`extra`)
+// and the small sights, less the view `skip_view` or the observer `skip_extra` (kNone: none).
+std::vector<const Observer*> other_observers(const std::vector<CameraViews>& views, const std::vector<Observer>& extra,
+                                             const std::vector<Observer>& sights, size_t skip_view, size_t skip_extra) {
+  std::vector<const Observer*> others;
+  for (size_t o = 0; o < views.size(); ++o)
+    if (o != skip_view) others.push_back(&views[o].whole);
+  for (size_t o = 0; o < extra.size(); ++o)
+    if (o != skip_extra) others.push_back(&extra[o]);
+  for (const Observer& o : sights) others.push_back(&o);
+  return others;
+}
+
 // Every chosen camera's renders and its hole; `extra` gets the observers' whole renders at the
 // working size when a refinement will look through them (else their small renders among the
 // sights tell what they saw: 8 renders fewer, a second of a 0.7 M-splat fill).
@@ -268,14 +283,8 @@ std::vector<CameraViews> render_views(const SceneSets& sets, const ChosenCameras
   for (const NamedCamera& c : cameras.cameras) views.push_back(render_camera(sets.scene, sets.kept, sets.weights, c.camera));
   if (refining)
     for (const NamedCamera& c : cameras.observers) extra.push_back(observe(sets.scene, c.camera));
-  for (size_t v = 0; v < views.size(); ++v) {
-    std::vector<const Observer*> others;
-    for (size_t o = 0; o < views.size(); ++o)
-      if (o != v) others.push_back(&views[o].whole);
-    for (const Observer& o : extra) others.push_back(&o);
-    for (const Observer& o : cameras.sights) others.push_back(&o);
-    views[v].mask = hole_mask(views[v], others);
-  }
+  for (size_t v = 0; v < views.size(); ++v)
+    views[v].mask = hole_mask(views[v], other_observers(views, extra, cameras.sights, v, kNone));
   return views;
 }
 
@@ -372,12 +381,8 @@ GaussianSet refine_new(const GaussianSet& added, const SceneSets& sets, const st
   // may not cover what they saw there (a few views alone let floaters through).
   for (size_t k = 0; k < extra.size(); ++k) {
     const CameraViews v = render_camera(sets.scene, sets.kept, sets.weights, extra[k].camera);
-    std::vector<const Observer*> others;
-    for (const CameraViews& c : views) others.push_back(&c.whole);
-    for (size_t o = 0; o < extra.size(); ++o)
-      if (o != k) others.push_back(&extra[o]);
-    for (const Observer& o : result.cameras.sights) others.push_back(&o);
-    targets.push_back({result.cameras.observers[k].name, v.kept, hole_mask(v, others), extra[k].camera});
+    const Image mask = hole_mask(v, other_observers(views, extra, result.cameras.sights, kNone, k));
+    targets.push_back({result.cameras.observers[k].name, v.kept, mask, extra[k].camera});
   }
   torch::AutoGradMode gradients(true);  // the rest of the fill runs without
   RefineOptions refine = *options.refine;

@@ -13,7 +13,9 @@
 #include "common/torch.h"
 #include "data/masks.h"
 #include "gaussians/gaussians.h"
+#include "render/projection.h"
 #include "render/rasterizer.h"
+#include "tensor/image_tensor.h"
 
 namespace ii {
 
@@ -135,19 +137,19 @@ RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, co
   const double width = std::max({percentile(xs, 0.98) - percentile(xs, 0.02), percentile(ys, 0.98) - percentile(ys, 0.02),
                                  1e-6});
   const double margin = 0.1 * width, near = percentile(depths, 0.02) - margin, far = percentile(depths, 0.98) + width;
-  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  // The splats whose centres fall in the stroke, from the nearest of the marked surface (a pixel's
+  // depth is an average over the splats it draws: the front ones lie nearer) to as far behind it
+  // as it is wide.
+  const torch::Tensor centres =
+      torch::from_blob(const_cast<float*>(cloud.means.data()), {static_cast<int64_t>(cloud.size()), 3}, torch::kFloat32)
+          .to(torch::kFloat64);
+  const PixelHit hit = project(camera, centres);
+  const torch::Tensor in_stroke = image_to_tensor(stroke).reshape({-1}).index({hit.index}) > 0.5;
+  const torch::Tensor take =
+      hit.inside.logical_and(in_stroke).logical_and(hit.z >= near).logical_and(hit.z <= far).contiguous();
   RegionMask region(cloud.size());
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    const Eigen::Vector3d p = (w2c * position(cloud, i).homogeneous()).head<3>();
-    if (p.z() <= 0) continue;
-    const double u = camera.K.fx * p.x() / p.z() + camera.K.cx, v = camera.K.fy * p.y() / p.z() + camera.K.cy;
-    if (!(u >= 0 && v >= 0 && u < W && v < H)) continue;
-    const size_t pixel = static_cast<size_t>(v) * W + static_cast<size_t>(u);
-    if (stroke.pixels[pixel] <= 0.5f) continue;
-    // From the nearest of the marked surface (a pixel's depth is an average over the splats it
-    // draws: the front ones lie nearer) to as far behind it as it is wide.
-    region[i] = p.z() >= near && p.z() <= far;
-  }
+  const bool* t = take.data_ptr<bool>();
+  for (size_t i = 0; i < cloud.size(); ++i) region[i] = t[i];
   return region;
 }
 
