@@ -65,6 +65,10 @@ std::string error_message(Fn&& fn);
   if (const std::string why_missing = ::ii::test::shared_missing(relative); !why_missing.empty()) \
   GTEST_SKIP() << why_missing
 
+// Skips the current test without a GPU (no CUDA device, or a LibTorch built without CUDA).
+#define II_REQUIRE_CUDA() \
+  if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device (or LibTorch without CUDA)"
+
 // Skips the current test when the CLI has not been built; binds its path to `var`.
 #define II_REQUIRE_CLI(var)                                         \
   const std::filesystem::path var = ::ii::test::cli_executable();  \

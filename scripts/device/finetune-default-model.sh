@@ -13,7 +13,9 @@
 #   run(command="bash scripts/device/finetune-default-model.sh",
 #       carry=[".device/debs", ".device/shared/data/statue", ".device/scenes/fern"], timeout_s=590)
 # Environment: STEPS_128, STEPS_256 (steps of each phase), SECONDS_128, SECONDS_256 (each phase is
-# stopped after this long; its last checkpoint counts), ROOMS, WORKERS.
+# stopped after this long; its last checkpoint counts), ROOMS, WORKERS, PHASES ("128 256", or one
+# of them: the 256 phase then starts from the embedded model), REAL_REPEAT (each real scene listed
+# this many times: a sample draws scenes uniformly, so this weighs real photos against the rooms).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}
@@ -23,6 +25,8 @@ SECONDS_128=${SECONDS_128:-110}
 SECONDS_256=${SECONDS_256:-140}
 ROOMS=${ROOMS:-64}
 WORKERS=${WORKERS:-12}
+PHASES=${PHASES:-"128 256"}
+REAL_REPEAT=${REAL_REPEAT:-1}
 WORK=/tmp/ii-finetune
 mkdir -p "$OUT" "$WORK"
 exec > >(tee -a "$OUT/train.log") 2>&1
@@ -31,6 +35,8 @@ step() { printf '\n== %s (%s)\n' "$*" "$(date +%T)"; }
 source scripts/device/deps.sh
 device_deps_from_debs
 device_build_program_and_rooms "$OUT" "$WORK" "$ROOMS" 256
+SCENES="$WORK/train"
+for _ in $(seq "$REAL_REPEAT"); do SCENES+=",.device/scenes/fern,.device/shared/data/statue"; done
 
 # The phase's model goes to $OUT while it trains: a call cut short still brings one back.
 phase() {  # size batch steps seconds lr init
@@ -39,7 +45,7 @@ phase() {  # size batch steps seconds lr init
   ( while sleep 15; do [ -f "$run/model.safetensors" ] && cp "$run/model.safetensors" "$OUT/model-$size.safetensors.tmp" &&
       mv "$OUT/model-$size.safetensors.tmp" "$OUT/model-$size.safetensors"; done ) &
   local copier=$!
-  timeout "$seconds" "$BIN" train --scenes "$WORK/train,.device/scenes/fern,.device/shared/data/statue" \
+  timeout "$seconds" "$BIN" train --scenes "$SCENES" \
     --val-scenes "$WORK/val" --out "$run" --stage inpaint --init "$init" --width "$size" --height "$size" \
     --inputs 4 --targets 4 --batch "$batch" --steps "$steps" --lr "$lr" --warmup 30 --depth-weight 0.2 \
     --device cuda --precision bf16 --workers "$WORKERS" --val-every 100000 --val-samples 12 --save-every 50 \
@@ -48,6 +54,10 @@ phase() {  # size batch steps seconds lr init
   cp "$run/model.safetensors" "$OUT/model-$size.safetensors"
   cp "$run/log.jsonl" "$OUT/log-$size.jsonl"
 }
-phase 128 16 "$STEPS_128" "$SECONDS_128" 3e-4 models/default.safetensors
-phase 256 8 "$STEPS_256" "$SECONDS_256" 2e-4 "$WORK/run-128/model.safetensors"
+init=models/default.safetensors
+if [[ " $PHASES " == *" 128 "* ]]; then
+  phase 128 16 "$STEPS_128" "$SECONDS_128" 3e-4 "$init"
+  init=$WORK/run-128/model.safetensors
+fi
+[[ " $PHASES " == *" 256 "* ]] && phase 256 8 "$STEPS_256" "$SECONDS_256" 2e-4 "$init"
 step "done"

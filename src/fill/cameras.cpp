@@ -18,20 +18,6 @@ namespace {
 
 constexpr int kScoreHeight = 64;  // the small renders that score a camera
 
-torch::Tensor region_tensor(const RegionMask& region) {
-  std::vector<uint8_t> flags(region.begin(), region.end());
-  return torch::from_blob(flags.data(), {static_cast<int64_t>(flags.size())}, torch::kUInt8).to(torch::kBool).clone();
-}
-
-// The scene with the region white and everything else black, on black: a render's red channel
-// is the region's share of each pixel, hidden where the rest of the scene is in front of it.
-GaussianSet region_weight_set(const GaussianSet& scene, const torch::Tensor& in_region) {
-  GaussianSet g = scene;
-  g.colors = in_region.to(torch::kFloat32).unsqueeze(1).expand({scene.size(), 3}).contiguous();
-  g.sh_degree = -1;
-  return g;
-}
-
 // The region's share of the camera's pixels; `sights` (optional) keeps what the camera saw.
 double region_share(const GaussianSet& weights, const Camera& camera, std::vector<Sight>* sights = nullptr) {
   RenderOptions black;
@@ -114,10 +100,22 @@ std::vector<NamedCamera> observers_besides(const std::vector<size_t>& chosen, co
 
 }  // namespace
 
+torch::Tensor region_flags(const RegionMask& region, const torch::Device& device) {
+  std::vector<uint8_t> flags(region.begin(), region.end());
+  return torch::from_blob(flags.data(), {static_cast<int64_t>(flags.size())}, torch::kUInt8).to(torch::kBool).to(device);
+}
+
+GaussianSet region_weight_set(const GaussianSet& scene, const torch::Tensor& in_region) {
+  GaussianSet g = scene;
+  g.colors = in_region.to(torch::kFloat32).unsqueeze(1).expand({scene.size(), 3}).contiguous();
+  g.sh_degree = -1;
+  return g;
+}
+
 ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& region,
                                    const std::vector<NamedCamera>& given, const FillCameraOptions& options) {
   torch::NoGradGuard no_grad;
-  const torch::Tensor in_region = region_tensor(region);
+  const torch::Tensor in_region = region_flags(region, scene.means.device());
   const Sphere sphere = region_sphere(scene, in_region);
   // Those the region's centre is in front of and inside, nearest first; the 16 nearest are rendered.
   std::vector<size_t> candidates;
@@ -180,14 +178,15 @@ Eigen::Vector3d guess_up(const SplatCloud& cloud, const RegionMask& region) {
 ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMask& region,
                                        const FillCameraOptions& options) {
   torch::NoGradGuard no_grad;
-  const torch::Tensor in_region = region_tensor(region);
+  const torch::Tensor in_region = region_flags(region, scene.means.device());
   const Sphere sphere = region_sphere(scene, in_region);
   Eigen::Vector3d up = options.up.norm() > 0 ? options.up.normalized() : Eigen::Vector3d::UnitY();
   const Eigen::Vector3d side = (std::abs(up.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).cross(up).normalized();
   const Eigen::Vector3d front = up.cross(side);
   // Only what lies within reach of the farthest camera can stand between a camera and the region.
   const double reach = 7 * sphere.radius + sphere.radius;
-  const torch::Tensor centre = torch::tensor({sphere.centre.x(), sphere.centre.y(), sphere.centre.z()}).to(torch::kFloat32);
+  const torch::Tensor centre = torch::tensor({sphere.centre.x(), sphere.centre.y(), sphere.centre.z()})
+                                   .to(scene.means.device(), torch::kFloat32);
   const torch::Tensor near = (scene.means - centre).norm(2, 1) <= reach;
   const GaussianSet weights = region_weight_set(select_rows(scene, near), in_region.index({near}));
   const int height = options.height, width = std::max(8, height * 4 / 3 / 8 * 8);

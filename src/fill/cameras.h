@@ -39,6 +39,13 @@ struct ChosenCameras {
   std::string how;                   // "given (12 of 40 see the region)", "automatic (...)"
 };
 
+// The region as one flag per Gaussian, on `device` (where the scene's tensors are).
+torch::Tensor region_flags(const RegionMask& region, const torch::Device& device);
+
+// The scene with the region white and everything else black, for rendering on black: a render's
+// red channel is the region's share of each pixel, hidden where the rest of the scene is in front.
+GaussianSet region_weight_set(const GaussianSet& scene, const torch::Tensor& in_region);
+
 // Of `given` (at any size), the views that see most of the region (its share of the pixels of a
 // small render where the rest of the scene may hide it), the reference first; an Error when
 // none sees it.

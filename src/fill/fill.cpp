@@ -249,13 +249,9 @@ struct SceneSets {
 SceneSets scene_sets(const SplatCloud& cloud, const RegionMask& region, const torch::Device& device) {
   SceneSets s;
   s.scene = gaussians_from_splats(cloud, 3).to(device);
-  std::vector<uint8_t> flags(region.begin(), region.end());
-  const torch::Tensor in_region =
-      torch::from_blob(flags.data(), {static_cast<int64_t>(flags.size())}, torch::kUInt8).to(torch::kBool).to(device);
+  const torch::Tensor in_region = region_flags(region, device);
   s.kept = select_rows(s.scene, in_region.logical_not());
-  s.weights = s.scene;
-  s.weights.colors = in_region.to(torch::kFloat32).unsqueeze(1).expand({s.scene.size(), 3}).contiguous();
-  s.weights.sh_degree = -1;
+  s.weights = region_weight_set(s.scene, in_region);
   return s;
 }
 

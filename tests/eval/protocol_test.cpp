@@ -323,7 +323,7 @@ TEST_F(Protocol, WithoutACheckpointTheDefaultModelRuns) {
 // CUDA rasterizer, metrics on the device) against the float32 CPU path: renders at least 40 dB
 // apart, the same metrics.
 TEST_F(Protocol, GpuEvaluationAgreesWithTheCpu) {
-  if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device (or LibTorch without CUDA)";
+  II_REQUIRE_CUDA();
   if (!has_default_model()) GTEST_SKIP() << "built without the default model";
   EvalOptions cpu = options("cpu-f32");
   cpu.context = {"03", "02", "04", "05"};

@@ -313,6 +313,34 @@ TEST(Fill, DeleteOnlyRemovesTheRegionAndAddsNothing) {
   EXPECT_EQ(r.splats.size(), room(false, false).size());
 }
 
+// The same fill on a GPU (network, renders and refinement on the device) as on the CPU: the same
+// region, cameras and kept splats, about as many new ones, and the same pictures to within
+// float32 rounding of two rasterizers. Skipped without a GPU.
+TEST(Fill, OnTheGpuAsOnTheCpu) {
+  II_REQUIRE_CUDA();
+  if (!render_has_cuda()) GTEST_SKIP() << "built without the CUDA rasterizer (no nvcc at configure time)";
+  const SplatCloud with = room(true, false);
+  FillOptions options = box_fill(2);
+  options.cameras = capture_cameras();
+  RefineOptions refine;
+  refine.steps = 4;
+  options.refine = refine;
+  const Predictor gpu_predictor("", torch::kCUDA, Precision::Float32);
+  const FillResult cpu = fill_splats(with, options, cpu_predictor());
+  const FillResult gpu = fill_splats(with, options, gpu_predictor);
+  EXPECT_EQ(gpu.removed, cpu.removed);
+  ASSERT_EQ(gpu.cameras.cameras.size(), cpu.cameras.cameras.size());
+  for (size_t v = 0; v < cpu.cameras.cameras.size(); ++v) EXPECT_EQ(gpu.cameras.cameras[v].name, cpu.cameras.cameras[v].name);
+  EXPECT_NEAR(double(gpu.added), double(cpu.added), 0.02 * double(cpu.added));
+  const size_t kept = with.size() - static_cast<size_t>(cpu.removed);
+  for (size_t i = 0; i < 3 * kept; ++i) ASSERT_EQ(gpu.splats.means[i], cpu.splats.means[i]);
+  ASSERT_EQ(gpu.after.size(), cpu.after.size());
+  for (size_t v = 0; v < cpu.after.size(); ++v) {
+    const double difference = (image_to_tensor(gpu.after[v]) - image_to_tensor(cpu.after[v])).abs().mean().item<double>();
+    EXPECT_LT(difference, 0.01) << "view " << v;
+  }
+}
+
 // infer writes splats in the scene's frame (the capture's cameras'), --normalized in the network's:
 // the same Gaussians, scene = normalized x scale + mean.
 TEST(SceneFrame, InferWritesTheScenesFrameAndNormalizedKeepsTheNetworks) {

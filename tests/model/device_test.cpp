@@ -15,9 +15,6 @@
 namespace ii {
 namespace {
 
-#define II_REQUIRE_GPU() \
-  if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device (or LibTorch without CUDA)"
-
 float max_abs(const torch::Tensor& a, const torch::Tensor& b) {
   EXPECT_EQ(a.sizes(), b.sizes());
   return (a.cpu() - b.cpu()).abs().max().item<float>();
@@ -149,7 +146,7 @@ TEST(GraphedForward, NeedsACudaDevice) {
 // The agreement target: the GPU fast path (bf16, cached weights, fused heads, fused
 // attention) against the float32 CPU path on the official fixture.
 TEST(NetworkCuda, Bf16FastPathMatchesTheCpuFloat32Path) {
-  II_REQUIRE_GPU();
+  II_REQUIRE_CUDA();
   II_REQUIRE_SHARED(ckpt, "fixtures/official-tiny/weights.safetensors");
   const StateDict io = read_safetensors_tensors(test::shared_path("fixtures/official-tiny/io.safetensors"));
   Network cpu = load_network(ckpt);
@@ -177,7 +174,7 @@ TEST(NetworkCuda, Bf16FastPathMatchesTheCpuFloat32Path) {
 }
 
 TEST(NetworkCuda, GraphReplayEqualsEagerAndFollowsNewInputs) {
-  II_REQUIRE_GPU();
+  II_REQUIRE_CUDA();
   if (!GraphedForward::available()) GTEST_SKIP() << "LibTorch without CUDA graphs";
   const ModelConfig config = ModelConfig::from_preset("tiny");
   Network net(config);

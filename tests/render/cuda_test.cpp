@@ -11,8 +11,8 @@
 namespace ii {
 namespace {
 
-#define II_REQUIRE_CUDA()                                                                        \
-  if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device (or LibTorch without CUDA)"; \
+#define II_REQUIRE_CUDA_RASTERIZER() \
+  II_REQUIRE_CUDA();                  \
   if (!render_has_cuda()) GTEST_SKIP() << "built without the CUDA rasterizer (no nvcc at configure time)"
 
 std::vector<torch::Tensor*> params(GaussianSet& g) {
@@ -52,13 +52,13 @@ void compare(const GaussianSet& g, const RenderCamera& cam, const RenderOptions&
 }
 
 TEST(RenderCuda, MatchesCpuRgb) {
-  II_REQUIRE_CUDA();
+  II_REQUIRE_CUDA_RASTERIZER();
   compare(test::random_scene(500, -1, torch::kFloat32, 1, 1.2, 0.08),
           test::opencv_camera(100, 70, 80, Eigen::Vector3d(0, 0, -4)));
 }
 
 TEST(RenderCuda, MatchesCpuShDenseScene) {
-  II_REQUIRE_CUDA();
+  II_REQUIRE_CUDA_RASTERIZER();
   RenderOptions opt;
   opt.background = {0.1f, 0.4f, 0.7f};
   compare(test::random_scene(5000, 3, torch::kFloat32, 2, 1.5, 0.03),
@@ -66,13 +66,13 @@ TEST(RenderCuda, MatchesCpuShDenseScene) {
 }
 
 TEST(RenderCuda, MatchesCpuDouble) {
-  II_REQUIRE_CUDA();
+  II_REQUIRE_CUDA_RASTERIZER();
   compare(test::random_scene(300, 2, torch::kFloat64, 3), test::opencv_camera(64, 48, 50, Eigen::Vector3d(0, 0, -4)));
 }
 
 // The scene bounds (orbit videos, refinement's coverage) of splats on the GPU.
 TEST(RenderCuda, VisibleBoundsOfSplatsOnTheGpu) {
-  II_REQUIRE_CUDA();
+  II_REQUIRE_CUDA_RASTERIZER();
   const GaussianSet g = test::random_scene(500, -1, torch::kFloat32, 1, 1.2, 0.08);
   const BoundingSphere cpu = visible_bounds(g), gpu = visible_bounds(g.to(torch::kCUDA));
   EXPECT_LT((cpu.centre - gpu.centre).norm(), 1e-6);
@@ -80,7 +80,7 @@ TEST(RenderCuda, VisibleBoundsOfSplatsOnTheGpu) {
 }
 
 TEST(RenderCuda, Golden) {
-  II_REQUIRE_CUDA();
+  II_REQUIRE_CUDA_RASTERIZER();
   II_REQUIRE_SHARED(path, "data/render-golden/basic_case.safetensors");
   const test::GoldenCase c = test::load_golden(path);
   const RenderOutput out = render(c.gaussians.to(torch::kCUDA), c.camera, c.options);
@@ -88,7 +88,7 @@ TEST(RenderCuda, Golden) {
 }
 
 TEST(RenderCuda, DegenerateAndEmpty) {
-  II_REQUIRE_CUDA();
+  II_REQUIRE_CUDA_RASTERIZER();
   GaussianSet g = test::random_scene(8, 0, torch::kFloat32, 4);
   g.means[0][0] = std::numeric_limits<float>::quiet_NaN();
   g.means[1][2] = -10.f;
