@@ -2,15 +2,18 @@
 # `capture` against plain COLMAP on the same photos, in one run on this machine: each one's time
 # (and its steps') and its poses against the photos' known poses.
 #
-#   scripts/measure-capture.sh PHOTOS REFERENCE_SCENE [OUT]
+#   scripts/measure-capture.sh PHOTOS|VIDEO REFERENCE_SCENE [OUT]
 #
 # PHOTOS: a folder of photos; REFERENCE_SCENE: a posed scene of the same photos (any format the
 # readers take, views named as the photos), e.g. a SPIn-NeRF scene's poses_bounds.npy.
+# VIDEO: a video file; every frame is posed by both (a user's `ffmpeg -i VIDEO frame_%04d.png` for
+# plain COLMAP, `capture --frames <all of them>`), so REFERENCE_SCENE names its views
+# frame_0001.png, ...
 # Plain COLMAP is what a user would run by hand: Debian's colmap 3.8, its defaults (one camera
 # for all photos), the sequential matcher, the incremental mapper. Results: OUT/results.json and
 # a table on stdout.
 set -euo pipefail
-PHOTOS=$(realpath "${1:?a folder of photos}")
+INPUT=$(realpath "${1:?a folder of photos or a video}")
 REFERENCE=$(realpath "${2:?a posed scene of the same photos}")
 OUT=${3:-capture-measure}
 BIN=${BIN:-build/instainpaint}
@@ -20,8 +23,15 @@ OUT=$(realpath "$OUT")
 now() { date +%s.%N; }
 seconds() { echo "$2 - $1" | bc; }
 
-echo "== plain COLMAP $(colmap -h 2>&1 | head -1 | awk '{print $2}') (sequential matcher) on $(ls "$PHOTOS" | wc -l) photos"
+PHOTOS=$INPUT CAPTURE_ARGS=()
 t0=$(now)
+if [ -f "$INPUT" ]; then  # a video: the user extracts its frames first (timed with plain COLMAP)
+  PHOTOS=$OUT/plain/frames
+  mkdir -p "$PHOTOS"
+  ffmpeg -loglevel error -i "$INPUT" "$PHOTOS/frame_%04d.png"
+  CAPTURE_ARGS=(--frames "$(ls "$PHOTOS" | wc -l)")
+fi
+echo "== plain COLMAP $(colmap -h 2>&1 | head -1 | awk '{print $2}') (sequential matcher) on $(ls "$PHOTOS" | wc -l) images"
 colmap feature_extractor --database_path "$OUT/plain/db.db" --image_path "$PHOTOS" \
   --ImageReader.single_camera 1 --SiftExtraction.use_gpu 0 > "$OUT/plain/colmap.log" 2>&1
 t1=$(now)
@@ -39,7 +49,7 @@ ln -s "$PHOTOS" "$OUT/plain/scene/images"
 "$BIN" scene-info --scene "$OUT/plain/scene" --compare "$REFERENCE" --json > "$OUT/plain/scene-info.json" 2> /dev/null
 
 echo "== instainpaint capture"
-"$BIN" capture "$PHOTOS" --out "$OUT/ours" --compare "$REFERENCE" 2>&1 | tee "$OUT/ours.log" | grep -v "COLMAP .*: [0-9]* of"
+"$BIN" capture "$INPUT" "${CAPTURE_ARGS[@]}" --out "$OUT/ours" --compare "$REFERENCE" 2>&1 | tee "$OUT/ours.log" | grep -v "COLMAP .*: [0-9]* of"
 
 python3 - "$OUT" "$(seconds "$t0" "$t1")" "$(seconds "$t1" "$t2")" "$(seconds "$t2" "$t3")" <<'PY'
 import json, sys

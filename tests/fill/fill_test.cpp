@@ -314,8 +314,9 @@ TEST(Fill, DeleteOnlyRemovesTheRegionAndAddsNothing) {
 }
 
 // The same fill on a GPU (network, renders and refinement on the device) as on the CPU: the same
-// region, cameras and kept splats, about as many new ones, and the same pictures to within
-// float32 rounding of two rasterizers. Skipped without a GPU.
+// automatic cameras; with the capture's cameras the same region, cameras and kept splats, about
+// as many new ones, and the same pictures to within float32 rounding of two rasterizers. Skipped
+// without a GPU.
 TEST(Fill, OnTheGpuAsOnTheCpu) {
   II_REQUIRE_CUDA();
   if (!render_has_cuda()) GTEST_SKIP() << "built without the CUDA rasterizer (no nvcc at configure time)";
@@ -326,6 +327,13 @@ TEST(Fill, OnTheGpuAsOnTheCpu) {
   refine.steps = 4;
   options.refine = refine;
   const Predictor gpu_predictor("", torch::kCUDA, Precision::Float32);
+  // Automatic cameras (no capture's): the same cameras chosen.
+  const FillResult cpu_auto = fill_splats(with, box_fill(2), cpu_predictor());
+  const FillResult gpu_auto = fill_splats(with, box_fill(2), gpu_predictor);
+  ASSERT_EQ(gpu_auto.cameras.cameras.size(), cpu_auto.cameras.cameras.size());
+  for (size_t v = 0; v < cpu_auto.cameras.cameras.size(); ++v)
+    EXPECT_EQ(gpu_auto.cameras.cameras[v].name, cpu_auto.cameras.cameras[v].name);
+  // The capture's cameras, refined.
   const FillResult cpu = fill_splats(with, options, cpu_predictor());
   const FillResult gpu = fill_splats(with, options, gpu_predictor);
   EXPECT_EQ(gpu.removed, cpu.removed);
