@@ -249,6 +249,9 @@ nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const C
   // mapper's time, for what the local adjustments and the final global one settle anyway.
   colmap.camera_model = "SIMPLE_RADIAL";
   colmap.mapper_options = {"--Mapper.ba_global_images_ratio", "1.4", "--Mapper.ba_global_points_ratio", "1.4"};
+  // Each image matched with its next 5 (and 8, 16, 32 on) rather than 10: 40 % less matching
+  // for the same poses on 60 frames (issue 47); photos left unposed still get every pair.
+  colmap.sequential_overlap = 5;
   colmap.progress = o.on_colmap_progress;
   const ColmapRun run = run_colmap_steps(work, colmap);
   const fs::path& model_dir = run.model;

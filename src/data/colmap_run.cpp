@@ -67,6 +67,8 @@ ColmapRun run_colmap_steps(const fs::path& scene_dir, const ColmapRunOptions& op
          "executable, or pose the images with another tool and use its transforms.json / sparse model",
          options.executable, options.executable.find('/') == std::string::npos ? " on PATH" : "");
   const bool fallback = options.matcher == "sequential+exhaustive";
+  if (options.sequential_overlap < 1)
+    fail("COLMAP's sequential overlap must be at least 1, got {}", options.sequential_overlap);
   if (options.matcher != "exhaustive" && options.matcher != "sequential" && !fallback)
     fail("unknown COLMAP matcher '{}' (expected exhaustive, sequential or sequential+exhaustive)", options.matcher);
   const fs::path dir = fs::absolute(scene_dir);
@@ -105,7 +107,10 @@ ColmapRun run_colmap_steps(const fs::path& scene_dir, const ColmapRunOptions& op
             std::to_string(options.max_features)});
   run.features_s = step.lap() / 1000;
   auto match = [&](const std::string& matcher) {
-    run_step({matcher + "_matcher", "--database_path", db.string(), "--SiftMatching.use_gpu", gpu});
+    std::vector<std::string> args = {matcher + "_matcher", "--database_path", db.string(), "--SiftMatching.use_gpu", gpu};
+    if (matcher == "sequential")
+      args.insert(args.end(), {"--SequentialMatching.overlap", std::to_string(options.sequential_overlap)});
+    run_step(args);
     run.matchers.push_back(matcher);
     run.matching_s += step.lap() / 1000;
   };

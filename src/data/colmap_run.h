@@ -18,6 +18,7 @@ struct ColmapRunOptions {
   // frames, photos taken in turn) | sequential+exhaustive (sequential; when that leaves images
   // unposed, the pairs it skipped too, and mapping again: COLMAP's matchers skip matched pairs).
   std::string matcher = "exhaustive";
+  int sequential_overlap = 10;            // the next images each one is matched with (COLMAP's default 10)
   int max_features = 8192;                // SIFT features per image (COLMAP's default)
   std::vector<std::string> mapper_options;  // more `colmap mapper` arguments ("--Mapper.x", "1.4", ...)
   bool use_gpu = false;                   // SIFT on the GPU needs an OpenGL/CUDA context

@@ -529,6 +529,7 @@ TEST(ColmapRun, SequentialThenExhaustiveWhenImagesAreLeftOut) {
   const std::string log = read_file_text(dir / "colmap.log");
   const size_t sequential = log.find("fake colmap sequential_matcher"), exhaustive = log.find("fake colmap exhaustive_matcher");
   ASSERT_NE(sequential, std::string::npos) << log;
+  EXPECT_NE(log.find("--SiftMatching.use_gpu 0 --SequentialMatching.overlap 10\n", sequential), std::string::npos) << log;
   ASSERT_NE(exhaustive, std::string::npos) << log;
   EXPECT_LT(sequential, exhaustive);
   EXPECT_NE(log.find("fake colmap mapper", exhaustive), std::string::npos) << log;  // mapped again
@@ -537,9 +538,18 @@ TEST(ColmapRun, SequentialThenExhaustiveWhenImagesAreLeftOut) {
   fs::remove_all(dir / "sparse");
   fs::remove(marker);
   o.executable = fake_colmap(models / "both").string();
+  o.sequential_overlap = 5;
   const ColmapRun direct = run_colmap_steps(dir, o);
   EXPECT_EQ(direct.matchers, std::vector<std::string>{"sequential"});
   EXPECT_EQ(direct.registered, 2);
+  EXPECT_NE(read_file_text(dir / "colmap.log").find("sequential_matcher --database_path " +
+                                                    (fs::absolute(dir) / "database.db").string() +
+                                                    " --SiftMatching.use_gpu 0 --SequentialMatching.overlap 5\n"),
+            std::string::npos);
+  fs::remove_all(dir / "sparse");
+  o.sequential_overlap = 0;
+  EXPECT_EQ(test::error_message([&] { run_colmap_steps(dir, o); }), "COLMAP's sequential overlap must be at least 1, got 0");
+  o.sequential_overlap = 10;
 
   o.matcher = "vocab_tree";
   EXPECT_EQ(test::error_message([&] { run_colmap_steps(dir, o); }),
