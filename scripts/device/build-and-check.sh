@@ -16,7 +16,7 @@
 #      requests without a browser: scripts/measure-serve-edit.py), statue at 256 and 512 high,
 #      and the server's stage table (targets: 0.25 s and 0.4 s);
 #   8. refines the statue on the GPU (every 8th view held out, $REFINE: default preset fast) for ms per step;
-#   8b. STEPS="fill": `fill` of a 1 M-splat synthetic room with the object's box on the GPU
+#   8b. STEPS="fill": `fill` of a 0.68 M-splat synthetic room with the object's box on the GPU
 #      (scripts/measure-fill-speed.sh --device cuda: whole command and stage table);
 #   9. STEPS="python": the Python module, and a GPU prediction handed to PyTorch (DLPack, no copy);
 #  10. (last) runs the whole test suite, the GPU tests included (agreement with the float32 CPU
@@ -138,7 +138,7 @@ print('outside the mask: PSNR %.2f SSIM %.3f; %d steps, %.1f ms/step, %.1f s' % 
   cp /tmp/ii-refine-statue/metrics.json "$OUT/refine-statue.json" || true
 fi
 if [[ " $STEPS " == *" fill "* ]]; then
-  step "fill on the GPU: a 1 M-splat synthetic room, the object's box (scripts/measure-fill-speed.sh)"
+  step "fill on the GPU: a 0.68 M-splat synthetic room, the object's box (scripts/measure-fill-speed.sh)"
   bash scripts/measure-fill-speed.sh --bin "$BIN" --device cuda --runs 3 --work /tmp/ii-fill || true
   cp /tmp/ii-fill/filled-fill/fill.json "$OUT/fill-cuda.json" 2> /dev/null || true
 fi
