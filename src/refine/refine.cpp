@@ -11,6 +11,7 @@
 #include "eval/metrics.h"
 #include "model/scene_input.h"
 #include "refine/adam.h"
+#include "render/projection.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
 
@@ -52,24 +53,6 @@ Level half_of(const Level& fine) {
 
 double elapsed_s(const Stopwatch& clock) { return clock.ms() / 1000; }
 
-// The rotation (3, 3) and translation (3) of a rigid transform, as tensors.
-std::pair<torch::Tensor, torch::Tensor> rotation_and_translation(const Eigen::Matrix4d& m,
-                                                                 const torch::TensorOptions& options) {
-  Eigen::Matrix<double, 3, 4, Eigen::RowMajor> top = m.topRows<3>();  // [R | t], row by row
-  const torch::Tensor rt = torch::from_blob(top.data(), {3, 4}, torch::kFloat64).to(options, false, /*copy=*/true);
-  return {rt.narrow(1, 0, 3), rt.select(1, 3)};
-}
-
-// Pixels (u, v) of a camera at z-depth `depth`, in the world.
-torch::Tensor unproject(const Camera& camera, const torch::Tensor& u, const torch::Tensor& v, double depth) {
-  const Eigen::Matrix4d c2w = camera.w2c_opencv().inverse();
-  const torch::Tensor x = (u + 0.5 - camera.K.cx) / camera.K.fx * depth;
-  const torch::Tensor y = (v + 0.5 - camera.K.cy) / camera.K.fy * depth;
-  const torch::Tensor local = torch::stack({x, y, torch::full_like(x, depth)}, 1).to(torch::kFloat64);
-  const auto [R, t] = rotation_and_translation(c2w, torch::TensorOptions().dtype(torch::kFloat64));
-  return (local.matmul(R.t()) + t).to(torch::kFloat32);
-}
-
 // New Gaussians where a view's supervised pixels are not covered (RefineOptions::cover).
 GaussianSet cover_uncovered(const GaussianSet& start, const std::vector<Target>& targets) {
   torch::NoGradGuard no_grad;
@@ -88,7 +71,7 @@ GaussianSet cover_uncovered(const GaussianSet& start, const std::vector<Target>&
                                           : std::max(1e-3, 2 * visible_bounds(start).radius);
     const torch::Tensor pixels = open.nonzero();
     const torch::Tensor v = pixels.select(1, 0).to(torch::kFloat64), u = pixels.select(1, 1).to(torch::kFloat64);
-    means.push_back(unproject(l.camera.camera, u, v, depth));
+    means.push_back(unproject(l.camera.camera, v, u, torch::full_like(u, depth)).to(torch::kFloat32));
     const double sigma = depth / l.camera.camera.K.fx;  // one quarter-resolution pixel at that depth
     scales.push_back(torch::full({pixels.size(0), 3}, sigma, torch::kFloat32));
     const torch::Tensor rgb = l.rgb[0].to(torch::kCPU).permute({1, 2, 0});

@@ -4,12 +4,15 @@
 
 namespace ii {
 
+std::pair<torch::Tensor, torch::Tensor> rotation_and_translation(const Eigen::Matrix4d& m,
+                                                                 const torch::TensorOptions& options) {
+  Eigen::Matrix<double, 3, 4, Eigen::RowMajor> top = m.topRows<3>();  // [R | t], row by row
+  const torch::Tensor rt = torch::from_blob(top.data(), {3, 4}, torch::kFloat64).to(options, false, /*copy=*/true);
+  return {rt.narrow(1, 0, 3), rt.select(1, 3)};
+}
+
 torch::Tensor transformed(const Eigen::Matrix4d& m, const torch::Tensor& points) {
-  torch::Tensor R = torch::empty({3, 3}, torch::kFloat64), t = torch::empty({3}, torch::kFloat64);
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) R[r][c] = m(r, c);
-    t[r] = m(r, 3);
-  }
+  const auto [R, t] = rotation_and_translation(m, points.options());
   return points.matmul(R.t()) + t;
 }
 

@@ -1,13 +1,19 @@
 #pragma once
 // Between world points and a camera's pixels, as render() draws them (pinhole, OpenCV axes,
-// pixel centres at +0.5). Float64 CPU tensors.
+// pixel centres at +0.5). project and unproject work on float64 CPU tensors.
+#include <utility>
+
 #include "common/torch.h"
 
 #include "camera/camera.h"
 
 namespace ii {
 
-// Points (N, 3) moved by a 4 x 4 rigid transform.
+// The rotation (3, 3) and translation (3) of a 4 x 4 rigid transform, as tensors of `options`.
+std::pair<torch::Tensor, torch::Tensor> rotation_and_translation(const Eigen::Matrix4d& m,
+                                                                 const torch::TensorOptions& options);
+
+// Points (N, 3) moved by a 4 x 4 rigid transform, on the points' device and in their type.
 torch::Tensor transformed(const Eigen::Matrix4d& m, const torch::Tensor& points);
 
 // Where world points (N, 3) land in a camera's image: their camera z, whether they are in front
