@@ -102,6 +102,17 @@ void run(const EvalArgs& a) {
              shown(mean.value("lpips", nlohmann::json()), 4), shown(mean.value("masked_lpips", nlohmann::json()), 4),
              shown(m["set"].value("fid", nlohmann::json()), 2), shown(m["set"].value("kid", nlohmann::json()), 5),
              shown(m["set"].value("c_fid", nlohmann::json()), 2), shown(m["set"].value("c_kid", nlohmann::json()), 5));
+  const nlohmann::json& rw = m["region_and_whole"];
+  if (rw["psnr"].contains("region_minus_whole"))
+    fmt::print("  region against the whole image: PSNR {} against {} ({:+.2f} dB){}\n", shown(rw["psnr"]["region"], 2),
+               shown(rw["psnr"]["whole"], 2), rw["psnr"]["region_minus_whole"].get<double>(),
+               rw.contains("uncovered") ? fmt::format("; uncovered region pixels {} in {} views",
+                                                      rw["uncovered"]["pixels"].get<int64_t>(),
+                                                      rw["uncovered"]["views"].get<int>())
+                                        : "");
+  if (m["prediction"].contains("reference_protocol"))
+    fmt::print("  reference: the object-free test view {} (its photo), not scored\n",
+               m["prediction"]["reference_protocol"]["view"].get<std::string>());
   if (!m["unavailable"].empty()) {
     std::string keys;
     for (const auto& [k, reason] : m["unavailable"].items()) keys += (keys.empty() ? "" : ", ") + k;
@@ -143,7 +154,10 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--reference", a->reference,
                   "The reference view with the object painted out by a 2D inpainter (default: OpenCV Telea)")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--context", a->context, "Context views by name, reference first (default: automatic)")
+  cmd->add_option("--context", a->context,
+                  "Context views by name, reference first (default: automatic). An object-free test view as the "
+                  "first is the ground-truth reference: its photo the reference, its test mask the region, and it "
+                  "is not scored (the paper's protocol)")
       ->delimiter(',');
   add_reference_options(cmd, a->edit);
   add_edit_options(cmd, a->edit);
@@ -186,8 +200,13 @@ void add_eval_command(CLI::App& app) {
       "Writes OUT/metrics.json (per view and mean psnr, ssim, masked_psnr, masked_ssim, box_*, lpips,\n"
       "masked_lpips; fid, kid, c_fid, c_kid; unavailable metrics with the reason; timings),\n"
       "OUT/report.html, OUT/renders/<view>.png and OUT/sheets/<view>.png.\n"
-      "Example: instainpaint eval --scene spinnerf/book --checkpoint release.pth --reference book_inpainted.png \\\n"
-      "    --context 20220811_094244,20220811_094233,20220811_094251,20220811_094300 --out eval/book");
+      "Examples:\n"
+      "  instainpaint eval --scene spinnerf/book --checkpoint release.pth --reference book_inpainted.png \\\n"
+      "      --context 20220811_094244,20220811_094233,20220811_094251,20220811_094300 --out eval/book\n"
+      "  # the true photo as the reference: an object-free test view first (20220819_104221 is not scored)\n"
+      "  instainpaint eval --scene spinnerf/1 --context 20220819_104221,20220819_104429,20220819_104503 --out eval/gt\n"
+      "  # a fill made with that view as its reference, scored on the other test views\n"
+      "  instainpaint eval --scene spinnerf/1 --gaussians filled.ply --reference-view 20220819_104221 --out eval/fill");
   cmd->callback([a] { run(*a); });
 }
 

@@ -38,6 +38,7 @@ struct FillArgs {
   std::string reference_view;
   std::string up;
   std::string checkpoint;
+  std::string placement = "surface";
   int views = 4;
   int height = 256;
   bool all_views = false;
@@ -63,7 +64,9 @@ std::vector<NamedCamera> given_cameras(const FillArgs& a) {
   std::vector<NamedCamera> cameras;
   if (!a.scene_dir.empty()) {
     const Scene scene = load_scene(a.scene_dir, a.scene);
-    for (const View& v : scene.views) cameras.push_back({v.name, v.camera});  // not the held-out test views
+    // Every posed view: the object-free test views too (one of them may be the reference).
+    for (const std::vector<View>* views : {&scene.views, &scene.test_views})
+      for (const View& v : *views) cameras.push_back({v.name, v.camera});
   }
   if (!a.cameras.empty())
     for (NamedCamera& c : read_camera_json(a.cameras)) cameras.push_back(std::move(c));
@@ -122,16 +125,18 @@ void run(const FillArgs& a) {
   o.scene_name = a.splats;
   o.camera_options.views = a.views;
   o.camera_options.height = a.height;
-  o.camera_options.reference = a.reference_view;
+  // The stroke's view is the reference unless another is named: the user drew on it.
+  o.camera_options.reference = a.reference_view.empty() ? a.view : a.reference_view;
   if (!a.up.empty()) o.camera_options.up = parse_up(a.up);
+  o.placement = parse_fill_placement(a.placement);
   o.reference_only = !a.all_views;
   o.fill = !a.delete_only;
   if (!a.box.empty()) o.box = parse_box(a.box);
   o.cameras = given_cameras(a);
   if (!a.reference.empty()) {
     o.reference_image = read_image_rgb(a.reference);
-    if (a.reference_view.empty() && o.cameras.empty())
-      fail("--reference needs --reference-view: the camera (from --scene or --cameras) it was painted on");
+    if (o.camera_options.reference.empty())
+      fail("--reference needs --reference-view (or --view): the camera (from --scene or --cameras) it was painted on");
   }
   if (!a.view.empty()) {
     o.stroke_view = a.view;
@@ -197,12 +202,18 @@ void add_fill_command(CLI::App& app) {
   cmd->add_option("--reference", a->reference, "The reference view with the hole painted by any 2D inpainter (see "
                                                 "docs/editing.md); default: the built-in one's")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--reference-view", a->reference_view, "The camera to take as the reference (default: the one that sees "
-                                                          "most of the region)");
+  cmd->add_option("--reference-view", a->reference_view, "The camera to take as the reference (default: --view's, "
+                                                          "else the one that sees most of the region)");
   cmd->add_option("--views", a->views, "Views the network reads")->capture_default_str();
   cmd->add_option("--height", a->height, "Working height of the views (a multiple of 8)")->capture_default_str();
-  cmd->add_flag("--all-views", a->all_views, "New splats from every chosen view's hole (default: the reference's, "
-                                             "where the inpainted picture is)");
+  cmd->add_option("--placement", a->placement,
+                  "surface: the scene's surface around the hole continued inward, one splat per hole pixel of the "
+                  "reference at its full size in the reference's colours; network: the network's Gaussians of the "
+                  "hole at --height")
+      ->check(CLI::IsMember({"surface", "network"}))
+      ->capture_default_str();
+  cmd->add_flag("--all-views", a->all_views, "--placement network: new splats from every chosen view's hole (default: "
+                                             "the reference's, where the inpainted picture is)");
   cmd->add_flag("--delete-only", a->delete_only, "Remove the region and add nothing (to compare with the fill)");
   cmd->add_option("--checkpoint", a->checkpoint, "Model (.pth or safetensors; default: the built-in model)");
   add_refine_options(cmd, a->refine);

@@ -61,6 +61,22 @@ PreparedView prepare_view(const View& view, const PreprocessOptions& options) {
   return out;
 }
 
+std::optional<Image> view_picture_at_working_size(const Image& picture, int photo_width, int photo_height,
+                                                  const WorkingSize& target, int patch) {
+  if (picture.width == target.width && picture.height == target.height) return picture;
+  if (picture.width == photo_width && picture.height == photo_height) return to_working_size(picture, target);
+  if (picture.height < patch) return std::nullopt;
+  const WorkingSize own = working_size(photo_width, photo_height, {picture.height, patch});
+  if (own.width != picture.width || own.height != picture.height) return std::nullopt;
+  Image uncropped(own.resized_width, own.resized_height, picture.channels);
+  for (int y = 0; y < uncropped.height; ++y)
+    for (int x = 0; x < uncropped.width; ++x) {
+      const int sy = std::clamp(y - own.crop_y, 0, picture.height - 1), sx = std::clamp(x - own.crop_x, 0, picture.width - 1);
+      for (int c = 0; c < picture.channels; ++c) uncropped.at(y, x, c) = picture.at(sy, sx, c);
+    }
+  return to_working_size(uncropped, target);
+}
+
 PreparedView PreparedViewCache::get(const View& view, const PreprocessOptions& options) {
   const auto key = std::make_tuple(view.name, options.height, options.patch);
   {

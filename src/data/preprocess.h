@@ -50,6 +50,14 @@ Image to_working_size(const Image& image, const WorkingSize& size, bool is_mask 
 
 PreparedView prepare_view(const View& view, const PreprocessOptions& options);
 
+// A picture of a view (a 2D inpainter's reference) brought to the working size `target` of that
+// view's photo_width x photo_height photo. It may come at the photo's size, at `target` itself, or
+// at the photo's working size for its own height (the official evaluation's 904x512 crop of a
+// 1008x567 photo: put back in its uncropped frame, edges repeated, then resized). nullopt when it
+// is none of these.
+std::optional<Image> view_picture_at_working_size(const Image& picture, int photo_width, int photo_height,
+                                                  const WorkingSize& target, int patch);
+
 // Views prepared once and kept, by name and working size: a server's edits read the same few
 // views again and again (decoding and resizing them was most of an edit's CPU time).
 // Thread-safe; get() returns a copy.

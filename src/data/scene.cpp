@@ -151,6 +151,12 @@ Image load_view_image(const View& view) {
   return image;
 }
 
+bool mask_near_size(const Image& mask, int width, int height) {
+  // Annotation tools sometimes export masks a few pixels off; more than that is a mismatch.
+  const int tolerance = std::max(4, std::max(width, height) / 50);
+  return std::abs(mask.width - width) <= tolerance && std::abs(mask.height - height) <= tolerance;
+}
+
 std::optional<Image> load_view_mask(const View& view) {
   Image mask;
   fs::path source;
@@ -168,15 +174,13 @@ std::optional<Image> load_view_mask(const View& view) {
     return std::nullopt;
   }
 
-  const int w = view.camera.K.width, h = view.camera.K.height;
-  if (mask.width != w || mask.height != h) {
-    // Annotation tools sometimes export masks a few pixels off; more than that is a mismatch.
-    const int tolerance = std::max(4, std::max(w, h) / 50);
-    if (std::abs(mask.width - w) > tolerance || std::abs(mask.height - h) > tolerance)
-      fail_file(source, "mask is {}x{} but its image is {}x{}", mask.width, mask.height, w, h);
-    spdlog::warn("{}: mask is {}x{}, image is {}x{}: resized nearest-neighbour", source.string(),
-                 mask.width, mask.height, w, h);
-    mask = resize_nearest(mask, w, h);
+  if (mask.width != view.camera.K.width || mask.height != view.camera.K.height) {
+    if (!mask_near_size(mask, view.camera.K.width, view.camera.K.height))
+      fail_file(source, "mask is {}x{} but its image is {}x{}", mask.width, mask.height, view.camera.K.width,
+                view.camera.K.height);
+    spdlog::warn("{}: mask is {}x{}, image is {}x{}: resized nearest-neighbour", source.string(), mask.width,
+                 mask.height, view.camera.K.width, view.camera.K.height);
+    mask = resize_nearest(mask, view.camera.K.width, view.camera.K.height);
   }
   if (view.distortion.any()) mask = undistort_mask(mask, view.camera.K, view.distortion);
   return mask;

@@ -69,6 +69,9 @@ Image load_view_image(const View& view);
 // The view's binary object mask at the image's size, or nullopt when it has none. A mask
 // file a few pixels off the image size is resized nearest-neighbour with a warning.
 std::optional<Image> load_view_mask(const View& view);
+// Whether a mask a few pixels off an image's size (as annotation tools export them: SPIn-NeRF's
+// 1008x576 masks of 1008x567 photos) may be resized to it: within 4 pixels or 2 % of its side.
+bool mask_near_size(const Image& mask, int width, int height);
 
 // Attaches masks from a folder: for each view, "<stem>.*" or "<image file name>.png".
 // Views without a matching file keep no mask. Returns the number matched.

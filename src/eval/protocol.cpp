@@ -25,6 +25,7 @@
 #include "eval/fid.h"
 #include "eval/inception.h"
 #include "eval/lpips.h"
+#include "eval/truth_reference.h"
 #include "gaussians/gaussians.h"
 #include "io/image.h"
 #include "io/splat_file.h"
@@ -620,16 +621,25 @@ struct TestViewResults {
   std::map<std::string, Averager> means;
   FeatureSets features;
   int working_width = 0, working_height = 0;
+  int64_t uncovered_pixels = 0;  // method model: region pixels where nothing renders, all views
+  int views_uncovered = 0;       // ... the views that have any
 };
 
 // The method's prediction of one test view on the device, quantised as the official pipeline
 // saves it; the device has finished it when this returns (its time is the view's).
-torch::Tensor predict_test_view(const EvalRun& r, const View& view, const TestView& t) {
-  torch::Tensor a;
+struct TestViewPrediction {
+  torch::Tensor rgb;    // (1, 3, H, W) on the device
+  torch::Tensor alpha;  // (1, 1, H, W), method model only: where nothing renders the background shows
+};
+
+TestViewPrediction predict_test_view(const EvalRun& r, const View& view, const TestView& t) {
+  torch::Tensor a, alpha;
   if (r.o.method == EvalMethod::model) {
     RenderCamera rc;
     rc.camera = r.normalization.apply(t.prepared.camera);
-    a = render(*r.gaussians, rc).rgb.permute({2, 0, 1}).unsqueeze(0).to(r.device);
+    const RenderOutput out = render(*r.gaussians, rc);
+    a = out.rgb.permute({2, 0, 1}).unsqueeze(0).to(r.device);
+    alpha = out.alpha.permute({2, 0, 1}).unsqueeze(0).to(r.device);
   } else if (r.baseline) {
     a = to_device(image_to_tensor(r.baseline->predict(view, r.preprocess)), r.device);
   } else {
@@ -648,7 +658,7 @@ torch::Tensor predict_test_view(const EvalRun& r, const View& view, const TestVi
   }
   a = quantize_image(a, r.o.quantize);
   synchronize(r.device);
-  return a;
+  return {a, alpha};
 }
 
 // PSNR and SSIM and their masked, outside-the-mask and bounding-box variants of one view,
@@ -763,8 +773,12 @@ TestViewResults evaluate_test_views(const EvalRun& r, const MetricNetworks& nets
   TestViewResults results;
   const size_t count = r.scene.test_views.size();
   auto put = [&](json& v, const std::string& key, double value) {
-    if (key == "mask_pixels") {
+    if (key == "mask_pixels" || key == "uncovered_pixels") {
       v[key] = static_cast<int64_t>(value);
+      if (key == "uncovered_pixels") {
+        results.uncovered_pixels += static_cast<int64_t>(value);
+        results.views_uncovered += value > 0 ? 1 : 0;
+      }
       return;
     }
     v[key] = number(value);
@@ -789,7 +803,8 @@ TestViewResults evaluate_test_views(const EvalRun& r, const MetricNetworks& nets
     torch::Tensor m;
     if (t.prepared.mask) m = image_to_device(*t.prepared.mask, r.device);
     stages.lap("upload test views");
-    const torch::Tensor a = predict_test_view(r, view, t);
+    const TestViewPrediction prediction = predict_test_view(r, view, t);
+    const torch::Tensor& a = prediction.rgb;
     const double predict_ms = stages.lap(predict_stage);
     const Image predicted = tensor_to_image(a);
     stages.lap("download renders");
@@ -799,6 +814,9 @@ TestViewResults evaluate_test_views(const EvalRun& r, const MetricNetworks& nets
     {
       torch::NoGradGuard no_grad;
       queue_image_metrics(a, b, m, t.prepared.mask, view.shows_object, next.values);
+      // The region's pixels where nothing renders (the background shows): a fill that left a gap.
+      if (m.defined() && prediction.alpha.defined() && !view.shows_object)
+        next.values.add("uncovered_pixels", (m > 0.5).logical_and(prediction.alpha < 0.5).sum());
       stages.lap("image metrics");
       if (!view.shows_object && (nets.lpips_vgg || nets.lpips_alex)) {
         queue_lpips(nets, a, b, m, next.values);
@@ -893,26 +911,62 @@ void check_eval_options(const EvalOptions& o) {
     fail("eval --method {} is a baseline without a model: drop --checkpoint/--gaussians", eval_method_name(o.method));
 }
 
-}  // namespace
-
-json run_evaluation(const EvalOptions& o) {
-  Stopwatch total;
-  StageTimes stages;
-  check_eval_options(o);
-  // A GPU given without an index (torch::kCUDA) is the first one: named so in the results and
-  // equal to the device of the tensors made there.
-  const torch::Device device = resolve_device(o.device.str());
+// The scene, with an object-free test view moved to the inputs when it is the reference (the
+// ground-truth-reference protocol: its photo becomes the reference unless one is given).
+Scene read_eval_scene(EvalOptions& o, json& prediction, StageTimes& stages) {
   spdlog::info("reading scene {}", o.scene_dir.string());
-  const Scene scene = load_scene(o.scene_dir, o.scene);
+  Scene scene = load_scene(o.scene_dir, o.scene);
+  const std::string reference = !o.context.empty() ? o.context.front() : o.reference_view;
+  if (const auto truth = take_truth_reference(scene, reference)) {
+    if (!o.reference && !o.keep_object) o.reference = truth->photo;
+    prediction["reference_protocol"] = {
+        {"kind", "ground truth"},
+        {"view", truth->view},
+        {"reference", o.reference ? o.reference->string() : "photo (object kept)"},
+        {"note", "an object-free test view is the reference: its photo the reference image, its test mask the "
+                 "region; it is not among the scored views"}};
+    spdlog::info("object-free test view {} is the reference (its own photo); {} test views are scored", truth->view,
+                 scene.test_views.size());
+  }
   if (scene.test_views.empty())
     fail("{}: no test views (SPIn-NeRF scenes list object-free ones by their masks in images_K/test_label/; "
          "--hold-out-every N holds out input views that have masks)",
          o.scene_dir.string());
   stages.lap("read scene");
+  return scene;
+}
+
+// The region beside the whole image (the means), and the region's pixels where nothing renders.
+json region_and_whole(const json& mean, const TestViewResults& results, bool rendered) {
+  json j = json::object();
+  for (const char* metric : {"psnr", "ssim"}) {
+    const json whole = mean.value(metric, json()), region = mean.value(std::string("masked_") + metric, json());
+    j[metric] = {{"whole", whole}, {"region", region}};
+    if (whole.is_number() && region.is_number())
+      j[metric]["region_minus_whole"] = region.get<double>() - whole.get<double>();
+  }
+  if (rendered)
+    j["uncovered"] = {{"pixels", results.uncovered_pixels},
+                      {"views", results.views_uncovered},
+                      {"definition", "region pixels where the render's opacity is under 0.5 (the background shows)"}};
+  return j;
+}
+
+}  // namespace
+
+json run_evaluation(const EvalOptions& options) {
+  Stopwatch total;
+  StageTimes stages;
+  check_eval_options(options);
+  // A GPU given without an index (torch::kCUDA) is the first one: named so in the results and
+  // equal to the device of the tensors made there.
+  const torch::Device device = resolve_device(options.device.str());
+  EvalOptions o = options;  // the reference may become a test view's photo
+  json prediction = {{"method", eval_method_name(o.method)}};
+  const Scene scene = read_eval_scene(o, prediction, stages);
 
   EvalRun r{o, scene, device, std::nullopt, insertion_baseline(scene, o), scene_normalization(scene), {}};
   r.preprocess.height = o.height;
-  json prediction = {{"method", eval_method_name(o.method)}};
   if (r.baseline) prediction["reference_view"] = r.baseline->reference.name;
   if (o.method == EvalMethod::model) {
     // Without the CUDA rasterizer kernels a GPU run renders on the CPU.
@@ -950,6 +1004,7 @@ json run_evaluation(const EvalOptions& o) {
                   {"threads", {{"cores", plan.cores}, {"compute", plan.compute}, {"files", plan.files}}},
                   {"views", results.views},
                   {"mean", mean},
+                  {"region_and_whole", region_and_whole(mean, results, o.method == EvalMethod::model)},
                   {"set", set},
                   {"unavailable", unavailable},
                   {"definitions", metric_definitions()}};

@@ -19,6 +19,15 @@
 
 namespace ii {
 
+// Where the new splats come from. surface: the kept scene's depth around the hole continued
+// inward, one flat splat per hole pixel of the reference view at its full size in the
+// reference's colours, then whatever another chosen view still sees uncovered of its hole
+// likewise; network: the network's Gaussians of the reference's hole pixels at the working
+// size, their depth scaled to the scene's around the hole.
+enum class FillPlacement { surface, network };
+const char* fill_placement_name(FillPlacement placement);
+FillPlacement parse_fill_placement(const std::string& name);  // an Error naming the choices
+
 struct FillOptions {
   // The region, exactly one of: a box; the same scene with the region deleted (`selection`,
   // named `selection_name`); a stroke (at that camera's size) on the given camera `stroke_view`.
@@ -34,7 +43,8 @@ struct FillOptions {
   // size); none: the built-in inpainter's.
   std::optional<Image> reference_image;
   ClassicalInpainter inpainter = ClassicalInpainter::Telea;
-  // Which views' hole pixels become Gaussians: the reference's alone (true), or every chosen
+  FillPlacement placement = FillPlacement::surface;
+  // The network's placement: which views' hole pixels become Gaussians: the reference's alone (true), or every chosen
   // view's. The reference's hole holds the inpainted picture, the others' nothing: a model that
   // adds its input's colour (the built-in one) gives them a grey guess. Synthetic rooms: equal or
   // better in every room (26.2 dB against 24.9 in one); the statue: grass and bush, not grey.
@@ -54,6 +64,11 @@ struct FillResult {
   std::vector<Image> before, deleted, after, masks;  // per camera: renders, and where the region was
   Image reference;                     // the inpainted reference the network saw
   std::vector<double> depth_scales;    // per camera: the network's depth scaled to the scene's around the hole
+  FillPlacement placement = FillPlacement::surface;
+  // The surface placement: the reference's size it was placed at, and per chosen camera the hole
+  // pixels still uncovered after the reference's splats (filled from that view).
+  int surface_width = 0, surface_height = 0;
+  std::vector<int64_t> uncovered;
   std::string region_how;              // how the region was chosen
   nlohmann::json refine_report;        // with refinement
   StageTimes stages;

@@ -1,6 +1,7 @@
 #include "fill/region.h"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cmath>
@@ -11,7 +12,9 @@
 
 #include "common/error.h"
 #include "common/torch.h"
+#include "data/image_ops.h"
 #include "data/masks.h"
+#include "data/scene.h"
 #include "gaussians/gaussians.h"
 #include "render/projection.h"
 #include "render/rasterizer.h"
@@ -113,11 +116,14 @@ RegionMask region_missing_from(const SplatCloud& cloud, const SplatCloud& kept, 
 
 RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, const Image& stroke_in) {
   const int W = camera.K.width, H = camera.K.height;
-  if (stroke_in.width != W || stroke_in.height != H)
+  if (!mask_near_size(stroke_in, W, H))
     fail("--mask: {}x{} pixels, but the view's camera is {}x{}", stroke_in.width, stroke_in.height, W, H);
+  if (stroke_in.width != W || stroke_in.height != H)
+    spdlog::warn("--mask: {}x{} pixels, the view's camera {}x{}: resized nearest-neighbour", stroke_in.width,
+                 stroke_in.height, W, H);
   // A stroke drawn over an object leaves its rim out: grown by about 1 % of the view.
   const int grow = std::max(1, std::min(W, H) / 100);
-  const Image stroke = dilate_mask(stroke_in, 1, 2 * grow + 1);
+  const Image stroke = dilate_mask(resize_nearest(stroke_in, W, H), 1, 2 * grow + 1);
   torch::NoGradGuard no_grad;
   const RenderOutput seen = render(gaussians_from_splats(cloud, 0), {camera});
   const torch::Tensor depth = seen.depth.squeeze(2).contiguous(), alpha = seen.alpha.squeeze(2).contiguous();

@@ -12,14 +12,12 @@ namespace ii {
 
 namespace {
 
-// The reference image may come at the source image's size (preprocessed like the view) or
-// already at the working size.
+// The reference image may come at the source image's size (preprocessed like the view), at the
+// working size, or at the photo's working size for another height (the official evaluation's crop).
 Image reference_at_working_size(const Image& image, const std::string& source, const View& view,
                                 const PreparedView& prepared, const PreprocessOptions& options) {
   const int sw = view.camera.K.width, sh = view.camera.K.height;
-  if (image.width == sw && image.height == sh)
-    return to_working_size(image, working_size(sw, sh, options));
-  if (image.width == prepared.rgb.width && image.height == prepared.rgb.height) return image;
+  if (auto at = view_picture_at_working_size(image, sw, sh, working_size(sw, sh, options), options.patch)) return *at;
   fail("{}: reference image is {}x{}, but view {} is {}x{} (working size {}x{}): give the "
        "inpainted image at either size",
        source, image.width, image.height, view.name, sw, sh, prepared.rgb.width, prepared.rgb.height);

@@ -1,5 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include "data/image_ops.h"
 #include "data/preprocess.h"
 #include "data/view_selection.h"
@@ -35,6 +38,35 @@ TEST(Preprocess, CameraFollowsResizeAndCropExactly) {
   EXPECT_NEAR(v.camera.K.fx, K0.fx * s, 1e-9);
   EXPECT_NEAR(v.camera.K.cx, 252.0 * s - 1.0, 1e-9);  // centre shifted by the 1-pixel crop
   EXPECT_NEAR(v.camera.K.fy, K0.fy * 512.0 / 378.0, 1e-9);
+}
+
+// A reference picture comes at the photo's size, at the working size, or at the official
+// evaluation's crop (904x512 of a 1008x567 capture) for a fill working at 256 rows: each gives
+// the same working picture of a smooth image, to within the resampling.
+TEST(Preprocess, AViewsPictureAtAnyOfItsWorkingSizes) {
+  Image photo(1008, 567, 3);
+  for (int y = 0; y < photo.height; ++y)
+    for (int x = 0; x < photo.width; ++x) {
+      photo.at(y, x, 0) = static_cast<float>(x) / 1007.f;
+      photo.at(y, x, 1) = static_cast<float>(y) / 566.f;
+      photo.at(y, x, 2) = 0.25f;
+    }
+  const WorkingSize target = working_size(1008, 567, {256, 8});
+  const Image want = to_working_size(photo, target);
+  const Image eval_crop = to_working_size(photo, working_size(1008, 567, {}));
+  ASSERT_EQ(eval_crop.width, 904);
+  ASSERT_EQ(eval_crop.height, 512);
+  for (const Image* given : std::initializer_list<const Image*>{&photo, &want, &eval_crop}) {
+    const auto at = view_picture_at_working_size(*given, 1008, 567, target, 8);
+    ASSERT_TRUE(at.has_value()) << given->width << "x" << given->height;
+    ASSERT_EQ(at->width, want.width);
+    ASSERT_EQ(at->height, want.height);
+    float worst = 0;
+    for (size_t i = 0; i < want.pixels.size(); ++i) worst = std::max(worst, std::abs(at->pixels[i] - want.pixels[i]));
+    EXPECT_LT(worst, 0.01f) << given->width << "x" << given->height;
+  }
+  EXPECT_FALSE(view_picture_at_working_size(Image(900, 512, 3), 1008, 567, target, 8).has_value());
+  EXPECT_FALSE(view_picture_at_working_size(Image(2016, 1100, 3), 1008, 567, target, 8).has_value());
 }
 
 TEST(ImageOps, AreaResizeAveragesBlocks) {

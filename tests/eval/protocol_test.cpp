@@ -12,6 +12,7 @@
 #include "common/files.h"
 #include "eval/lpips.h"
 #include "eval/protocol.h"
+#include "eval/truth_reference.h"
 #include "io/image.h"
 #include "model/default_model.h"
 #include "model/scene_input.h"
@@ -317,6 +318,84 @@ TEST_F(Protocol, WithoutACheckpointTheDefaultModelRuns) {
   EXPECT_EQ(m["prediction"]["checkpoint"], kDefaultModelName);
   EXPECT_EQ(m["prediction"]["config"]["preset"], "mini");
   EXPECT_TRUE(std::isfinite(m["mean"]["masked_psnr"].get<double>()));
+}
+
+// The ground-truth-reference protocol: an object-free test view first in the context is the
+// reference, its own photo the reference image, and only the other test views are scored; the
+// region and the whole image side by side.
+TEST_F(Protocol, AnObjectFreeTestViewAsTheReferenceIsItsOwnPhotoAndIsNotScored) {
+  if (!has_default_model()) GTEST_SKIP() << "this build has no default model";
+  EvalOptions o = options("truth-reference");
+  o.context = {"00_test", "02", "03", "04"};
+  const json m = run_evaluation(o);
+  EXPECT_EQ(m["prediction"]["reference_protocol"]["view"], "00_test");
+  EXPECT_EQ(m["prediction"]["reference"], (scene_dir() / "images" / "00_test.png").string());
+  EXPECT_EQ(m["prediction"]["context"], json::array({"00_test", "02", "03", "04"}));
+  ASSERT_EQ(m["views"].size(), 1u);
+  EXPECT_EQ(m["views"][0]["name"], "01_test");
+  const json& rw = m["region_and_whole"];
+  EXPECT_EQ(rw["psnr"]["whole"], m["mean"]["psnr"]);
+  EXPECT_EQ(rw["psnr"]["region"], m["mean"]["masked_psnr"]);
+  EXPECT_DOUBLE_EQ(rw["psnr"]["region_minus_whole"].get<double>(),
+                   m["mean"]["masked_psnr"].get<double>() - m["mean"]["psnr"].get<double>());
+  EXPECT_EQ(rw["ssim"]["region"], m["mean"]["masked_ssim"]);
+}
+
+// A splat file scored with a test view as the reference (as a fill made from it): that view is
+// left out; the region's uncovered pixels are counted, all of them where nothing renders.
+TEST_F(Protocol, SplatsScoredWithoutTheReferenceViewAndTheirUncoveredPixelsCounted) {
+  EvalOptions o = options("truth-reference-splats");
+  o.gaussians = scene_dir() / "truth.ply";
+  o.reference_view = "01_test";
+  const json truth = run_evaluation(o);
+  ASSERT_EQ(truth["views"].size(), 1u);
+  EXPECT_EQ(truth["views"][0]["name"], "00_test");
+  EXPECT_EQ(truth["views"][0]["uncovered_pixels"], 0);
+  EXPECT_EQ(truth["region_and_whole"]["uncovered"]["pixels"], 0);
+  EXPECT_EQ(truth["region_and_whole"]["uncovered"]["views"], 0);
+
+  const fs::path behind = test::temp_dir("eval-uncovered") / "behind.ply";
+  write_splat_ply(behind, test::wall_of_splats(0.f, 10.f));
+  EvalOptions empty = options("uncovered");
+  empty.gaussians = behind;
+  const json m = run_evaluation(empty);
+  ASSERT_EQ(m["views"].size(), 2u);
+  int64_t mask_pixels = 0;
+  for (const json& v : m["views"]) {
+    EXPECT_EQ(v["uncovered_pixels"], v["mask_pixels"]);
+    EXPECT_GT(v["mask_pixels"].get<int64_t>(), 0);
+    mask_pixels += v["mask_pixels"].get<int64_t>();
+  }
+  EXPECT_EQ(m["region_and_whole"]["uncovered"]["pixels"], mask_pixels);
+  EXPECT_EQ(m["region_and_whole"]["uncovered"]["views"], 2);
+}
+
+TEST(TruthReference, MovesAnObjectFreeTestViewToTheInputsOnly) {
+  Scene scene;
+  scene.root = "scene";
+  View input, object_free, no_mask, held_out;
+  input.name = "a";
+  object_free.name = "t";
+  object_free.mask_path = "t.png";
+  object_free.image_path = "images/t.png";
+  no_mask.name = "u";
+  held_out.name = "h";
+  held_out.mask_path = "h.png";
+  held_out.shows_object = true;
+  scene.views = {input};
+  scene.test_views = {object_free, no_mask, held_out};
+  EXPECT_FALSE(take_truth_reference(scene, "a").has_value());
+  EXPECT_FALSE(take_truth_reference(scene, "h").has_value()) << "a held-out view shows the object";
+  EXPECT_FALSE(take_truth_reference(scene, "").has_value());
+  EXPECT_EQ(test::error_message([&] { take_truth_reference(scene, "u"); }),
+            "scene: test view u has no mask in test_label/: as the reference its mask is the region");
+  const auto truth = take_truth_reference(scene, "t");
+  ASSERT_TRUE(truth.has_value());
+  EXPECT_EQ(truth->photo, "images/t.png");
+  ASSERT_EQ(scene.views.size(), 2u);
+  EXPECT_EQ(scene.views[1].name, "t");
+  ASSERT_EQ(scene.test_views.size(), 2u);
+  EXPECT_EQ(scene.test_views[0].name, "u");
 }
 
 // The issue-9 agreement target on a GPU: the default model's bf16 fast path on the GPU (network,

@@ -13,6 +13,7 @@
 #include "gaussians/gaussians.h"
 #include "io/image.h"
 #include "io/splat_file.h"
+#include "render/projection.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
 #include "test_support.h"
@@ -233,6 +234,66 @@ TEST(Fill, TheHoleComesCloserToTheTruthThanDeletionAlone) {
     filled_error += error(r.after[v]);
   }
   EXPECT_LT(filled_error, 0.6 * deleted_error) << "deleted " << deleted_error << ", filled " << filled_error;
+}
+
+// The surface placement (the default): in every chosen view each hole pixel renders something,
+// and the hole is nearer the truth than the network's placement in this room.
+TEST(Fill, TheSurfacePlacementCoversEveryHolePixelOfItsViews) {
+  const SplatCloud with = room(true, false), truth_cloud = room(false, true);
+  const GaussianSet truth = gaussians_from_splats(truth_cloud, 0);
+  FillOptions options = box_fill();
+  options.cameras = capture_cameras();
+  ASSERT_EQ(options.placement, FillPlacement::surface);
+  const FillResult surface = fill_splats(with, options, cpu_predictor());
+  EXPECT_EQ(surface.report()["placement"], "surface");
+  const GaussianSet filled = gaussians_from_splats(surface.splats, 0);
+  double surface_error = 0;
+  for (size_t v = 0; v < surface.cameras.cameras.size(); ++v) {
+    const Camera& camera = surface.cameras.cameras[v].camera;
+    const torch::Tensor hole = image_to_tensor(surface.masks[v])[0][0] > 0.5;
+    ASSERT_GT(hole.sum().item<int64_t>(), 0);
+    const torch::Tensor alpha = render(filled, {camera}).alpha.squeeze(2);
+    EXPECT_EQ(alpha.index({hole}).lt(0.5).sum().item<int64_t>(), 0) << "uncovered hole pixels in view " << v;
+    const torch::Tensor t = image_to_tensor(image_from_hwc(render(truth, {camera}).rgb));
+    surface_error += (image_to_tensor(surface.after[v]) - t).abs().mean(1, true).index({hole.unsqueeze(0).unsqueeze(0)}).mean().item<double>();
+  }
+  options.placement = FillPlacement::network;
+  const FillResult network = fill_splats(with, options, cpu_predictor());
+  double network_error = 0;
+  for (size_t v = 0; v < network.cameras.cameras.size(); ++v) {
+    const torch::Tensor hole = image_to_tensor(network.masks[v]) > 0.5;
+    const torch::Tensor t = image_to_tensor(image_from_hwc(render(truth, {network.cameras.cameras[v].camera}).rgb));
+    network_error += (image_to_tensor(network.after[v]) - t).abs().mean(1, true).index({hole}).mean().item<double>();
+  }
+  EXPECT_LT(surface_error, network_error) << "surface " << surface_error << ", network " << network_error;
+}
+
+// A stroke's view is the reference unless another is named; a reference painted on it may come
+// at the working size of the official evaluation (512 rows, cropped) while the fill works at 64.
+TEST(Fill, TheStrokesViewIsTheReferenceAndItsPictureMayComeAtEvalsSize) {
+  const SplatCloud with = room(true, false);
+  FillOptions options = box_fill(2);
+  options.box.reset();
+  options.cameras = capture_cameras();
+  const NamedCamera& drawn_on = options.cameras[4];
+  options.stroke_view = drawn_on.name;
+  Image stroke(drawn_on.camera.K.width, drawn_on.camera.K.height, 1);
+  const PixelHit centre = project(drawn_on.camera, torch::tensor({{0.0, 0.2, 0.0}}, torch::kFloat64));
+  const int64_t at = centre.index[0].item<int64_t>();
+  const int cy = static_cast<int>(at / stroke.width), cx = static_cast<int>(at % stroke.width);
+  for (int y = 0; y < stroke.height; ++y)
+    for (int x = 0; x < stroke.width; ++x) stroke.at(y, x) = std::hypot(x - cx, y - cy) < 6 ? 1.f : 0.f;
+  options.stroke = stroke;
+  // 128x96 at 512 rows: 682 wide, cropped to 680.
+  options.reference_image = Image(680, 512, 3, 0.25f);
+  const FillResult r = fill_splats(with, options, cpu_predictor());
+  EXPECT_EQ(r.cameras.cameras.at(0).name, drawn_on.name);
+  EXPECT_EQ(r.report()["cameras"]["reference"], drawn_on.name);
+  EXPECT_GT(r.added, 0);
+  options.reference_image = Image(100, 77, 3, 0.25f);
+  EXPECT_EQ(error_message([&] { fill_splats(with, options, cpu_predictor()); }),
+            "--reference: 100x77 pixels, but the reference view cam4 is 80x64 at the working size and 128x96 as given "
+            "(or that photo's working size at another height, as eval's)");
 }
 
 TEST(Fill, RefinementMovesTheNewSplatsAloneAndKeepsTheRest) {

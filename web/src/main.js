@@ -32,6 +32,12 @@ const api = {
   invalidate,
   setFillBox,
   screenPoint,
+  sceneUp: null, // the scene's up (its cameras' mean), when it has cameras
+  // Where the viewer's camera is and which world direction is up on the screen.
+  pose: () => ({
+    position: camera.position.toArray(),
+    up: new THREE.Vector3(0, 1, 0).applyQuaternion(camera.quaternion).toArray(),
+  }),
 };
 window.instainpaint = api;
 
@@ -47,7 +53,15 @@ scene.background = new THREE.Color(0xffffff);
 scene.add(new SparkRenderer({ renderer, preBlurAmount: 0.3, blurAmount: 0, sortRadial: false, maxStdDev: 3 }));
 const camera = new THREE.PerspectiveCamera(50, 1, 0.01, 1000);
 camera.position.set(0, 0, 3);
-const controls = exact ? null : new OrbitControls(camera, renderer.domElement);
+// Orbit controls keep the camera's up as the world's: made again when a scene says its up.
+let controls = null;
+function makeControls() {
+  if (exact) return;
+  controls?.dispose();
+  controls = new OrbitControls(camera, renderer.domElement);
+  controls.addEventListener("change", () => invalidate());
+}
+makeControls();
 const frustums = new THREE.Group();
 if (!exact) scene.add(frustums);
 let mesh = null;
@@ -110,6 +124,14 @@ function jumpToView(index) {
   invalidate();
 }
 
+// The scene's up: its cameras' mean up (captures are y-up or y-down, and some tilted), so that
+// the orbit turns about it and the views are shown upright.
+function sceneUp(views) {
+  const up = new THREE.Vector3();
+  views.forEach((view) => up.add(new THREE.Vector3(0, 1, 0).applyQuaternion(poseOf(view).quaternion)));
+  return up.lengthSq() > 1e-12 ? up.normalize() : new THREE.Vector3(0, 1, 0);
+}
+
 function addFrustums(views) {
   const size = 0.08;
   views.forEach((view) => {
@@ -130,6 +152,7 @@ function frameSplats(box) {
   const centre = box.getCenter(new THREE.Vector3());
   const radius = Math.max(1e-3, box.getSize(new THREE.Vector3()).length() / 2);
   camera.up.set(0, -1, 0);
+  makeControls();
   camera.position.copy(centre).add(new THREE.Vector3(0, -0.3 * radius, -2.2 * radius));
   camera.lookAt(centre);
   controls?.target.copy(centre);
@@ -182,7 +205,6 @@ let framesToDraw = 3;
 function invalidate(frames = 3) {
   framesToDraw = Math.max(framesToDraw, frames);
 }
-controls?.addEventListener("change", () => invalidate());
 
 let fpsFrames = 0, fpsSince = performance.now();
 renderer.setAnimationLoop(() => {
@@ -653,7 +675,14 @@ async function start() {
   $("video").disabled = !info.scene;
   $("eval").disabled = !info.scene?.test_views;
   listViews(views);
+  if (views.length && !exact) {
+    camera.up.copy(sceneUp(views));
+    api.sceneUp = camera.up.toArray();
+    makeControls();
+  }
+  // Opened on a view: the one asked for, else the capture's first (the splats are in its sight).
   if (viewIndex >= 0 && views[viewIndex]) jumpToView(viewIndex);
+  else if (views.length) jumpToView(0);
   const asked = params.get("ply") ?? "0";
   let first = /^\/api\/jobs\/\d+\/gaussians\.(ply|spz)$/.test(asked) ? { name: asked, url: asked } : info.plys[Number(asked)];
   // Opened on a scene alone: the server reconstructs it (object kept) at start; show it in 3D
