@@ -5,13 +5,14 @@
 # the default working height; prints the whole command's wall time and its stage table.
 #
 # Usage: scripts/measure-fill-speed.sh [--bin build/instainpaint] [--detail 1.3] [--work DIR]
-#        [--device cpu] [--runs 3]
+#        [--device cpu] [--runs 3] [--placement surface|network]
 set -euo pipefail
 BIN=build/instainpaint
 DETAIL=1.3
 WORK=measure-fill-speed
 DEVICE=cpu
 RUNS=3
+PLACEMENT=surface
 while [ $# -gt 0 ]; do
   case "$1" in
     --bin) BIN=$2; shift 2 ;;
@@ -19,6 +20,7 @@ while [ $# -gt 0 ]; do
     --work) WORK=$2; shift 2 ;;
     --device) DEVICE=$2; shift 2 ;;
     --runs) RUNS=$2; shift 2 ;;
+    --placement) PLACEMENT=$2; shift 2 ;;
     -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
     *) echo "unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
@@ -31,7 +33,7 @@ room="$WORK/rooms/scene_000"
 box=$(python3 "$here/splat-bounds.py" "$room/object.ply" --grow 1.1)
 for run in $(seq "$RUNS"); do
   start=$(date +%s.%N)
-  "$BIN" fill "$room/scene.ply" --scene "$room" --box "$box" --device "$DEVICE" --out "$WORK/filled.ply" \
+  "$BIN" fill "$room/scene.ply" --scene "$room" --box "$box" --device "$DEVICE" --placement "$PLACEMENT" --out "$WORK/filled.ply" \
     > "$WORK/fill.log" 2>&1
   end=$(date +%s.%N)
   echo "run $run: $(python3 -c "print('%.2f' % ($end - $start))") s, the whole command ($(tail -1 "$WORK/fill.log"))"

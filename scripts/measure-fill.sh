@@ -9,13 +9,16 @@
 # Markdown table of the masked PSNR / SSIM (means over the test views) and the fills' times.
 #
 # Usage: scripts/measure-fill.sh [--bin build/instainpaint] [--rooms 3] [--seed 11] [--work DIR]
-#        [--refine fast]
+#        [--refine fast] [--placement surface|network] [--no-refine]
+# (--no-refine: deletion and fill alone, the refined columns left empty.)
 set -euo pipefail
 BIN=build/instainpaint
 ROOMS=3
 SEED=11
 WORK=measure-fill
 REFINE=fast
+PLACEMENT=surface
+NO_REFINE=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --bin) BIN=$2; shift 2 ;;
@@ -23,7 +26,9 @@ while [ $# -gt 0 ]; do
     --seed) SEED=$2; shift 2 ;;
     --work) WORK=$2; shift 2 ;;
     --refine) REFINE=$2; shift 2 ;;
-    -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
+    --placement) PLACEMENT=$2; shift 2 ;;
+    --no-refine) NO_REFINE=1; shift ;;
+    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
     *) echo "unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -52,20 +57,29 @@ for room in "$WORK"/rooms/scene_*; do
   common=(--scene "$room" --box "$box" --height 256 --device cpu)
   say "$name: box $box"
   "$BIN" fill "$room/scene.ply" "${common[@]}" --delete-only --out "$out/deleted.ply" > "$out/deleted.log" 2>&1
-  "$BIN" fill "$room/scene.ply" "${common[@]}" --out "$out/filled.ply" > "$out/filled.log" 2>&1
-  "$BIN" fill "$room/scene.ply" "${common[@]}" --refine "$REFINE" --out "$out/refined.ply" > "$out/refined.log" 2>&1
-  for method in deleted filled refined; do
+  "$BIN" fill "$room/scene.ply" "${common[@]}" --placement "$PLACEMENT" --out "$out/filled.ply" > "$out/filled.log" 2>&1
+  methods=(deleted filled)
+  if [ "$NO_REFINE" = 0 ]; then
+    "$BIN" fill "$room/scene.ply" "${common[@]}" --placement "$PLACEMENT" --refine "$REFINE" --out "$out/refined.ply" \
+      > "$out/refined.log" 2>&1
+    methods+=(refined)
+  fi
+  for method in "${methods[@]}"; do
     "$BIN" eval --scene "$room" --gaussians "$out/$method.ply" --height 256 --device cpu --no-report \
       --out "$out/eval-$method" > "$out/eval-$method.log" 2>&1
   done
-  "$BIN" eval --scene "$room" --height 256 --device cpu --no-report --refine "$REFINE" --out "$out/eval-photos" \
-    > "$out/eval-photos.log" 2>&1
+  if [ "$NO_REFINE" = 0 ]; then
+    "$BIN" eval --scene "$room" --height 256 --device cpu --no-report --refine "$REFINE" --out "$out/eval-photos" \
+      > "$out/eval-photos.log" 2>&1
+    methods+=(photos)
+  fi
   cells=()
-  for method in deleted filled refined photos; do
+  for method in "${methods[@]}"; do
     m="$out/eval-$method/metrics.json"
     cells+=("$(metric "$m" masked_psnr) dB / $(metric "$m" masked_ssim)")
   done
+  [ "$NO_REFINE" = 0 ] || cells+=("–" "–")
   splats=$(python3 -c "import json; print(json.load(open('$out/filled-fill/fill.json'))['splats']['input'])")
   removed=$(python3 -c "import json; print(json.load(open('$out/filled-fill/fill.json'))['splats']['removed'])")
-  echo "| $name | $splats | $removed | ${cells[0]} | ${cells[1]} | ${cells[2]} | ${cells[3]} | $(seconds "$out/filled-fill/fill.json") s, $(seconds "$out/refined-fill/fill.json") s |"
+  echo "| $name | $splats | $removed | ${cells[0]} | ${cells[1]} | ${cells[2]} | ${cells[3]} | $(seconds "$out/filled-fill/fill.json") s$([ "$NO_REFINE" = 1 ] || echo ", $(seconds "$out/refined-fill/fill.json") s") |"
 done

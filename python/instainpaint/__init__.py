@@ -139,23 +139,26 @@ class Gaussians:
              scene: Optional[Scene] = None, cameras: Optional[Mapping[str, Camera]] = None,
              reference: Union[PathLike, Any, None] = None, reference_view: Optional[str] = None,
              views: int = 4, height: int = 256, up: Optional[Sequence[float]] = None,
-             refine: Optional[str] = None, all_views: bool = False,
+             refine: Optional[str] = None, all_views: bool = False, placement: str = "surface",
              predictor: Optional["Predictor"] = None) -> "Gaussians":
         """Removes a region and fills the hole it leaves, as `instainpaint fill`; returns new
         Gaussians in the scene's frame (these stay as they are), every other splat as it was.
 
         The region, one of: box=(cx, cy, cz, sx, sy, sz[, rx, ry, rz]) in the scene's frame;
         selection= the same Gaussians with the region deleted; view= a camera's name and mask= a
-        stroke over the object on it (an H x W array or a file). Cameras: scene= (its views) and/or
+        stroke over the object on it (an H x W array or a file). Cameras: scene= (its views and
+        object-free test views) and/or
         cameras= {name: Camera}; none: automatic views around the region (up= the scene's up).
         reference= the reference view's hole painted by any 2D inpainter (array or file), for
-        reference_view=; refine= "fast", "90s", a step count... optimises the new splats alone;
-        all_views=True takes new splats from every chosen view's hole, not the reference's alone.
+        reference_view= (default: view=); refine= "fast", "90s", a step count... optimises the new
+        splats alone. placement="surface" (default) continues the scene's surface around the hole
+        and places the reference's pixels on it; "network" takes the network's Gaussians of the
+        hole (all_views=True: of every chosen view's hole, not the reference's alone).
         predictor: default the built-in model on the best device.
         """
         given: Dict[str, Camera] = {}
         if scene is not None:
-            for name in scene.views:
+            for name in [*scene.views, *scene.test_views]:
                 given[name] = scene.camera(name)
         given.update(cameras or {})
         if predictor is None:
@@ -164,7 +167,7 @@ class Gaussians:
             self._g, None if box is None else [float(v) for v in box],
             None if selection is None else selection._g, view or "", mask, given, reference,
             reference_view or "", views, height, None if up is None else [float(v) for v in up],
-            "" if refine is None else str(refine), all_views, predictor._p))
+            "" if refine is None else str(refine), all_views, placement, predictor._p))
 
 
 def load_gaussians(path: PathLike) -> Gaussians:

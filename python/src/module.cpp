@@ -373,8 +373,9 @@ NB_MODULE(_core, m) {
            const std::string& view, const nb::object& mask, const std::map<std::string, Camera>& cameras,
            const nb::object& reference, const std::string& reference_view, int views, int height,
            const std::optional<std::vector<double>>& up, const std::string& refine, bool all_views,
-           const Predictor& predictor) {
+           const std::string& placement, const Predictor& predictor) {
           FillOptions o;
+          o.placement = parse_fill_placement(placement);
           o.scene_name = "the Gaussians";
           if (box) {
             std::string text;
@@ -413,7 +414,7 @@ NB_MODULE(_core, m) {
         },
         "gaussians"_a, "box"_a.none(), "selection"_a.none(), "view"_a, "mask"_a.none(), "cameras"_a,
         "reference"_a.none(), "reference_view"_a, "views"_a, "height"_a, "up"_a.none(), "refine"_a,
-        "all_views"_a, "predictor"_a);
+        "all_views"_a, "placement"_a, "predictor"_a);
 
   m.def("_read_splats", [](const std::string& path) {
     PyGaussians g;

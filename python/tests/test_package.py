@@ -283,5 +283,11 @@ def test_fill_removes_a_box_and_fills_it_keeping_every_other_splat(tmp_path, sta
     spread = np.linalg.norm(means - centre, axis=1)
     assert np.median(np.linalg.norm(new - centre, axis=1)) < np.median(spread)  # where the box was
     assert report["cameras"]["how"].startswith("given")
+    assert report["placement"] == "surface"
+    network = scene.fill(box=[*centre, *size], scene=statue, views=2, height=HEIGHT, placement="network",
+                         predictor=predictor)
+    assert network.fill_report["placement"] == "network"
+    with pytest.raises(ii.Error, match="fill placement 'nope': surface or network"):
+        scene.fill(box=[*centre, *size], scene=statue, placement="nope", predictor=predictor)
     with pytest.raises(ii.Error, match="holds no splat of the Gaussians: its splats lie within"):
         scene.fill(box=[*(centre + 1e6), 1, 1, 1], scene=statue, predictor=predictor)

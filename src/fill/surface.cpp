@@ -182,7 +182,7 @@ GaussianSet surface_gaussians(const Camera& camera, const torch::Tensor& depth, 
       r.col(1) = b;
       r.col(2) = n;
       const Eigen::Quaterniond q(r);
-      const double su = 0.5 * du.norm(), sv = 0.5 * std::abs(dv.dot(b));
+      const double su = 0.7 * du.norm(), sv = 0.7 * std::abs(dv.dot(b));
       const double sn = 0.1 * std::min(su, std::max(sv, 1e-9));
       for (int c = 0; c < 3; ++c) means.push_back(static_cast<float>(p[c]));
       for (double s : {su, std::max(sv, 0.25 * su), sn}) scales.push_back(static_cast<float>(s));
