@@ -34,9 +34,12 @@ ONE_MASK=(--view "$REF" --mask "$SCENE/images_4/label/$REF.png" --depth "$SCENE/
 
 step "2/6 masks for every view from the mask of $REF alone, lifted with its depth map"
 "$BIN" masks --scene "$SCENE" "${ONE_MASK[@]}" --out "$OUT/masks" | sed 's/^/  /'
-echo "  (without --depth the default model's reconstruction gives the depth, about twice too far in this room:"
+echo "  (without --depth the default model's reconstruction gives the depth, scaled to the room's depth maps:"
 "$BIN" masks --scene "$SCENE" "${ONE_MASK[@]:0:4}" --height "$SIZE" --out "$OUT/masks-network" 2> /dev/null |
-  grep against | sed 's/^/   /; s/$/)/'
+  grep against | sed 's/^/   /'
+echo "   the network's depth as it is (--align-depth none), about 1.4 times too far here:"
+"$BIN" masks --scene "$SCENE" "${ONE_MASK[@]:0:4}" --height "$SIZE" --align-depth none --out "$OUT/masks-network-raw" \
+  2> /dev/null | grep against | sed 's/^/   /; s/$/)/'
 
 # A synthetic room like the model's training rooms: its predicted geometry is right, so the
 # positions move at 10x 3DGS's rate instead of the 300x that real captures need.
@@ -70,14 +73,22 @@ ffmpeg -loglevel error -y "${inputs[@]}" \
   --frames 60 --width $((2 * SIZE)) --height $((2 * SIZE)) --out "$OUT/orbit" > /dev/null
 
 step "6/6 metrics on the object-free test views: the model, refined, and two 2D baselines"
-for method in model refined telea mean-fill; do
+# Each row says what made it: the model and the geometry its depth was aligned to.
+made_by() {  # made_by METRICS.JSON
+  python3 -c 'import json,sys; p=json.load(open(sys.argv[1]))["prediction"]
+g=p.get("geometry", {}).get("source")
+print(("%s, depth aligned to %s" % (p["checkpoint"], g) if g not in (None, "off", "none") else "%s, its own depth" % p["checkpoint"]) if "checkpoint" in p else "splats of %s" % p["ply"] if "ply" in p else "2D baseline")' "$1"
+}
+for method in model model-raw refined telea mean-fill; do
   args=(--method "$method")
   [ "$method" = model ] && args+=("${ONE_MASK[@]}")
+  [ "$method" = model-raw ] && args=(--method model "${ONE_MASK[@]}" --align-depth none)
   # The refined Gaussians as infer wrote them (in the scene's normalised frame, as eval renders).
   [ "$method" = refined ] && args=(--method model --gaussians "$OUT/inpainted/gaussians.ply")
   "$BIN" eval --scene "$SCENE" --reference "$SCENE/reference.png" --context "$CONTEXT" --height "$SIZE" \
     "${args[@]}" --out "$OUT/eval-$method" > "$OUT/eval-$method.log" 2>&1
-  printf '  %-10s %s\n' "$method" "$(grep -m1 '^  PSNR' "$OUT/eval-$method.log" | sed 's/^ *//')"
+  printf '  %-10s %s  (%s)\n' "$method" "$(grep -m1 '^  PSNR' "$OUT/eval-$method.log" | sed 's/^ *//')" \
+    "$(made_by "$OUT/eval-$method/metrics.json")"
 done
 
 cat <<TXT

@@ -48,11 +48,22 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
                   "(Navier-Stokes)")
       ->check(CLI::IsMember({"telea", "ns"}))
       ->capture_default_str();
+  add_align_depth_option(cmd, args);
+}
+
+void add_align_depth_option(CLI::App* cmd, EditArgs& args) {
+  cmd->add_option("--align-depth", args.align_depth,
+                  "Scale each context view's predicted depth to the scene's own 3D points: depth-maps (a synthetic "
+                  "scene's depth/), any (those, else COLMAP's sparse points), none (the network's depth as it is, "
+                  "the paper's)")
+      ->check(CLI::IsMember({"none", "depth-maps", "any"}))
+      ->capture_default_str();
 }
 
 void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
   options.inpainter = parse_inpainter(args.inpainter);
+  options.align_depth = parse_depth_points(args.align_depth);
 }
 
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene) {

@@ -21,12 +21,15 @@ struct EditArgs {
   int dilate = -1;  // -1 = automatic
   std::string reference_view;       // --reference-view
   std::string inpainter = "telea";  // --reference-inpainter
+  std::string align_depth = "depth-maps";  // --align-depth
 };
 
 // --view, --mask, --mode, --depth, --depth-scale, --extent, --dilate.
 void add_edit_options(CLI::App* cmd, EditArgs& args);
 // --reference-view, --reference-inpainter (commands that build the network's input).
 void add_reference_options(CLI::App* cmd, EditArgs& args);
+// --align-depth (add_reference_options adds it too).
+void add_align_depth_option(CLI::App* cmd, EditArgs& args);
 
 // The request the options describe for this scene, or nullopt without --view/--mask.
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene);

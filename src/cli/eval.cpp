@@ -63,6 +63,7 @@ void run(const EvalArgs& a) {
   o.reference = optional_path(a.reference);
   o.context = a.context;
   o.reference_view = a.edit.reference_view;
+  o.align_depth = parse_depth_points(a.edit.align_depth);
   o.inpainter = parse_inpainter(a.edit.inpainter);
   if (a.keep_object && (!a.reference.empty() || !a.edit.view.empty()))
     fail("--keep-object evaluates a reconstruction: drop --reference, --view and --mask");
@@ -110,6 +111,10 @@ void run(const EvalArgs& a) {
                                                       rw["uncovered"]["pixels"].get<int64_t>(),
                                                       rw["uncovered"]["views"].get<int>())
                                         : "");
+  if (m["prediction"].contains("own_views"))
+    fmt::print("  the context views' own Gaussians at their cameras: PSNR {} outside the masks (mean of {})\n",
+               shown(m["prediction"]["own_views"]["mean_psnr_outside_mask"], 2),
+               m["prediction"]["own_views"]["views"].size());
   if (m["prediction"].contains("reference_protocol"))
     fmt::print("  reference: the object-free test view {} (its photo), not scored\n",
                m["prediction"]["reference_protocol"]["view"].get<std::string>());

@@ -129,6 +129,7 @@ void run(const InferArgs& a) {
       {"format", scene.format},
       {"context", nlohmann::json::array()},
       {"reference", p.input.reference_source},
+      {"geometry", p.describe_geometry()},
       {"edit", edit_report},
       {"refine", refine_report},
       {"working_size", {shape[3], shape[2]}},

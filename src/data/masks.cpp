@@ -8,6 +8,7 @@
 #include <mutex>
 
 #include <Eigen/Dense>
+#include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
 #include "common/error.h"
@@ -252,6 +253,38 @@ double median(std::vector<double> values) {
 }
 
 }  // namespace
+
+std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colmap, std::string* source, int stride) {
+  std::vector<Eigen::Vector3d> points;
+  int maps = 0;
+  for (const View& view : scene.views) {
+    const std::optional<Image> depth = load_view_depth(scene, view);
+    if (!depth) continue;
+    ++maps;
+    const Rays rays = compute_rays(view.camera);
+    for (int y = stride / 2; y < depth->height; y += stride)
+      for (int x = stride / 2; x < depth->width; x += stride) {
+        const float d = depth->at(y, x);
+        if (!(d > 0) || !std::isfinite(d)) continue;
+        const size_t i = 3 * (static_cast<size_t>(y) * depth->width + x);
+        points.emplace_back(rays.origin[i] + d * rays.dir_unnorm[i], rays.origin[i + 1] + d * rays.dir_unnorm[i + 1],
+                            rays.origin[i + 2] + d * rays.dir_unnorm[i + 2]);
+      }
+  }
+  if (!points.empty()) {
+    if (source) *source = fmt::format("{} views' depth maps ({} points)", maps, points.size());
+    return points;
+  }
+  if (colmap) {
+    const auto sparse = scene_points(scene);
+    if (!sparse->empty()) {
+      if (source) *source = fmt::format("the COLMAP model's points ({} used)", sparse->size());
+      return *sparse;
+    }
+  }
+  if (source) *source = "none";
+  return points;
+}
 
 double typical_scene_depth(const Scene& scene, const Camera& reference, const std::vector<Camera>& cameras) {
   const Eigen::Matrix4d w2c = reference.w2c_opencv();

@@ -93,4 +93,11 @@ std::optional<Image> load_view_depth(const Scene& scene, const View& view, const
 // camera centres. Always positive.
 double typical_scene_depth(const Scene& scene, const Camera& reference, const std::vector<Camera>& cameras);
 
+// The 3D points a scene carries, in its own frame: points of its input views' depth maps
+// (synthetic scenes' depth/, every `stride`-th pixel of each), else, with `colmap`, its COLMAP
+// model's (at most 2000, read once per scene); empty when it has none. `source` (optional) says
+// which.
+std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colmap, std::string* source = nullptr,
+                                                   int stride = 8);
+
 }  // namespace ii

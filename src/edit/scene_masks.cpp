@@ -61,6 +61,7 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
   o.reference_view = view;
   o.keep_object = true;
   o.view_cache = options.view_cache;
+  o.align_depth = options.align_depth;
   const Prediction p = predictor.predict(scene, o);
   Stopwatch watch;
   // z-depth scales with the pose normalisation; the working image is the view resized, then cropped.

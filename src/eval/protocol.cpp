@@ -87,6 +87,34 @@ MetricNetworks load_metric_networks(const EvalOptions& o, const torch::Device& d
   return m;
 }
 
+// Each context view's own Gaussians (one per pixel) rendered at its own camera against what the
+// network saw there, outside its mask: a one-Gaussian-per-pixel predictor should give its inputs
+// back nearly exactly, whatever its depth; blur and smears from the Gaussians' sizes and
+// opacities show here.
+json own_views(const Prediction& p, const GaussianSet& g) {
+  torch::NoGradGuard no_grad;
+  json views = json::array();
+  const int64_t pixels = g.size() / static_cast<int64_t>(p.input.views.size());
+  double sum = 0;
+  for (size_t v = 0; v < p.input.views.size(); ++v) {
+    const PreparedView& view = p.input.views[v];
+    const GaussianSet own = select_rows(g, torch::arange(g.size(), g.means.device()).div(pixels, "floor").eq(static_cast<int64_t>(v)));
+    RenderCamera rc;
+    rc.camera = p.input.normalization.apply(view.camera);
+    const torch::Tensor rendered = render(own, rc).rgb.permute({2, 0, 1}).unsqueeze(0).to(torch::kCPU);
+    const torch::Tensor photo = image_to_tensor(view.rgb);
+    torch::Tensor outside = torch::ones({1, 1, view.rgb.height, view.rgb.width});
+    if (view.mask) outside = (image_to_tensor(*view.mask) <= 0.5).to(torch::kFloat32);
+    const double db = masked_psnr(rendered, photo, outside)[0].item<double>();
+    sum += db;
+    views.push_back({{"view", view.name}, {"psnr_outside_mask", number(db)}});
+  }
+  return {{"views", views},
+          {"mean_psnr_outside_mask", number(sum / static_cast<double>(p.input.views.size()))},
+          {"definition", "each context view's own Gaussians rendered at its camera against its working image "
+                         "outside its mask (the reference: against the picture the network saw)"}};
+}
+
 // The predicted Gaussians, float32 on `render_on` (where the rasterizer runs).
 GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const torch::Device& render_on,
                               json& info, StageTimes& stages) {
@@ -122,6 +150,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   opts.inpainter = o.inpainter;
   opts.reference_view = o.reference_view;
   opts.keep_object = o.keep_object;
+  opts.align_depth = o.align_depth;
   if (o.edit) {
     spdlog::info("masks for every view from the region on {}", o.edit->view);
     const SceneMasks masks =
@@ -137,11 +166,14 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   info["context"] = json::array();
   for (const PreparedView& v : p.input.views) info["context"].push_back(v.name);
   info["reference"] = p.input.reference_source;
+  info["geometry"] = p.describe_geometry();
   GaussianSet g = p.gaussians();
   for (torch::Tensor* t : {&g.means, &g.quats, &g.scales, &g.opacities, &g.colors})
     *t = t->to(render_on, torch::kFloat32);
   synchronize(render_on);
   stages.lap("gaussians to the renderer");
+  info["own_views"] = own_views(p, g);
+  stages.lap("own views");
   if (o.after_prediction) {
     g = o.after_prediction(scene, p, opts, g, info["after_prediction"]);
     stages.lap("refine");

@@ -1,5 +1,7 @@
 #include "model/predictor.h"
 
+#include "data/masks.h"
+
 #include "model/checkpoint.h"
 #include "model/default_model.h"
 #include "model/device.h"
@@ -45,7 +47,20 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
   p.maps = run_network(network_, p.input.input, precision_);
   synchronize(device_);
   p.stages.lap("network");
+  if (options.align_depth != DepthPoints::none) {
+    const std::vector<Eigen::Vector3d> points =
+        scene_geometry_points(scene, options.align_depth == DepthPoints::any, &p.geometry);
+    if (!points.empty()) p.depth_alignment = align_depth_to_points(p.maps, p.input, points);
+    p.stages.lap("align depth to the scene's points");
+  }
   return p;
+}
+
+nlohmann::json Prediction::describe_geometry() const {
+  nlohmann::json views = nlohmann::json::array();
+  for (const DepthAlignment& a : depth_alignment)
+    views.push_back({{"view", a.view}, {"scale", a.scale}, {"points", a.points}});
+  return {{"source", geometry}, {"views", views}};
 }
 
 }  // namespace ii

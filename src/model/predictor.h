@@ -16,6 +16,7 @@
 #include "gaussians/gaussians.h"
 #include "model/config.h"
 #include "model/network.h"
+#include "model/depth_alignment.h"
 #include "model/scene_input.h"
 
 namespace ii {
@@ -25,6 +26,12 @@ struct Prediction {
   GaussianMaps maps;  // (1, V, C, H, W) on the predictor's device, in the pose-normalised frame
   // Where predict's time went: prepare_scene_input's stages, then "upload" and "network".
   StageTimes stages;
+  // With SceneInputOptions::align_depth: each context view's depth scaled to the scene's points.
+  std::vector<DepthAlignment> depth_alignment;
+  std::string geometry = "off";  // the points' source, "none" when the scene has none, or "off"
+
+  // What run.json and metrics.json record of the depth alignment.
+  nlohmann::json describe_geometry() const;
 
   // One Gaussian per input pixel, rows in the official order (views of `maps`).
   GaussianSet gaussians() const { return gaussians_from_maps(maps); }

@@ -68,6 +68,21 @@ Image classical_reference(const Scene& scene, const std::string& view, const Ima
   return inpaint_classical(prepared.rgb, mask_at_working_size(mask, v, options.preprocess), options.inpainter);
 }
 
+const char* depth_points_name(DepthPoints points) {
+  switch (points) {
+    case DepthPoints::none: return "none";
+    case DepthPoints::depth_maps: return "depth-maps";
+    case DepthPoints::any: return "any";
+  }
+  return "?";
+}
+
+DepthPoints parse_depth_points(const std::string& name) {
+  for (DepthPoints p : {DepthPoints::none, DepthPoints::depth_maps, DepthPoints::any})
+    if (name == depth_points_name(p)) return p;
+  fail("--align-depth '{}': none, depth-maps or any", name);
+}
+
 SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options, StageTimes* stages) {
   StageTimes unrecorded;
   StageTimes& times = stages ? *stages : unrecorded;

@@ -286,12 +286,15 @@ TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
   EXPECT_EQ(m["prediction"]["gaussians"], 4 * test::kSceneWidth * test::kSceneHeight);
   // The prediction's stages come first; computation is the work between the files.
   const std::vector<std::string> names = stage_names(m);
-  ASSERT_GE(names.size(), 10u);
-  EXPECT_EQ(std::vector<std::string>(names.begin(), names.begin() + 10),
+  ASSERT_GE(names.size(), 11u);
+  EXPECT_EQ(std::vector<std::string>(names.begin(), names.begin() + 11),
             std::vector<std::string>({"read scene", "load model: read checkpoint", "load model: network from checkpoint",
                                       "load model: weights to cpu", "prepare context views",
                                       "inpaint reference (telea)", "network input", "upload", "network",
-                                      "gaussians to the renderer"}));
+                                      "align depth to the scene's points", "gaussians to the renderer"}));
+  EXPECT_EQ(m["prediction"]["geometry"]["source"], "none");  // the test scene has no depth maps or points
+  ASSERT_EQ(m["prediction"]["own_views"]["views"].size(), 4u);
+  EXPECT_TRUE(m["prediction"]["own_views"]["mean_psnr_outside_mask"].is_number());
   const json& t = m["timings"];
   double compute = 0;
   for (const char* k : {"upload", "network", "gaussians to the renderer", "upload test views", "render",

@@ -1,0 +1,117 @@
+// The network's depth scaled to a scene's own points: a view whose predicted depth is twice the
+// truth comes back onto the points (depth, positions and sizes alike); too few points, or
+// points that fall in the view's mask, change nothing; and a scene's points come from its
+// depth maps.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "camera/trajectory.h"
+#include "data/masks.h"
+#include "model/depth_alignment.h"
+#include "model/predictor.h"
+#include "synth/synth_scene.h"
+#include "synth/synth_writer.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+constexpr int kW = 32, kH = 24;
+
+Camera test_camera() {
+  Camera c;
+  c.K = Intrinsics::from_fov(kW, kH, 60 * M_PI / 180, 2 * std::atan(std::tan(30 * M_PI / 180) * kH / kW));
+  c.c2w = look_at({0.3, 0.2, 3}, {0, 0, 0}, {0, 1, 0});
+  return c;
+}
+
+// One view in front of the plane z = 0 (its true depth at each pixel), the network's depth
+// `factor` times that, positions on those rays, sizes 0.01.
+struct OneView {
+  SceneInput input;
+  GaussianMaps maps;
+  torch::Tensor truth;  // (H, W) true depth
+};
+
+OneView one_view(double factor) {
+  OneView o;
+  PreparedView view;
+  view.name = "v";
+  view.rgb = Image(kW, kH, 3, 0.5f);
+  view.mask = Image(kW, kH, 1);
+  view.camera = test_camera();
+  o.input.views = {view};
+  const Rays rays = compute_rays(view.camera);
+  o.truth = torch::zeros({kH, kW});
+  torch::Tensor xyz = torch::zeros({1, 1, 3, kH, kW});
+  for (int i = 0; i < kH * kW; ++i) {
+    const double oz = rays.origin[3 * i + 2], dz = rays.dir_unnorm[3 * i + 2];
+    const double t = -oz / dz;  // the plane z = 0
+    o.truth.view({-1})[i] = static_cast<float>(t);
+    for (int c = 0; c < 3; ++c)
+      xyz[0][0][c].view({-1})[i] = static_cast<float>(rays.origin[3 * i + c] + factor * t * rays.dir_unnorm[3 * i + c]);
+  }
+  o.maps.depth = (o.truth * factor).view({1, 1, 1, kH, kW});
+  o.maps.xyz = xyz;
+  o.maps.scale = torch::full({1, 1, 3, kH, kW}, 0.01);
+  return o;
+}
+
+std::vector<Eigen::Vector3d> plane_points(int n) {
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < n; ++i) points.emplace_back(-0.8 + 1.6 * (i % 10) / 9.0, -0.5 + 1.0 * (i / 10) / 9.0, 0.0);
+  return points;
+}
+
+TEST(DepthAlignment, ADepthTwiceTooFarComesBackOntoThePoints) {
+  OneView o = one_view(2.0);
+  const std::vector<DepthAlignment> a = align_depth_to_points(o.maps, o.input, plane_points(100));
+  ASSERT_EQ(a.size(), 1u);
+  EXPECT_EQ(a[0].view, "v");
+  EXPECT_NEAR(a[0].scale, 0.5, 1e-3);
+  EXPECT_GE(a[0].points, 50);
+  EXPECT_LT((o.maps.depth.view({kH, kW}) - o.truth).abs().max().item<double>(), 1e-3 * o.truth.max().item<double>());
+  EXPECT_LT(o.maps.xyz[0][0][2].abs().max().item<double>(), 1e-3) << "the positions are on the plane z = 0";
+  EXPECT_NEAR(o.maps.scale.max().item<double>(), 0.005, 1e-5);
+}
+
+TEST(DepthAlignment, TooFewPointsOrPointsInTheMaskChangeNothing) {
+  OneView few = one_view(2.0);
+  const torch::Tensor before = few.maps.depth.clone();
+  EXPECT_EQ(align_depth_to_points(few.maps, few.input, plane_points(10))[0].scale, 1.0);
+  EXPECT_TRUE(torch::equal(few.maps.depth, before));
+  // The whole view masked: every point falls in the mask.
+  OneView masked = one_view(2.0);
+  masked.input.views[0].mask = Image(kW, kH, 1, 1.f);
+  const std::vector<DepthAlignment> a = align_depth_to_points(masked.maps, masked.input, plane_points(100));
+  EXPECT_EQ(a[0].scale, 1.0);
+  EXPECT_EQ(a[0].points, 0);
+}
+
+TEST(DepthAlignment, ASyntheticScenesPointsComeFromItsDepthMaps) {
+  const std::filesystem::path dir = test::temp_dir("depth-alignment") / "scene";
+  synth::SynthOptions so;
+  so.views = 4;
+  so.test_views = 1;
+  so.width = so.height = 32;
+  so.object = synth::ObjectSource::procedural;
+  synth::write_synth_scene(synth::generate_scene(so, 8), dir, synth::SynthWriteOptions());
+  const Scene scene = load_scene(dir);
+  std::string source;
+  const std::vector<Eigen::Vector3d> points = scene_geometry_points(scene, false, &source);
+  EXPECT_EQ(points.size(), 4u * 16u);  // every 8th pixel of 32 x 32, 4 views
+  EXPECT_EQ(source, "4 views' depth maps (64 points)");
+  // Each point is at its depth map's depth from its view.
+  const std::optional<Image> depth = load_view_depth(scene, scene.views[0]);
+  ASSERT_TRUE(depth.has_value());
+  const Eigen::Matrix4d w2c = scene.views[0].camera.w2c_opencv();
+  const Eigen::Vector3d c = w2c.block<3, 3>(0, 0) * points[0] + w2c.block<3, 1>(0, 3);
+  EXPECT_NEAR(c.z(), depth->at(4, 4), 1e-4 * depth->at(4, 4));
+  std::filesystem::remove_all(dir / "depth");
+  EXPECT_TRUE(scene_geometry_points(load_scene(dir), false, &source).empty());
+  EXPECT_EQ(source, "none");
+}
+
+}  // namespace
+}  // namespace ii
