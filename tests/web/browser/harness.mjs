@@ -93,6 +93,18 @@ export async function frames(page, count) {
   await page.waitForFunction((n) => window.instainpaint.frames >= n, target, { timeout: 120000 });
 }
 
+// The share of the viewer's pixels that are not the white background (runs in the page:
+// page.evaluate(h.drawnFraction)).
+export function drawnFraction() {
+  const c = document.querySelector("#viewer canvas");
+  const ctx = Object.assign(document.createElement("canvas"), { width: c.width, height: c.height }).getContext("2d");
+  ctx.drawImage(c, 0, 0);
+  const d = ctx.getImageData(0, 0, c.width, c.height).data;
+  let drawn = 0;
+  for (let k = 0; k < d.length; k += 4) if (d[k] < 250 || d[k + 1] < 250 || d[k + 2] < 250) drawn++;
+  return drawn / (d.length / 4);
+}
+
 export function check(condition, message) {
   if (!condition) {
     console.error(`FAILED: ${message}`);

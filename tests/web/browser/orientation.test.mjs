@@ -6,17 +6,6 @@ import { copyFileSync, cpSync, readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 import * as h from "./harness.mjs";
 
-// The share of the viewer's pixels that are not the white background (runs in the page).
-function drawnFraction() {
-  const c = document.querySelector("#viewer canvas");
-  const ctx = Object.assign(document.createElement("canvas"), { width: c.width, height: c.height }).getContext("2d");
-  ctx.drawImage(c, 0, 0);
-  const d = ctx.getImageData(0, 0, c.width, c.height).data;
-  let drawn = 0;
-  for (let k = 0; k < d.length; k += 4) if (d[k] < 250 || d[k + 1] < 250 || d[k + 2] < 250) drawn++;
-  return drawn / (d.length / 4);
-}
-
 // An LLFF poses_bounds.npy with the world turned half a turn about x: rows y and z of every
 // camera-to-world matrix negated (each row: 3 x 5 pose, row-major, then near and far).
 function turnPoses(file) {
@@ -82,7 +71,7 @@ try {
     // scene's up); upside down is near -1.
     h.check(dot(pose.up, upOf(first)) > 0.7,
       `${name}: upright as that camera took it (screen up · its up = ${dot(pose.up, upOf(first)).toFixed(3)})`);
-    const drawn = await page.evaluate(drawnFraction);
+    const drawn = await page.evaluate(h.drawnFraction);
     h.check(drawn > 0.3, `${name}: the splats are in sight (${(100 * drawn).toFixed(0)} % of pixels drawn)`);
     // A click on another view of the strip.
     await page.locator("#strip figure").nth(3).click();

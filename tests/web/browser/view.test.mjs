@@ -5,17 +5,6 @@ import { existsSync, writeFileSync } from "node:fs";
 import { dirname, join, resolve } from "node:path";
 import * as h from "./harness.mjs";
 
-// The share of the viewer's pixels that are not the white background (runs in the page).
-function drawnFraction() {
-  const c = document.querySelector("#viewer canvas");
-  const ctx = Object.assign(document.createElement("canvas"), { width: c.width, height: c.height }).getContext("2d");
-  ctx.drawImage(c, 0, 0);
-  const d = ctx.getImageData(0, 0, c.width, c.height).data;
-  let drawn = 0;
-  for (let k = 0; k < d.length; k += 4) if (d[k] < 250 || d[k + 1] < 250 || d[k + 2] < 250) drawn++;
-  return drawn / (d.length / 4);
-}
-
 h.skipUnlessReady();
 const dir = h.scratch("view");
 const { scene, ply } = h.roomWithGaussians(dir);
@@ -68,7 +57,7 @@ try {
     other.stop();
   }
 
-  const coverage = await page.evaluate(drawnFraction);
+  const coverage = await page.evaluate(h.drawnFraction);
   h.check(coverage > 0.5, `the canvas is not blank (${(100 * coverage).toFixed(0)} % of pixels drawn)`);
 
   // A shared real capture in SuperSplat's compressed PLY, served without a scene: framed and drawn.
@@ -82,7 +71,7 @@ try {
     await gpage.evaluate(() => window.instainpaint.ready);
     await h.frames(gpage, 10);
     writeFileSync(join(dir, "page-guitar.png"), await gpage.locator("#viewer canvas").screenshot());
-    const drawn = await gpage.evaluate(drawnFraction);
+    const drawn = await gpage.evaluate(h.drawnFraction);
     h.check(drawn > 0.05, `the shared compressed PLY is drawn (${(100 * drawn).toFixed(0)} % of pixels)`);
     errors.push(...gerrors);
     await gpage.close();
@@ -126,7 +115,7 @@ try {
     editing: !document.getElementById("edit-panel").hidden, view: document.getElementById("edit-view").textContent }));
   h.check(/^\/api\/jobs\/\d+\/gaussians\.compressed\.ply$/.test(shown.url ?? ""),
     `the scene's reconstruction is on screen, as compressed PLY (${shown.url})`);
-  const bdrawn = await bpage.evaluate(drawnFraction);
+  const bdrawn = await bpage.evaluate(h.drawnFraction);
   h.check(bdrawn > 0.3, `and drawn (${(100 * bdrawn).toFixed(0)} % of pixels)`);
   h.check(shown.editing && /^view_\d+$/.test(shown.view), `the editor is open on the reference view (${shown.view})`);
   errors.push(...berrors);
