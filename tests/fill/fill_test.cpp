@@ -16,6 +16,8 @@
 #include "render/projection.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
+#include "eval/synthetic_scene.h"
+#include "model/scene_input.h"
 #include "test_support.h"
 
 namespace ii {
@@ -362,6 +364,31 @@ TEST(FillCli, WritesTheSplatsAndTheReportAndRefusesBadInputWithoutWriting) {
   EXPECT_NE(test::file_bytes(dir / "bad.txt").find("holds no splat of"), std::string::npos);
   EXPECT_FALSE(std::filesystem::exists(dir / "nothing.ply"));
   EXPECT_FALSE(std::filesystem::exists(dir / "nothing-fill"));
+}
+
+// `fill --scene` offers every posed view as a camera, the object-free test views too, and the
+// stroke's view is the reference by default: a SPIn-NeRF-layout scene's test view with its test
+// mask as the stroke (the ground-truth-reference protocol's fill).
+TEST(FillCli, AStrokeOnAnObjectFreeTestViewMakesItTheReference) {
+  const std::filesystem::path dir = test::temp_dir("fill-test-view");
+  test::write_scene(dir / "scene");
+  const Scene scene = load_scene(dir / "scene");
+  ASSERT_EQ(scene.test_views.at(0).name, "00_test");
+  write_splats(dir / "wall.ply",
+               splats_from_gaussians(in_scene_frame(gaussians_from_splats(read_splat_ply(dir / "scene" / "truth.ply")),
+                                                    scene_normalization(scene))));
+  const std::string cli = test::cli_executable().string();
+  ASSERT_EQ(test::run_command(cli + " fill " + (dir / "wall.ply").string() + " --scene " + (dir / "scene").string() +
+                                  " --view 00_test --mask " + (dir / "scene" / "images" / "test_label" / "00_test.png").string() +
+                                  " --reference " + (dir / "scene" / "images" / "00_test.png").string() +
+                                  " --views 2 --height 48 --device cpu --out " + (dir / "filled.ply").string(),
+                              dir / "log.txt"),
+            0)
+      << test::file_bytes(dir / "log.txt");
+  const nlohmann::json report = nlohmann::json::parse(test::file_bytes(dir / "filled-fill" / "fill.json"));
+  EXPECT_EQ(report["cameras"]["reference"], "00_test");
+  EXPECT_EQ(report["placement"], "surface");
+  EXPECT_GT(report["splats"]["removed"].get<int64_t>(), 0);
 }
 
 }  // namespace
