@@ -10,6 +10,7 @@
 #include "common/error.h"
 #include "common/torch.h"
 #include "data/preprocess.h"
+#include "render/projection.h"
 #include "render/rasterizer.h"
 
 namespace ii {
@@ -105,6 +106,16 @@ torch::Tensor region_flags(const RegionMask& region, const torch::Device& device
   return torch::from_blob(flags.data(), {static_cast<int64_t>(flags.size())}, torch::kUInt8).to(torch::kBool).to(device);
 }
 
+torch::Tensor near_region(const GaussianSet& set, const GaussianSet& region, const Camera& camera) {
+  std::optional<PixelWindow> window = covered_window(region, camera, 0);
+  if (window) {  // grown by a tenth of its size and 4 pixels
+    const double margin = 4 + 0.1 * std::max(window->x1 - window->x0, window->y1 - window->y0);
+    window = covered_window(region, camera, margin);
+  }
+  if (!window) return torch::ones({set.size()}, torch::TensorOptions().dtype(torch::kBool).device(set.means.device()));
+  return reaching_window(set, camera, *window);
+}
+
 GaussianSet region_weight_set(const GaussianSet& scene, const torch::Tensor& in_region) {
   GaussianSet g = scene;
   g.colors = in_region.to(torch::kFloat32).unsqueeze(1).expand({scene.size(), 3}).contiguous();
@@ -130,17 +141,23 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
     return (given[a].camera.center() - sphere.centre).norm() < (given[b].camera.center() - sphere.centre).norm();
   });
   if (candidates.size() > 16) candidates.resize(16);
-  const GaussianSet weights = region_weight_set(scene, in_region);
+  const GaussianSet weights = region_weight_set(scene, in_region), region_set = select_rows(scene, in_region);
+  // The small renders are read near the region alone (the share, and what the hole test asks
+  // of the sights): each draws only the splats that reach it there.
+  auto share = [&](const Camera& camera, std::vector<Sight>* keep) {
+    const GaussianSet near = options.cull ? select_rows(weights, near_region(weights, region_set, camera)) : weights;
+    return region_share(near, camera, keep);
+  };
   std::vector<double> score(given.size(), 0.0);
   std::vector<Camera> cameras;
   for (const NamedCamera& c : given) cameras.push_back(c.camera);
   std::vector<Sight> sights;
-  for (size_t i : candidates) score[i] = region_share(weights, small(given[i].camera), &sights);
+  for (size_t i : candidates) score[i] = share(small(given[i].camera), &sights);
   if (!options.reference.empty()) {
     const auto named = std::find_if(given.begin(), given.end(), [&](const NamedCamera& c) { return c.name == options.reference; });
     if (named == given.end()) fail("--reference-view {}: no camera of that name", options.reference);
     const size_t r = static_cast<size_t>(named - given.begin());
-    if (score[r] <= 0) score[r] = region_share(weights, small(given[r].camera));
+    if (score[r] <= 0) score[r] = share(small(given[r].camera), nullptr);
     if (score[r] <= 0) fail("--reference-view {}: that camera does not see the region", options.reference);
     score[r] = 2;  // first
   }

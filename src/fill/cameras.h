@@ -19,6 +19,9 @@ struct FillCameraOptions {
   std::string reference;  // a given camera's name to take as the reference; empty: the best
   // Automatic cameras: the scene's up (zero: guessed, see choose_automatic_cameras).
   Eigen::Vector3d up = Eigen::Vector3d::Zero();
+  // Renders read near the region alone draw only the splats that reach it (near_region); false:
+  // every splat (the same pixels there, slower).
+  bool cull = true;
 };
 
 // A camera's small render of the whole scene: where it saw the surfaces behind the region.
@@ -41,6 +44,12 @@ struct ChosenCameras {
 
 // The region as one flag per Gaussian, on `device` (where the scene's tensors are).
 torch::Tensor region_flags(const RegionMask& region, const torch::Device& device);
+
+// Which rows of `set` may draw near the region in `camera` (a flag per row): the pixels the
+// `region`'s Gaussians cover, grown by a tenth of that window's size and 4 pixels; every row when the
+// region is not in front of the camera. Renders that are read near the region alone draw only
+// these (issue 54: every render projected every splat of the scene).
+torch::Tensor near_region(const GaussianSet& set, const GaussianSet& region, const Camera& camera);
 
 // The scene with the region white and everything else black, for rendering on black: a render's
 // red channel is the region's share of each pixel, hidden where the rest of the scene is in front.

@@ -268,15 +268,34 @@ namespace {
 // The scene as the renderer draws it: all of it, without the region, and the region's weight
 // (white on black: a render's red channel is the region's share of each pixel).
 struct SceneSets {
-  GaussianSet scene, kept, weights;
+  GaussianSet scene, kept, weights, region;
+  torch::Tensor in_region;  // a flag per row of scene
+  bool cull = true;
+
+  // The sets less the splats that cannot draw near the region in `camera` (near_region), for
+  // renders that are read there alone.
+  SceneSets near(const Camera& camera) const {
+    if (!cull) return *this;
+    const torch::Tensor reach = near_region(scene, region, camera);
+    SceneSets s;
+    s.scene = select_rows(scene, reach);
+    s.kept = select_rows(scene, reach.logical_and(in_region.logical_not()));
+    s.weights = select_rows(weights, reach);
+    s.region = region;
+    s.in_region = in_region.index({reach});
+    s.cull = false;
+    return s;
+  }
 };
 
-SceneSets scene_sets(const SplatCloud& cloud, const RegionMask& region, const torch::Device& device) {
+SceneSets scene_sets(const SplatCloud& cloud, const RegionMask& region, const torch::Device& device, bool cull) {
   SceneSets s;
   s.scene = gaussians_from_splats(cloud, 3).to(device);
-  const torch::Tensor in_region = region_flags(region, device);
-  s.kept = select_rows(s.scene, in_region.logical_not());
-  s.weights = region_weight_set(s.scene, in_region);
+  s.in_region = region_flags(region, device);
+  s.kept = select_rows(s.scene, s.in_region.logical_not());
+  s.weights = region_weight_set(s.scene, s.in_region);
+  s.region = select_rows(s.scene, s.in_region);
+  s.cull = cull;
   return s;
 }
 
@@ -301,7 +320,10 @@ std::vector<const Observer*> other_observers(const std::vector<CameraViews>& vie
 std::vector<CameraViews> render_views(const SceneSets& sets, const ChosenCameras& cameras, bool refining,
                                       std::vector<Observer>& extra) {
   std::vector<CameraViews> views;
-  for (const NamedCamera& c : cameras.cameras) views.push_back(render_camera(sets.scene, sets.kept, sets.weights, c.camera));
+  // The whole scene and the scene without the region drawn whole (the network's input and the
+  // pictures); the region's share is read near it alone.
+  for (const NamedCamera& c : cameras.cameras)
+    views.push_back(render_camera(sets.scene, sets.kept, sets.near(c.camera).weights, c.camera));
   if (refining)
     for (const NamedCamera& c : cameras.observers) extra.push_back(observe(sets.scene, c.camera));
   for (size_t v = 0; v < views.size(); ++v)
@@ -492,7 +514,8 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
                              const std::vector<Observer>& extra, const FillOptions& options, FillResult& result) {
   const NamedCamera& reference = result.cameras.cameras.at(0);
   const SurfaceCamera at = surface_camera(options, reference);
-  CameraViews full = render_camera(sets.scene, sets.kept, sets.weights, at.camera);
+  const SceneSets near = sets.near(at.camera);  // read near the hole alone
+  CameraViews full = render_camera(near.scene, near.kept, near.weights, at.camera);
   full.mask = hole_mask(full, other_observers(views, extra, result.cameras.sights, 0, kNone));
   const Image colour = surface_colours(options, at, full, result.cameras);
   result.stages.lap("render the reference at its size");
@@ -500,7 +523,11 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
   result.surface_height = at.camera.K.height;
   PreprocessOptions p;
   p.height = options.camera_options.height;
-  result.reference = at.camera.K.height == reference.camera.K.height
+  // The picture of the reference (reference.png): the caller's, else the built-in inpainter's of
+  // the working view drawn whole (the renders above hold the hole's surroundings alone).
+  result.reference = !options.reference_image
+                         ? inpaint_classical(views[0].kept, views[0].mask, options.inpainter)
+                     : at.camera.K.height == reference.camera.K.height
                          ? colour
                          : to_working_size(colour, working_size(colour.width, colour.height, p));
   const torch::Tensor hole = image_to_tensor(full.mask)[0][0] > 0.5;
@@ -515,7 +542,7 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
 GaussianSet view_hole_splats(const SceneSets& sets, const GaussianSet& added, const std::vector<CameraViews>& views,
                              size_t v, const FillOptions& options, FillResult& result, int64_t& uncovered) {
   const NamedCamera& c = result.cameras.cameras[v];
-  const RenderOutput now = render(joined(sets.kept, added.to(sets.scene.means.device())), {c.camera});
+  const RenderOutput now = render(joined(sets.near(c.camera).kept, added.to(sets.scene.means.device())), {c.camera});
   const torch::Tensor alpha = now.alpha.squeeze(2).to(torch::kCPU);
   const torch::Tensor open = (image_to_tensor(views[v].mask)[0][0] > 0.5).logical_and(alpha < 0.5);
   uncovered = open.sum().item<int64_t>();
@@ -572,7 +599,7 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
 
   torch::NoGradGuard no_grad;
   const torch::Device device = render_device(predictor.device());
-  const SceneSets sets = scene_sets(cloud, region, device);
+  const SceneSets sets = scene_sets(cloud, region, device, options.camera_options.cull);
   stages.lap("splats to Gaussians");
 
   FillCameraOptions camera_options = options.camera_options;

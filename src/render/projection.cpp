@@ -2,6 +2,11 @@
 
 #include <Eigen/LU>
 
+#include <algorithm>
+#include <cmath>
+
+#include "common/parallel.h"
+
 namespace ii {
 
 std::pair<torch::Tensor, torch::Tensor> rotation_and_translation(const Eigen::Matrix4d& m,
@@ -26,6 +31,95 @@ PixelHit project(const Camera& camera, const torch::Tensor& points) {
   hit.inside = (hit.z > 0).logical_and(u >= 0).logical_and(v >= 0).logical_and(u < K.width).logical_and(v < K.height);
   hit.index = v.clamp(0, K.height - 1).to(torch::kLong) * K.width + u.clamp(0, K.width - 1).to(torch::kLong);
   return hit;
+}
+
+namespace {
+
+// Each Gaussian's centre in pixels and the half-extent of its bounding sphere's projection along
+// each image axis (|u(q) - u(p)| <= f R (1 + |x|/z) / (z - R) for every q within R of p), and
+// whether it is bounded (in front of the near plane by more than R).
+struct SphereFootprint {
+  torch::Tensor u, v, du, dv, bounded, in_front;
+};
+
+SphereFootprint sphere_footprint(const GaussianSet& g, const Camera& camera) {
+  constexpr double kNear = 0.01, kBlurPixels = 2.0;  // the rasterizer's near plane; its 0.3 px^2 blur
+  const Intrinsics& K = camera.K;
+  const torch::Tensor p = transformed(camera.w2c_opencv(), g.means);
+  const torch::Tensor x = p.select(1, 0), y = p.select(1, 1), z = p.select(1, 2);
+  const torch::Tensor r = 3 * std::get<0>(g.scales.abs().max(1));
+  SphereFootprint f;
+  f.in_front = z > kNear;
+  f.bounded = z > r + kNear;
+  const torch::Tensor zs = z.clamp_min(kNear), gap = (z - r).clamp_min(kNear);
+  f.u = x / zs * K.fx + K.cx;
+  f.v = y / zs * K.fy + K.cy;
+  f.du = K.fx * r * (1 + x.abs() / zs) / gap + kBlurPixels;
+  f.dv = K.fy * r * (1 + y.abs() / zs) / gap + kBlurPixels;
+  return f;
+}
+
+}  // namespace
+
+// One pass over the rows on the CPU (a dozen LibTorch operations over every row cost as much as
+// the small render they were to spare).
+torch::Tensor reaching_window_cpu(const GaussianSet& g, const Camera& camera, const PixelWindow& w) {
+  constexpr double kNear = 0.01, kBlurPixels = 2.0;
+  const torch::Tensor means = g.means.to(torch::kFloat32).contiguous(), scales = g.scales.to(torch::kFloat32).contiguous();
+  const float* m = means.data_ptr<float>();
+  const float* sc = scales.data_ptr<float>();
+  const int64_t n = g.size();
+  torch::Tensor flags = torch::empty({n}, torch::kBool);
+  bool* out = flags.data_ptr<bool>();
+  const Eigen::Matrix4d t = camera.w2c_opencv();
+  const Intrinsics& K = camera.K;
+  parallel_range(n, 1 << 14, thread_plan().compute, [&](int64_t begin, int64_t end) {
+    for (int64_t i = begin; i < end; ++i) {
+      const double px = m[3 * i], py = m[3 * i + 1], pz = m[3 * i + 2];
+      const double x = t(0, 0) * px + t(0, 1) * py + t(0, 2) * pz + t(0, 3);
+      const double y = t(1, 0) * px + t(1, 1) * py + t(1, 2) * pz + t(1, 3);
+      const double z = t(2, 0) * px + t(2, 1) * py + t(2, 2) * pz + t(2, 3);
+      const double r = 3 * std::max({std::abs(sc[3 * i]), std::abs(sc[3 * i + 1]), std::abs(sc[3 * i + 2])});
+      if (!(z > kNear)) {
+        out[i] = false;
+        continue;
+      }
+      if (z <= r + kNear) {
+        out[i] = true;  // too near to bound
+        continue;
+      }
+      const double u = x / z * K.fx + K.cx, v = y / z * K.fy + K.cy;
+      const double du = K.fx * r * (1 + std::abs(x) / z) / (z - r) + kBlurPixels;
+      const double dv = K.fy * r * (1 + std::abs(y) / z) / (z - r) + kBlurPixels;
+      out[i] = u + du >= w.x0 && u - du <= w.x1 && v + dv >= w.y0 && v - dv <= w.y1;
+    }
+  });
+  return flags;
+}
+
+torch::Tensor reaching_window(const GaussianSet& g, const Camera& camera, const PixelWindow& w) {
+  if (g.means.device().is_cpu()) return reaching_window_cpu(g, camera, w);
+  const SphereFootprint f = sphere_footprint(g, camera);
+  const torch::Tensor overlaps = (f.u + f.du >= w.x0)
+                                     .logical_and(f.u - f.du <= w.x1)
+                                     .logical_and(f.v + f.dv >= w.y0)
+                                     .logical_and(f.v - f.dv <= w.y1);
+  return f.in_front.logical_and(f.bounded.logical_not().logical_or(overlaps));
+}
+
+std::optional<PixelWindow> covered_window(const GaussianSet& g, const Camera& camera, double margin) {
+  if (g.size() == 0) return std::nullopt;
+  const SphereFootprint f = sphere_footprint(g, camera);
+  if (!f.in_front.any().item<bool>()) return std::nullopt;
+  PixelWindow w{0, 0, static_cast<double>(camera.K.width), static_cast<double>(camera.K.height)};
+  if (f.in_front.logical_and(f.bounded.logical_not()).any().item<bool>()) return w;  // too near to bound
+  const torch::Tensor front = f.in_front;
+  w.x0 = std::max(w.x0, (f.u - f.du).index({front}).min().item<double>() - margin);
+  w.y0 = std::max(w.y0, (f.v - f.dv).index({front}).min().item<double>() - margin);
+  w.x1 = std::min(w.x1, (f.u + f.du).index({front}).max().item<double>() + margin);
+  w.y1 = std::min(w.y1, (f.v + f.dv).index({front}).max().item<double>() + margin);
+  if (w.x1 <= w.x0 || w.y1 <= w.y0) return std::nullopt;
+  return w;
 }
 
 torch::Tensor unproject(const Camera& camera, const torch::Tensor& v, const torch::Tensor& u, const torch::Tensor& z) {

@@ -1,11 +1,13 @@
 #pragma once
 // Between world points and a camera's pixels, as render() draws them (pinhole, OpenCV axes,
 // pixel centres at +0.5). project and unproject work on float64 CPU tensors.
+#include <optional>
 #include <utility>
 
 #include "common/torch.h"
 
 #include "camera/camera.h"
+#include "gaussians/gaussians.h"
 
 namespace ii {
 
@@ -22,6 +24,22 @@ struct PixelHit {
   torch::Tensor z, inside, index;
 };
 PixelHit project(const Camera& camera, const torch::Tensor& points);
+
+// A window of a camera's pixels: columns [x0, x1), rows [y0, y1).
+struct PixelWindow {
+  double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+
+// Which Gaussians may draw on `window`'s pixels in `camera`, a flag per row on g's device: those
+// whose centre is in front of the near plane and whose bounding sphere (three times the largest
+// scale, and the rasterizer's 2D blur) projects onto the window, or that are too near to bound.
+// The rest draw nothing there: a render of the flagged rows equals the whole set's inside the
+// window (culling: every render projects every Gaussian it is given).
+torch::Tensor reaching_window(const GaussianSet& g, const Camera& camera, const PixelWindow& window);
+
+// The pixels `g`'s bounding spheres cover in `camera`, grown by `margin` pixels and clamped to the
+// image; nullopt when none of them is in front of the camera or the window is empty.
+std::optional<PixelWindow> covered_window(const GaussianSet& g, const Camera& camera, double margin);
 
 // The world points (N, 3) of pixels (rows `v`, columns `u`, N each) at camera z-depths `z`.
 torch::Tensor unproject(const Camera& camera, const torch::Tensor& v, const torch::Tensor& u, const torch::Tensor& z);

@@ -270,6 +270,38 @@ TEST(Fill, TheSurfacePlacementCoversEveryHolePixelOfItsViews) {
   EXPECT_LT(surface_error, network_error) << "surface " << surface_error << ", network " << network_error;
 }
 
+// Renders read near the region alone draw only the splats that reach it there: the filled
+// scene is the same, value for value, as with every splat drawn (issue 54).
+TEST(Fill, CullingTheRendersChangesNothing) {
+  const SplatCloud with = room(true, false);
+  FillOptions options = box_fill();
+  options.cameras = capture_cameras();
+  ASSERT_TRUE(options.camera_options.cull);
+  const FillResult culled = fill_splats(with, options, cpu_predictor());
+  options.camera_options.cull = false;
+  const FillResult whole = fill_splats(with, options, cpu_predictor());
+  ASSERT_EQ(culled.splats.size(), whole.splats.size());
+  EXPECT_EQ(culled.splats.means, whole.splats.means);
+  EXPECT_EQ(culled.splats.sh_dc, whole.splats.sh_dc);
+  EXPECT_EQ(culled.splats.log_scales, whole.splats.log_scales);
+  EXPECT_EQ(culled.splats.opacity_logit, whole.splats.opacity_logit);
+  EXPECT_EQ(culled.reference.pixels, whole.reference.pixels);
+}
+
+// A window's splats: a render of those reaching it equals the whole set's there, and far fewer
+// are drawn when the window is small.
+TEST(FillCameras, TheSplatsReachingAWindowDrawItAsTheWholeSetDoes) {
+  const GaussianSet scene = gaussians_from_splats(room(true, false), 0);
+  const Camera camera = capture_cameras()[2].camera;
+  const PixelWindow window{40, 30, 80, 60};
+  const torch::Tensor reach = reaching_window(scene, camera, window);
+  EXPECT_LT(reach.sum().item<int64_t>(), scene.size() / 2);
+  const torch::Tensor all = render(scene, {camera}).rgb, some = render(select_rows(scene, reach), {camera}).rgb;
+  const torch::Tensor inside = all.slice(0, 30, 60).slice(1, 40, 80) - some.slice(0, 30, 60).slice(1, 40, 80);
+  EXPECT_LT(inside.abs().max().item<double>(), 1e-6);
+  EXPECT_GT((all - some).abs().max().item<double>(), 0.1) << "outside the window the culled render differs";
+}
+
 // A stroke's view is the reference unless another is named; a reference painted on it may come
 // at the working size of the official evaluation (512 rows, cropped) while the fill works at 64.
 TEST(Fill, TheStrokesViewIsTheReferenceAndItsPictureMayComeAtEvalsSize) {
