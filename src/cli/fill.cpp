@@ -215,7 +215,7 @@ void add_fill_command(CLI::App& app) {
   cmd->add_flag("--all-views", a->all_views, "--placement network: new splats from every chosen view's hole (default: "
                                              "the reference's, where the inpainted picture is)");
   cmd->add_flag("--delete-only", a->delete_only, "Remove the region and add nothing (to compare with the fill)");
-  cmd->add_option("--checkpoint", a->checkpoint, "Model (.pth or safetensors; default: the built-in model)");
+  cmd->add_option("--checkpoint", a->checkpoint, "--placement network: the model (.pth or safetensors; default: the built-in model)");
   add_refine_options(cmd, a->refine);
   add_runtime_options(cmd, a->runtime);
   cmd->footer(
