@@ -106,12 +106,15 @@ torch::Tensor region_flags(const RegionMask& region, const torch::Device& device
   return torch::from_blob(flags.data(), {static_cast<int64_t>(flags.size())}, torch::kUInt8).to(torch::kBool).to(device);
 }
 
+std::optional<PixelWindow> region_window(const GaussianSet& region, const Camera& camera) {
+  const std::optional<PixelWindow> covered = covered_window(region, camera, 0);
+  if (!covered) return std::nullopt;
+  // grown by a tenth of its size and 4 pixels
+  return covered_window(region, camera, 4 + 0.1 * std::max(covered->x1 - covered->x0, covered->y1 - covered->y0));
+}
+
 torch::Tensor near_region(const GaussianSet& set, const GaussianSet& region, const Camera& camera) {
-  std::optional<PixelWindow> window = covered_window(region, camera, 0);
-  if (window) {  // grown by a tenth of its size and 4 pixels
-    const double margin = 4 + 0.1 * std::max(window->x1 - window->x0, window->y1 - window->y0);
-    window = covered_window(region, camera, margin);
-  }
+  const std::optional<PixelWindow> window = region_window(region, camera);
   if (!window) return torch::ones({set.size()}, torch::TensorOptions().dtype(torch::kBool).device(set.means.device()));
   return reaching_window(set, camera, *window);
 }

@@ -10,6 +10,7 @@
 #include "fill/region.h"
 #include "common/torch.h"
 #include "gaussians/gaussians.h"
+#include "render/projection.h"
 
 namespace ii {
 
@@ -50,6 +51,8 @@ torch::Tensor region_flags(const RegionMask& region, const torch::Device& device
 // region is not in front of the camera. Renders that are read near the region alone draw only
 // these (issue 54: every render projected every splat of the scene).
 torch::Tensor near_region(const GaussianSet& set, const GaussianSet& region, const Camera& camera);
+// That window (nullopt: the region is not in front of the camera).
+std::optional<PixelWindow> region_window(const GaussianSet& region, const Camera& camera);
 
 // The scene with the region white and everything else black, for rendering on black: a render's
 // red channel is the region's share of each pixel, hidden where the rest of the scene is in front.

@@ -101,17 +101,24 @@ struct CameraViews {
 };
 
 // One camera: the whole scene, the scene without the region (the network's input and the
-// depth to align with), and the region's share of each pixel.
+// depth to align with), and the region's share of each pixel. With a `window` (the region's in
+// this camera), `scene` and `weights` hold only the splats that reach it and the whole scene
+// outside it is the kept one's: the region draws nothing there.
 CameraViews render_camera(const GaussianSet& scene, const GaussianSet& kept, const GaussianSet& weights,
-                          const Camera& camera) {
+                          const Camera& camera, const std::optional<PixelWindow>& window = std::nullopt) {
   CameraViews v;
-  torch::Tensor rgb;
-  v.whole = observe(scene, camera, &rgb);
-  v.before = image_from_hwc(rgb);
   const RenderOutput k = render(kept, {camera});
   v.kept = image_from_hwc(k.rgb.clamp(0, 1).to(torch::kCPU));
   v.kept_depth = k.depth.squeeze(2).to(torch::kCPU).contiguous();
   v.kept_alpha = k.alpha.squeeze(2).to(torch::kCPU).contiguous();
+  RenderOutput w = render(scene, {camera});
+  if (window) {
+    w.rgb = pasted(k.rgb, w.rgb, *window);
+    w.depth = pasted(k.depth, w.depth, *window);
+    w.alpha = pasted(k.alpha, w.alpha, *window);
+  }
+  v.before = image_from_hwc(w.rgb.clamp(0, 1).to(torch::kCPU));
+  v.whole = {camera, w.depth.squeeze(2).to(torch::kCPU).contiguous(), w.alpha.squeeze(2).to(torch::kCPU).contiguous()};
   RenderOptions black;
   black.background = {0.f, 0.f, 0.f};
   v.share = render(weights, {camera}, black).rgb.select(2, 0).to(torch::kCPU);
@@ -271,13 +278,20 @@ struct SceneSets {
   GaussianSet scene, kept, weights, region;
   torch::Tensor in_region;  // a flag per row of scene
   bool cull = true;
+  std::optional<PixelWindow> window;  // near(): the region's window (none: every splat kept)
 
   // The sets less the splats that cannot draw near the region in `camera` (near_region), for
   // renders that are read there alone.
   SceneSets near(const Camera& camera) const {
     if (!cull) return *this;
-    const torch::Tensor reach = near_region(scene, region, camera);
     SceneSets s;
+    s.window = region_window(region, camera);
+    if (!s.window) {
+      s = *this;
+      s.cull = false;
+      return s;
+    }
+    const torch::Tensor reach = reaching_window(scene, camera, *s.window);
     s.scene = select_rows(scene, reach);
     s.kept = select_rows(scene, reach.logical_and(in_region.logical_not()));
     s.weights = select_rows(weights, reach);
@@ -320,10 +334,12 @@ std::vector<const Observer*> other_observers(const std::vector<CameraViews>& vie
 std::vector<CameraViews> render_views(const SceneSets& sets, const ChosenCameras& cameras, bool refining,
                                       std::vector<Observer>& extra) {
   std::vector<CameraViews> views;
-  // The whole scene and the scene without the region drawn whole (the network's input and the
-  // pictures); the region's share is read near it alone.
-  for (const NamedCamera& c : cameras.cameras)
-    views.push_back(render_camera(sets.scene, sets.kept, sets.near(c.camera).weights, c.camera));
+  // The scene without the region drawn whole (the network's input and the pictures); the whole
+  // scene and the region's share near the region alone.
+  for (const NamedCamera& c : cameras.cameras) {
+    const SceneSets near = sets.near(c.camera);
+    views.push_back(render_camera(near.scene, sets.kept, near.weights, c.camera, near.window));
+  }
   if (refining)
     for (const NamedCamera& c : cameras.observers) extra.push_back(observe(sets.scene, c.camera));
   for (size_t v = 0; v < views.size(); ++v)
@@ -572,14 +588,30 @@ GaussianSet surface_fill(const SceneSets& sets, const std::vector<CameraViews>& 
   return added;
 }
 
-// The pictures of fill.json's cameras: before, the region removed, the hole, and `after` drawn.
-void add_pictures(FillResult& result, const std::vector<CameraViews>& views, const GaussianSet* after) {
+// The pictures of fill.json's cameras: before, the region removed, the hole, and `after` drawn:
+// near `changed` (the region and the new splats) alone, the rest is the removed picture's.
+void add_pictures(FillResult& result, const std::vector<CameraViews>& views, const GaussianSet* after,
+                  const GaussianSet* changed, bool cull) {
   for (size_t v = 0; v < views.size(); ++v) {
     result.before.push_back(views[v].before);
     result.deleted.push_back(views[v].kept);
     result.masks.push_back(views[v].mask);
-    result.after.push_back(after ? image_from_hwc(render(*after, {result.cameras.cameras[v].camera}).rgb.clamp(0, 1).to(torch::kCPU))
-                                 : views[v].kept);
+    if (!after) {
+      result.after.push_back(views[v].kept);
+      continue;
+    }
+    const Camera& camera = result.cameras.cameras[v].camera;
+    const std::optional<PixelWindow> window = cull ? region_window(*changed, camera) : std::nullopt;
+    if (!window) {
+      result.after.push_back(image_from_hwc(render(*after, {camera}).rgb.clamp(0, 1).to(torch::kCPU)));
+      continue;
+    }
+    const Image& kept = views[v].kept;
+    const torch::Tensor outside =
+        torch::from_blob(const_cast<float*>(kept.pixels.data()), {kept.height, kept.width, kept.channels}, torch::kFloat32);
+    const GaussianSet near = select_rows(*after, reaching_window(*after, camera, *window));
+    const torch::Tensor inside = render(near, {camera}).rgb.clamp(0, 1).to(torch::kCPU);
+    result.after.push_back(image_from_hwc(pasted(outside, inside, *window)));
   }
 }
 
@@ -617,7 +649,7 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   result.splats = rows_of(cloud, kept_flags(region));  // bit for bit, in their order
   if (!options.fill) {
     result.reference = views.at(0).kept;
-    add_pictures(result, views, nullptr);
+    add_pictures(result, views, nullptr, nullptr, false);
     stages.lap("assemble the splats");
     return result;
   }
@@ -643,7 +675,10 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   result.added = added.size();
   stages.lap("assemble the splats");
   const GaussianSet filled = gaussians_from_splats(result.splats, 3).to(device);
-  add_pictures(result, views, &filled);
+  GaussianSet changed;  // where the pictures change: the region and the new splats
+  changed.means = torch::cat({sets.region.means, added.means.to(device, sets.region.means.scalar_type())});
+  changed.scales = torch::cat({sets.region.scales, added.scales.to(device, sets.region.scales.scalar_type())});
+  add_pictures(result, views, &filled, &changed, sets.cull);
   stages.lap("render after");
   return result;
 }

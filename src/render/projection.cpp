@@ -122,6 +122,17 @@ std::optional<PixelWindow> covered_window(const GaussianSet& g, const Camera& ca
   return w;
 }
 
+torch::Tensor pasted(const torch::Tensor& outside, const torch::Tensor& inside, const PixelWindow& w) {
+  const int64_t h = outside.size(0), wd = outside.size(1);
+  const int64_t y0 = std::clamp<int64_t>(static_cast<int64_t>(std::floor(w.y0)), 0, h);
+  const int64_t y1 = std::clamp<int64_t>(static_cast<int64_t>(std::ceil(w.y1)), y0, h);
+  const int64_t x0 = std::clamp<int64_t>(static_cast<int64_t>(std::floor(w.x0)), 0, wd);
+  const int64_t x1 = std::clamp<int64_t>(static_cast<int64_t>(std::ceil(w.x1)), x0, wd);
+  torch::Tensor out = outside.clone();
+  out.slice(0, y0, y1).slice(1, x0, x1).copy_(inside.slice(0, y0, y1).slice(1, x0, x1));
+  return out;
+}
+
 torch::Tensor unproject(const Camera& camera, const torch::Tensor& v, const torch::Tensor& u, const torch::Tensor& z) {
   const Intrinsics& K = camera.K;
   const torch::Tensor vd = v.to(torch::kFloat64), ud = u.to(torch::kFloat64), zd = z.to(torch::kFloat64);

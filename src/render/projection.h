@@ -41,6 +41,10 @@ torch::Tensor reaching_window(const GaussianSet& g, const Camera& camera, const 
 // image; nullopt when none of them is in front of the camera or the window is empty.
 std::optional<PixelWindow> covered_window(const GaussianSet& g, const Camera& camera, double margin);
 
+// `outside` (H, W, ...) with the window's pixels taken from `inside` (the same shape): a render
+// of the splats reaching the window pasted over one of the rest.
+torch::Tensor pasted(const torch::Tensor& outside, const torch::Tensor& inside, const PixelWindow& window);
+
 // The world points (N, 3) of pixels (rows `v`, columns `u`, N each) at camera z-depths `z`.
 torch::Tensor unproject(const Camera& camera, const torch::Tensor& v, const torch::Tensor& u, const torch::Tensor& z);
 

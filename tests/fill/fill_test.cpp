@@ -286,6 +286,14 @@ TEST(Fill, CullingTheRendersChangesNothing) {
   EXPECT_EQ(culled.splats.log_scales, whole.splats.log_scales);
   EXPECT_EQ(culled.splats.opacity_logit, whole.splats.opacity_logit);
   EXPECT_EQ(culled.reference.pixels, whole.reference.pixels);
+  // The pictures too: near the region drawn from the splats that reach it, the rest from the
+  // removed scene's picture.
+  ASSERT_EQ(culled.after.size(), whole.after.size());
+  for (size_t v = 0; v < whole.after.size(); ++v) {
+    EXPECT_EQ(culled.before[v].pixels, whole.before[v].pixels) << "view " << v;
+    EXPECT_EQ(culled.after[v].pixels, whole.after[v].pixels) << "view " << v;
+    EXPECT_EQ(culled.masks[v].pixels, whole.masks[v].pixels) << "view " << v;
+  }
 }
 
 // A window's splats: a render of those reaching it equals the whole set's there, and far fewer
