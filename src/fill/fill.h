@@ -2,8 +2,9 @@
 // Fill the hole: remove a region from any splat scene and fill what it hid. The rest of the
 // scene is rendered from cameras that see the region, each view's mask is where the region
 // was visible, the reference view's hole is painted by a 2D inpainter (the built-in one, or the
-// caller's image), the network predicts Gaussians for the masked pixels and only those are
-// added, in the scene's frame and scale; every other splat is kept as it was, bit for bit.
+// caller's image), and new splats for the hole are added in the scene's frame and scale: on the
+// scene's surface around the hole continued inward (the default), or the network's Gaussians of
+// the masked pixels. Every other splat is kept as it was, bit for bit.
 #include <nlohmann/json.hpp>
 
 #include <optional>
