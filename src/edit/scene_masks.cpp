@@ -52,6 +52,27 @@ std::optional<Image> colmap_points_depth(const Scene& scene, const View& view) {
   return depth;
 }
 
+Image depth_at_image_size(const torch::Tensor& working_depth, double normalization_scale, const View& view,
+                          const PreprocessOptions& preprocess) {
+  // z-depth scales with the pose normalisation; the working image is the view resized, then cropped.
+  const torch::Tensor working = (working_depth.to(torch::kCPU, torch::kFloat) * normalization_scale).contiguous();
+  const int W = view.camera.K.width, H = view.camera.K.height;
+  const WorkingSize ws = working_size(W, H, preprocess);
+  if (working.dim() != 2 || working.size(0) != ws.height || working.size(1) != ws.width)
+    fail("depth of view {}: {} at the working size {}x{} expected", view.name, working.sizes(), ws.width, ws.height);
+  const auto d = working.accessor<float, 2>();
+  Image depth(W, H, 1);
+  for (int y = 0; y < H; ++y) {
+    const long wy = std::lround((y + 0.5) * ws.resized_height / H - 0.5) - ws.crop_y;
+    if (wy < 0 || wy >= ws.height) continue;
+    for (int x = 0; x < W; ++x) {
+      const long wx = std::lround((x + 0.5) * ws.resized_width / W - 0.5) - ws.crop_x;
+      if (wx >= 0 && wx < ws.width) depth.at(y, x) = d[wy][wx];
+    }
+  }
+  return depth;
+}
+
 Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const std::string& view,
                            const SceneInputOptions& options, StageTimes* stages) {
   const View& marked = marked_view(scene, view);
@@ -64,21 +85,7 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
   o.align_depth = options.align_depth;
   const Prediction p = predictor.predict(scene, o);
   Stopwatch watch;
-  // z-depth scales with the pose normalisation; the working image is the view resized, then cropped.
-  const torch::Tensor working = (p.maps.depth[0][0][0].to(torch::kCPU, torch::kFloat) * p.input.normalization.scale)
-                                    .contiguous();
-  const int W = marked.camera.K.width, H = marked.camera.K.height;
-  const WorkingSize ws = working_size(W, H, o.preprocess);
-  const auto d = working.accessor<float, 2>();
-  Image depth(W, H, 1);
-  for (int y = 0; y < H; ++y) {
-    const long wy = std::lround((y + 0.5) * ws.resized_height / H - 0.5) - ws.crop_y;
-    if (wy < 0 || wy >= ws.height) continue;
-    for (int x = 0; x < W; ++x) {
-      const long wx = std::lround((x + 0.5) * ws.resized_width / W - 0.5) - ws.crop_x;
-      if (wx >= 0 && wx < ws.width) depth.at(y, x) = d[wy][wx];
-    }
-  }
+  const Image depth = depth_at_image_size(p.maps.depth[0][0][0], p.input.normalization.scale, marked, o.preprocess);
   if (stages) {
     stages->merge(p.stages, "masks: ");
     stages->add("masks: depth map", watch.ms());
@@ -147,6 +154,12 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
     } catch (const Error& e) {
       out.notes.push_back(fmt::format("COLMAP points: {}", e.what()));
     }
+  }
+  if (request.working_depth) {
+    const Image depth = times.time("masks: depth map", [&] {
+      return depth_at_image_size(*request.working_depth, scene_normalization(scene).scale, marked, options.preprocess);
+    });
+    return finish(lift(depth, kNetworkDepthMargin, false), request.working_depth_source);
   }
   if (!predictor)
     fail("no depth for view {}: give a depth map (--depth), a scene with COLMAP points, or let the network "

@@ -31,6 +31,11 @@ struct OneMask {
   std::optional<double> depth_margin;
   std::optional<std::filesystem::path> depth_file;  // see read_depth_map (data/masks.h)
   double depth_png_scale = 0.001;                   // scene units per level of a 16-bit depth PNG
+  // The marked view's depth already made (a reconstruction of the scene rendered at its working
+  // camera): (H, W) camera z at the working size in the pose-normalised frame, taken as the
+  // network's would be (its margin), before the network runs; `working_depth_source` names it.
+  std::optional<torch::Tensor> working_depth;
+  std::string working_depth_source = "given depth";
 };
 
 // A region mask file for a view: read_mask, then checked against the view's image size.
@@ -70,6 +75,11 @@ struct SceneMasks {
 // preprocessing and number of context views. `stages` (optional) gets the work's stages,
 // named "masks: ..." (the depth's prediction, "masks: propagate").
 using PredictorSource = std::function<const Predictor&()>;
+// A depth map of `view` at the working size of `preprocess` ((H, W) camera z in the pose-normalised
+// frame, whose scale is `normalization_scale`) at the view's image size in scene units.
+Image depth_at_image_size(const torch::Tensor& working_depth, double normalization_scale, const View& view,
+                          const PreprocessOptions& preprocess);
+
 SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
                           const SceneInputOptions& options, StageTimes* stages = nullptr);
 

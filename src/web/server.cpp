@@ -330,6 +330,9 @@ struct WebServer::State {
   // The page's splats of the newest jobs, by job: sent from memory (written behind the answer).
   std::map<int, std::shared_ptr<const std::string>> page_splats;
   PreparedViewCache views;  // the edits' context views at the working size, read once
+  // The scene's reconstruction with the object kept (the first job when it opens without
+  // splats), on the rasterizer's device, pose-normalised frame: later edits' depth comes from it.
+  std::optional<GaussianSet> reconstruction;
 
   ~State() { stop_worker(); }
   void worker_loop();
@@ -600,6 +603,16 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   request.view = view.name;
   request.region = edit.region;
   request.propagation.mode = edit.mode;
+  // The marked view's depth from the scene's reconstruction (made when the page opened): drawn
+  // at its working camera, in place of a second network call (issue 54).
+  if (reconstruction) {
+    request.working_depth = stages.time("masks: depth from the scene's reconstruction", [&] {
+      RenderCamera camera;
+      camera.camera = normalization.apply(views.get(view, input.preprocess).camera);
+      return render(*reconstruction, camera).depth.squeeze(2).to(torch::kCPU);
+    });
+    request.working_depth_source = "the scene's reconstruction";
+  }
   stage("propagating the mask to every view", 0.05);
   // Without an uploaded reference the view is inpainted classically, beside the propagation
   // (its mask is the region itself): 130 ms at 512 high that the edit no longer waits for.
@@ -709,6 +722,8 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   stage("reconstructing the scene as captured (object kept)", 0.2);
   const Prediction p = predictor->predict(*scene, input);
   stages.merge(p.stages);
+  // Kept for the edits' masks: their marked view's depth drawn from it.
+  reconstruction = p.gaussians().to(render_device(predictor->device()));
   stage("writing the Gaussians", 0.9);
   json result = write_splats_of(p.gaussians(), dir, id, stages, behind);
   result["reference_view"] = p.input.views.front().name;

@@ -2,6 +2,7 @@
 // command end to end.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <fstream>
 
 #include <nlohmann/json.hpp>
@@ -10,6 +11,9 @@
 #include "edit/scene_masks.h"
 #include "io/image.h"
 #include "io/npy.h"
+#include "render/rasterizer.h"
+#include "synth/synth_scene.h"
+#include "synth/synth_writer.h"
 #include "test_support.h"
 
 namespace ii {
@@ -49,6 +53,64 @@ TEST(SceneMasks, TheNetworksDepthCoversTheStatueInEveryView) {
   }
   EXPECT_GT(recall, 0.95);
   EXPECT_GT(precision, 0.5);
+}
+
+// Mean recall and precision of a scene's propagated masks against its own.
+MaskAgreement mean_agreement(const Scene& scene, const SceneMasks& m) {
+  MaskAgreement mean{0, 0};
+  for (const View& v : scene.views) {
+    const MaskAgreement a = mask_agreement(m.masks.at(v.name), *load_view_mask(v));
+    mean.recall += a.recall / static_cast<double>(scene.views.size());
+    mean.precision += a.precision / static_cast<double>(scene.views.size());
+  }
+  return mean;
+}
+
+// What serve does after the scene's reconstruction (issue 54): the marked view's depth drawn from
+// that reconstruction's Gaussians instead of a second network call, the masks as good as with
+// the network's depth of that view. The statue and a synthetic room.
+void expect_reconstructions_depth_as_good(const Scene& scene, const OneMask& marked, int height) {
+  const Predictor predictor("", torch::kCPU, Precision::Float32);
+  SceneInputOptions input;
+  input.preprocess.height = height;
+  const SceneMasks network = masks_from_one(scene, marked, [&]() -> const Predictor& { return predictor; }, input);
+  ASSERT_EQ(network.depth_source, "network");
+  SceneInputOptions whole = input;
+  whole.keep_object = true;
+  const Prediction reconstruction = predictor.predict(scene, whole);
+  OneMask request = marked;
+  RenderCamera camera;
+  camera.camera = reconstruction.input.normalization.apply(prepare_view(*scene.find(marked.view), input.preprocess).camera);
+  request.working_depth = render(reconstruction.gaussians(), camera).depth.squeeze(2);
+  request.working_depth_source = "the scene's reconstruction";
+  const SceneMasks drawn = masks_from_one(scene, request, {}, input);  // no predictor: the network is not needed
+  EXPECT_EQ(drawn.depth_source, "the scene's reconstruction");
+  const MaskAgreement a = mean_agreement(scene, network), b = mean_agreement(scene, drawn);
+  std::printf("%s: network's depth recall %.3f precision %.3f; reconstruction's recall %.3f precision %.3f\n",
+              scene.root.filename().c_str(), a.recall, a.precision, b.recall, b.precision);
+  EXPECT_GE(b.recall, a.recall - 0.02);
+  EXPECT_GE(b.precision, a.precision - 0.05);
+}
+
+TEST(SceneMasks, TheScenesReconstructionGivesTheMarkedViewsDepth) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  const Scene scene = load_scene(dir);
+  expect_reconstructions_depth_as_good(scene, statue_request(scene), 256);
+}
+
+TEST(SceneMasks, TheScenesReconstructionGivesTheMarkedViewsDepthInARoom) {
+  const fs::path dir = test::temp_dir("scene-masks-room") / "scene";
+  synth::SynthOptions so;
+  so.views = 8;
+  so.test_views = 1;
+  so.width = so.height = 128;
+  so.object = synth::ObjectSource::procedural;
+  synth::write_synth_scene(synth::generate_scene(so, 21), dir, synth::SynthWriteOptions());
+  const Scene scene = load_scene(dir);
+  OneMask request;
+  request.view = scene.views[2].name;
+  request.region = *load_view_mask(scene.views[2]);
+  expect_reconstructions_depth_as_good(scene, request, 128);
 }
 
 TEST(SceneMasks, ColmapPointsComeBeforeTheNetwork) {
