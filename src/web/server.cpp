@@ -723,7 +723,10 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   const Prediction p = predictor->predict(*scene, input);
   stages.merge(p.stages);
   // Kept for the edits' masks: their marked view's depth drawn from it.
-  reconstruction = p.gaussians().to(render_device(predictor->device()));
+  GaussianSet kept = p.gaussians();  // the network's dtype (bf16 on a GPU): the rasterizer draws float32
+  for (torch::Tensor* t : {&kept.means, &kept.quats, &kept.scales, &kept.opacities, &kept.colors})
+    *t = t->to(render_device(predictor->device()), torch::kFloat32);
+  reconstruction = std::move(kept);
   stage("writing the Gaussians", 0.9);
   json result = write_splats_of(p.gaussians(), dir, id, stages, behind);
   result["reference_view"] = p.input.views.front().name;
