@@ -12,8 +12,7 @@
 #include "io/image.h"
 #include "io/npy.h"
 #include "render/rasterizer.h"
-#include "synth/synth_scene.h"
-#include "synth/synth_writer.h"
+#include "synthetic_room.h"
 #include "test_support.h"
 
 namespace ii {
@@ -99,13 +98,7 @@ TEST(SceneMasks, TheScenesReconstructionGivesTheMarkedViewsDepth) {
 }
 
 TEST(SceneMasks, TheScenesReconstructionGivesTheMarkedViewsDepthInARoom) {
-  const fs::path dir = test::temp_dir("scene-masks-room") / "scene";
-  synth::SynthOptions so;
-  so.views = 8;
-  so.test_views = 1;
-  so.width = so.height = 128;
-  so.object = synth::ObjectSource::procedural;
-  synth::write_synth_scene(synth::generate_scene(so, 21), dir, synth::SynthWriteOptions());
+  const fs::path dir = test::synthetic_room("scene-masks-room", 8, 128, 21);
   const Scene scene = load_scene(dir);
   OneMask request;
   request.view = scene.views[2].name;

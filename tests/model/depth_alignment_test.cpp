@@ -10,8 +10,7 @@
 #include "data/masks.h"
 #include "model/depth_alignment.h"
 #include "model/predictor.h"
-#include "synth/synth_scene.h"
-#include "synth/synth_writer.h"
+#include "synthetic_room.h"
 #include "test_support.h"
 
 namespace ii {
@@ -90,13 +89,7 @@ TEST(DepthAlignment, TooFewPointsOrPointsInTheMaskChangeNothing) {
 }
 
 TEST(DepthAlignment, ASyntheticScenesPointsComeFromItsDepthMaps) {
-  const std::filesystem::path dir = test::temp_dir("depth-alignment") / "scene";
-  synth::SynthOptions so;
-  so.views = 4;
-  so.test_views = 1;
-  so.width = so.height = 32;
-  so.object = synth::ObjectSource::procedural;
-  synth::write_synth_scene(synth::generate_scene(so, 8), dir, synth::SynthWriteOptions());
+  const std::filesystem::path dir = test::synthetic_room("depth-alignment", 4, 32, 8);
   const Scene scene = load_scene(dir);
   std::string source;
   const std::vector<Eigen::Vector3d> points = scene_geometry_points(scene, false, &source);
