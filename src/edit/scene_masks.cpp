@@ -59,7 +59,10 @@ Image depth_at_image_size(const torch::Tensor& working_depth, double normalizati
   const int W = view.camera.K.width, H = view.camera.K.height;
   const WorkingSize ws = working_size(W, H, preprocess);
   if (working.dim() != 2 || working.size(0) != ws.height || working.size(1) != ws.width)
-    fail("depth of view {}: {} at the working size {}x{} expected", view.name, working.sizes(), ws.width, ws.height);
+    fail("depth of view {}: {} at the working size {}x{} expected", view.name,
+         working.dim() == 2 ? fmt::format("{}x{}", working.size(1), working.size(0))
+                            : fmt::format("a {}-dimensional map", working.dim()),
+         ws.width, ws.height);
   const auto d = working.accessor<float, 2>();
   Image depth(W, H, 1);
   for (int y = 0; y < H; ++y) {
