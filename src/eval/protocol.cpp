@@ -799,6 +799,12 @@ Scene read_eval_scene(EvalOptions& o, json& prediction, StageTimes& stages) {
                  "region; it is not among the scored views"}};
     spdlog::info("object-free test view {} is the reference (its own photo); {} test views are scored", truth->view,
                  scene.test_views.size());
+  } else if (o.gaussians && o.context.empty() && !o.reference_view.empty()) {
+    // Splats are scored as they are: a reference named for them can only be the test view to
+    // leave out, and a name that is none would be ignored.
+    fail("{}: {} is not an object-free test view: with --gaussians the reference view names the test view the "
+         "splats were filled from, which is then not scored",
+         o.scene_dir.string(), o.reference_view);
   }
   if (scene.test_views.empty())
     fail("{}: no test views (SPIn-NeRF scenes list object-free ones by their masks in images_K/test_label/; "

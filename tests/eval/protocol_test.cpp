@@ -371,6 +371,12 @@ TEST_F(Protocol, SplatsScoredWithoutTheReferenceViewAndTheirUncoveredPixelsCount
   }
   EXPECT_EQ(m["region_and_whole"]["uncovered"]["pixels"], mask_pixels);
   EXPECT_EQ(m["region_and_whole"]["uncovered"]["views"], 2);
+  EvalOptions wrong = options("truth-reference-wrong");
+  wrong.gaussians = scene_dir() / "truth.ply";
+  wrong.reference_view = "02";
+  EXPECT_EQ(test::error_message([&] { run_evaluation(wrong); }),
+            scene_dir().string() + ": 02 is not an object-free test view: with --gaussians the reference view names "
+                                   "the test view the splats were filled from, which is then not scored");
 }
 
 TEST(TruthReference, MovesAnObjectFreeTestViewToTheInputsOnly) {
