@@ -125,8 +125,7 @@ void run(const FillArgs& a) {
   o.scene_name = a.splats;
   o.camera_options.views = a.views;
   o.camera_options.height = a.height;
-  // The stroke's view is the reference unless another is named: the user drew on it.
-  o.camera_options.reference = a.reference_view.empty() ? a.view : a.reference_view;
+  o.camera_options.reference = a.reference_view;  // empty: the stroke's --view (fill_splats), else the best
   if (!a.up.empty()) o.camera_options.up = parse_up(a.up);
   o.placement = parse_fill_placement(a.placement);
   o.reference_only = !a.all_views;
@@ -135,7 +134,7 @@ void run(const FillArgs& a) {
   o.cameras = given_cameras(a);
   if (!a.reference.empty()) {
     o.reference_image = read_image_rgb(a.reference);
-    if (o.camera_options.reference.empty())
+    if (a.reference_view.empty() && a.view.empty())
       fail("--reference needs --reference-view (or --view): the camera (from --scene or --cameras) it was painted on");
   }
   if (!a.view.empty()) {

@@ -276,7 +276,7 @@ namespace {
 // (white on black: a render's red channel is the region's share of each pixel).
 struct SceneSets {
   GaussianSet scene, kept, weights, region;
-  torch::Tensor in_region;  // a flag per row of scene
+  torch::Tensor in_region;  // a flag per row of scene (of the whole sets; near() leaves it empty)
   bool cull = true;
   std::optional<PixelWindow> window;  // near(): the region's window (none: every splat kept)
 
@@ -296,7 +296,6 @@ struct SceneSets {
     s.kept = select_rows(scene, reach.logical_and(in_region.logical_not()));
     s.weights = select_rows(weights, reach);
     s.region = region;
-    s.in_region = in_region.index({reach});
     s.cull = false;
     return s;
   }
@@ -516,11 +515,6 @@ GaussianSet keep_rows(const GaussianSet& g, const torch::Tensor& keep, int64_t& 
   return select_rows(g, keep);
 }
 
-GaussianSet appended(const GaussianSet& a, const GaussianSet& b) {
-  return {torch::cat({a.means, b.means}), torch::cat({a.quats, b.quats}), torch::cat({a.scales, b.scales}),
-          torch::cat({a.opacities, b.opacities}), torch::cat({a.colors, b.colors})};
-}
-
 // The reference's hole at the size its camera was given: its depth continued inward, one splat a
 // pixel in the reference picture's colours, and a seam of 4 pixels over the kept surface around
 // it (without the seam SPIn-NeRF scene 1's test views showed 861 pixels of background in the
@@ -582,7 +576,7 @@ GaussianSet surface_fill(const SceneSets& sets, const std::vector<CameraViews>& 
     int64_t uncovered = 0;
     const GaussianSet more = view_hole_splats(sets, added, views, v, options, result, uncovered);
     result.uncovered.push_back(uncovered);
-    if (more.size() > 0) added = appended(added, more);
+    if (more.size() > 0) added = joined(added, more);  // both RGB: the rows one after the other
   }
   result.stages.lap("cover the other chosen views' holes");
   return added;
