@@ -195,7 +195,7 @@ struct JobRequest {
   int view = -1;
   EditMode mode = EditMode::Remove;
   Image region;                    // the uploaded mask, checked against the view
-  std::optional<Image> reference;  // the uploaded inpainted reference
+  std::optional<Image> reference;  // the uploaded inpainted reference (fill: of the painted view)
   RefineOptions refine = refine_setting("0");
   // video, eval: the PLY, one the server serves; fill: the splats to fill (a served file, or a
   // job's standard PLY), and the region: a box, or `region` drawn on `camera`
@@ -520,7 +520,10 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
   fill.ply = splats_of_url(url, /*standard_ply=*/true);
   if (fill.ply.empty()) return Refusal{400, fmt::format("ply must be the URL of splats this server serves, not '{}'", url)};
   if (auto r = parse_refine(req, fill.refine)) return r;
+  const bool reference = req.has_file("reference") && !req.get_file_value("reference").content.empty();
   if (req.has_file("box")) {
+    if (reference)
+      return Refusal{400, "reference: only with a painted region (camera and mask); a box's reference view is the fill's choice"};
     try {
       fill.box = parse_box(req.get_file_value("box").content);
     } catch (const Error& e) {
@@ -549,7 +552,17 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
     if (info.width == w && info.height == h) return std::nullopt;
     return fmt::format("{}x{} pixels, but the camera is {}x{}", info.width, info.height, w, h);
   };
-  return read_upload(req, "mask", dir, camera_sized, read_mask, fill.region);
+  if (auto r = read_upload(req, "mask", dir, camera_sized, read_mask, fill.region)) return r;
+  if (!reference) return std::nullopt;
+  // The view on screen painted out by a 2D inpainter: the page saves that view at the camera's size.
+  const auto view_sized = [w, h](const ImageInfo& info) -> std::optional<std::string> {
+    if (info.width == w && info.height == h) return std::nullopt;
+    return fmt::format("{}x{} pixels, but the view on screen is {}x{} (save view and mask, paint the view, keep "
+                       "the camera still)",
+                       info.width, info.height, w, h);
+  };
+  fill.reference.emplace();
+  return read_upload(req, "reference", dir, view_sized, read_image_rgb, *fill.reference);
 }
 
 json WebServer::State::run_fill(const JobRequest& fill, const fs::path& dir, int id,
@@ -566,6 +579,7 @@ json WebServer::State::run_fill(const JobRequest& fill, const fs::path& dir, int
     o.cameras.push_back({"page view", *fill.camera});
     o.stroke_view = "page view";
     o.stroke = fill.region;
+    o.reference_image = fill.reference;
   }
   o.camera_options.height = options.height;
   o.camera_options.views = options.views;

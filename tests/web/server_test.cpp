@@ -526,6 +526,29 @@ TEST(Serve, FillOnSplatsAlone) {
   job = s.finished_job();
   EXPECT_EQ(job["state"], "done") << job;
 
+  // The stroke with an inpainted picture of its view as the reference: the new splats take its
+  // colours (magenta, which the room has nowhere).
+  const int vw = view.camera.K.width, vh = view.camera.K.height;
+  Image magenta(vw, vh, 3, 0.f);
+  for (int y = 0; y < vh; ++y)
+    for (int x = 0; x < vw; ++x) magenta.at(y, x, 0) = magenta.at(y, x, 2) = 1.f;
+  write_png(o.out / "magenta.png", magenta);
+  auto r3 = s.client->Post("/api/fill", httplib::MultipartFormDataItems{
+      {"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""}, {"mask", mask, "mask.png", "image/png"},
+      {"reference", test::file_bytes(o.out / "magenta.png"), "reference.png", "image/png"}});
+  ASSERT_EQ(r3->status, 202) << r3->body;
+  job = s.finished_job();
+  ASSERT_EQ(job["state"], "done") << job;
+  const SplatCloud with_reference = read_splats(s.out / "jobs" / std::to_string(job["id"].get<int>()) / "gaussians.ply");
+  const size_t added = job["result"]["fill"]["added"];
+  ASSERT_GT(added, 0u);
+  int magenta_splats = 0;
+  for (size_t i = with_reference.size() - added; i < with_reference.size(); ++i) {
+    const float* dc = &with_reference.sh_dc[3 * i];
+    magenta_splats += dc[0] > dc[1] + 1.f && dc[2] > dc[1] + 1.f;  // SH DC: (colour - 0.5) / 0.2821
+  }
+  EXPECT_GT(magenta_splats, static_cast<int>(added) / 2) << added;
+
   auto post = [&](httplib::MultipartFormDataItems items) { return s.client->Post("/api/fill", items); };
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", "1,2", "", ""}})),
             "box '1,2': 2 numbers, expected 6 (centre, size) or 9 (centre, size, rotation in degrees)");
@@ -540,6 +563,14 @@ TEST(Serve, FillOnSplatsAlone) {
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""},
                            {"mask", test::file_bytes(o.out / "small.png"), "m.png", ""}})),
             fmt::format("mask: 10x10 pixels, but the camera is {}x{}", view.camera.K.width, view.camera.K.height));
+  EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""}, {"mask", mask, "m.png", ""},
+                           {"reference", test::file_bytes(o.out / "small.png"), "r.png", ""}})),
+            fmt::format("reference: 10x10 pixels, but the view on screen is {}x{} (save view and mask, paint the view, "
+                        "keep the camera still)",
+                        vw, vh));
+  EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""},
+                           {"reference", test::file_bytes(o.out / "magenta.png"), "r.png", ""}})),
+            "reference: only with a painted region (camera and mask); a box's reference view is the fill's choice");
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"camera", "{", "", ""},
                            {"mask", mask, "m.png", ""}})).rfind("camera: ", 0), 0u);
 }

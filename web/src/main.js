@@ -592,6 +592,7 @@ function setFillMode(mode) {
   // Painting holds the camera still: the stroke is drawn on the view on screen.
   if (mode === "paint") paintingCanvas();
   if (fillCanvas) fillCanvas.hidden = mode !== "paint";
+  $("fill-reference-row").hidden = mode !== "paint";
   if (controls) controls.enabled = mode !== "paint";
   if (mode === "paint") {
     fillCanvas.width = renderer.domElement.width;
@@ -639,6 +640,8 @@ async function runFill() {
   } else if (fillMode === "paint") {
     form.append("camera", JSON.stringify(screenCamera()));
     form.append("mask", await maskBlob(fillCanvas), "mask.png");
+    const reference = $("fill-reference").files[0];
+    if (reference) form.append("reference", reference, reference.name);
   } else {
     return status("place a box (box) or paint over the object (paint) first", true);
   }
@@ -661,6 +664,25 @@ async function runFill() {
   showStages(job, { job: performance.now() - clicked, splats: 0, masks: 0 });
 }
 $("fill-run").onclick = runFill;
+
+// The view on screen and the painted region, each a PNG of the canvas's size, downloaded: a 2D
+// inpainter paints the region out of the view, and that picture comes back as the reference.
+async function saveViewAndMask() {
+  if (!fillCanvas) return status("paint over the object first", true);
+  renderer.render(scene, camera);  // the drawing buffer holds the view as it is now
+  const view = await new Promise((done) => renderer.domElement.toBlob(done, "image/png"));
+  const mask = await maskBlob(fillCanvas);
+  for (const [blob, name] of [[view, "view.png"], [mask, "mask.png"]]) {
+    const a = document.createElement("a");
+    a.href = URL.createObjectURL(blob);
+    a.download = name;
+    a.click();
+    setTimeout(() => URL.revokeObjectURL(a.href), 10000);
+  }
+  status(`saved view.png and mask.png (${fillCanvas.width}x${fillCanvas.height}): paint the region out of the view, ` +
+    "then give the picture as the inpainted reference");
+}
+$("fill-save").onclick = saveViewAndMask;
 
 // ---- start -------------------------------------------------------------------------------
 async function start() {

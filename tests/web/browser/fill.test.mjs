@@ -1,7 +1,8 @@
 // Remove and fill on splats alone (serve --splats FILE, no capture) in headless Chromium: the
 // panel offers it; a box placed around the object hides it at once (Spark's edit), Fill runs the
 // server's job and the filled splats replace the old ones; a stroke painted over the object on
-// the view on screen fills as well. The filled scene, rendered from a held-out camera of the
+// the view on screen fills as well, with the view saved for a 2D inpainter and its picture given
+// back as the reference (the hole takes its colours). The filled scene, rendered from a held-out camera of the
 // room, shows the room behind the object better than the scene with the object did.
 import { readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
@@ -78,6 +79,29 @@ try {
     await page.mouse.move(canvas.x + centre[0] + r, canvas.y + centre[1] + dy, { steps: 4 });
     await page.mouse.up();
   }
+  // Save view and mask: two PNGs of the canvas's size, for a 2D inpainter.
+  const savedFiles = [];
+  page.on("download", (d) => savedFiles.push(d));
+  await page.locator("#fill-save").click();
+  for (let t = 0; savedFiles.length < 2 && t < 100; t++) await page.waitForTimeout(100);
+  const canvasSize = await page.evaluate(() => [document.getElementById("fill-canvas").width, document.getElementById("fill-canvas").height]);
+  const saved = {};
+  for (const d of savedFiles) {
+    const png = readFileSync(await d.path());
+    saved[d.suggestedFilename()] = [png.readUInt32BE(16), png.readUInt32BE(20)];  // IHDR's width and height
+  }
+  h.check(JSON.stringify(saved) === JSON.stringify({ "view.png": canvasSize, "mask.png": canvasSize }),
+    `save view and mask gives view.png and mask.png at the canvas's ${canvasSize} (${JSON.stringify(saved)})`);
+  // Their inpainted view as the reference: magenta, which the room has nowhere, at the view's size.
+  const magenta = await page.evaluate(async ([w, hgt]) => {
+    const c = new OffscreenCanvas(w, hgt);
+    const ctx = c.getContext("2d");
+    ctx.fillStyle = "#ff00ff";
+    ctx.fillRect(0, 0, w, hgt);
+    const bytes = new Uint8Array(await (await c.convertToBlob({ type: "image/png" })).arrayBuffer());
+    return btoa(String.fromCharCode(...bytes));
+  }, canvasSize);
+  await page.locator("#fill-reference").setInputFiles({ name: "inpainted.png", mimeType: "image/png", buffer: Buffer.from(magenta, "base64") });
   await page.evaluate(() => (window.instainpaint.lastFill = null));
   await page.locator("#fill-run").click();
   await page.waitForFunction(() => window.instainpaint.lastFill || window.instainpaint.lastRun?.state === "refused" ||
@@ -85,6 +109,16 @@ try {
   const stroke = await page.evaluate(() => window.instainpaint.lastFill);
   h.check(stroke?.state === "done" && stroke.result.fill.removed > 0 && stroke.result.fill.added > 0,
     `the stroke's splats were removed and filled (${JSON.stringify(stroke?.result?.fill ?? await page.locator("#status").textContent())})`);
+  // Seen from the same view, the hole shows the reference's colours.
+  await h.frames(page, 10);
+  const pixel = await page.evaluate(([x, y]) => {
+    const c = document.querySelector("#viewer canvas");
+    const ctx = Object.assign(document.createElement("canvas"), { width: c.width, height: c.height }).getContext("2d");
+    ctx.drawImage(c, 0, 0);
+    const s = c.width / c.getBoundingClientRect().width;
+    return Array.from(ctx.getImageData(Math.round(x * s), Math.round(y * s), 1, 1).data.slice(0, 3));
+  }, centre);
+  h.check(pixel[0] > 150 && pixel[2] > 150 && pixel[1] < 100, `the filled hole shows the inpainted reference's magenta (${pixel})`);
   h.check(errors.length === 0, `no console errors ${JSON.stringify(errors)}`);
 } finally {
   await browser.close();
