@@ -493,7 +493,7 @@ Image surface_colours(const FillOptions& options, const SurfaceCamera& at, const
 
 // New splats for a view's `unknown` pixels on the surface continued from its `known` ones, and
 // for the known pixels within `grow` pixels of them (a seam of the view's own colours over
-// the kept surface there: where that surface is thin, other views see through it).
+// the kept surface there: where that surface is thin, other views see through it), backed.
 GaussianSet splats_over(const Camera& camera, const torch::Tensor& depth, const torch::Tensor& known,
                         const torch::Tensor& unknown, const Image& colour, const std::string& view_name,
                         int grow = 0) {
@@ -507,7 +507,7 @@ GaussianSet splats_over(const Camera& camera, const torch::Tensor& depth, const 
     const Image grown = dilate_mask(image_from_hwc(unknown.to(torch::kFloat32).unsqueeze(2)), 1, 2 * grow + 1);
     take = image_to_tensor(grown)[0][0] > 0.5;
   }
-  return surface_gaussians(camera, *surface, take, colour);
+  return joined(surface_gaussians(camera, *surface, take, colour), backing_gaussians(camera, *surface, take, colour));
 }
 
 GaussianSet keep_rows(const GaussianSet& g, const torch::Tensor& keep, int64_t& dropped) {

@@ -203,4 +203,35 @@ GaussianSet surface_gaussians(const Camera& camera, const torch::Tensor& depth, 
   return g;
 }
 
+GaussianSet backing_gaussians(const Camera& camera, const torch::Tensor& depth, const torch::Tensor& take,
+                              const Image& colour, float opacity) {
+  const int hw = camera.K.width / 2, hh = camera.K.height / 2;
+  if (hw == 0 || hh == 0) return {};
+  if (colour.width != camera.K.width || colour.height != camera.K.height || colour.channels < 3)
+    fail("backing_gaussians: the colour picture is {}x{}, the camera {}x{}", colour.width, colour.height,
+         camera.K.width, camera.K.height);
+  auto blocks = [&](const torch::Tensor& t) {  // (H, W, ...) -> (H/2, W/2, 4, ...): each 2 x 2 block's pixels
+    torch::Tensor b = t.to(torch::kCPU).narrow(0, 0, 2 * hh).narrow(1, 0, 2 * hw);
+    std::vector<int64_t> shape = {hh, 2, hw, 2};
+    for (int64_t d = 2; d < t.dim(); ++d) shape.push_back(t.size(d));
+    b = b.reshape(shape).transpose(1, 2);
+    std::vector<int64_t> out = {hh, hw, 4};
+    for (int64_t d = 2; d < t.dim(); ++d) out.push_back(t.size(d));
+    return b.reshape(out);
+  };
+  // Each block's farthest pixel, its depth and its colour together: over a seam, the far side's
+  // (an average of both sides' colours drew smudges of the near side over the far one).
+  const torch::Tensor d = blocks(depth.to(torch::kFloat32));
+  const torch::Tensor far = d.argmax(2, true);  // (hh, hw, 1)
+  const torch::Tensor picture =
+      torch::from_blob(const_cast<float*>(colour.pixels.data()), {colour.height, colour.width, colour.channels},
+                       torch::kFloat32)
+          .narrow(2, 0, 3);
+  const torch::Tensor rgb = blocks(picture).gather(2, far.unsqueeze(3).expand({hh, hw, 1, 3})).squeeze(2).contiguous();
+  const torch::Tensor any = blocks(take.to(torch::kBool)).any(2);
+  Image half_colour(hw, hh, 3);
+  std::copy_n(rgb.data_ptr<float>(), rgb.numel(), half_colour.pixels.begin());
+  return surface_gaussians(camera.resized(hw, hh), d.gather(2, far).squeeze(2) * 1.01f, any, half_colour, opacity);
+}
+
 }  // namespace ii

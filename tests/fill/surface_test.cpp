@@ -1,5 +1,6 @@
-// The surface placement's two steps: depth continued into a hole (a plane stays the plane it
-// was, in inverse depth), and one flat splat per pixel that tiles the view without gaps.
+// The surface placement's steps: depth continued into a hole (a plane stays the plane it was, in
+// inverse depth), one flat splat per pixel that tiles the view without gaps, and a backing that
+// shows through where a seam in the depth opens a gap in another view.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -92,6 +93,34 @@ TEST(FillSurface, OneSplatPerPixelTilesTheViewInItsColours) {
   const torch::Tensor far = square_hole(48, 64, 10, 10, 30).logical_not();
   far.slice(0, 7, 43).slice(1, 7, 43).fill_(false);
   EXPECT_LT(alpha.index({far}).max().item<double>(), 0.05);
+}
+
+// A surface with a step in its depth, seen from a camera moved to the side: between the front
+// splats on either side of the step the background shows; with the backing behind them it does not,
+// and where the front splats are seen the backing changes nothing.
+TEST(FillSurface, TheBackingCoversWhatASeamLetsThrough) {
+  const Camera c = test_camera();
+  torch::Tensor depth = ground_depth(c);
+  const torch::Tensor take = square_hole(48, 64, 10, 10, 30);
+  depth.slice(1, 25, 64).mul_(1.2f);  // the right part 20 % farther: a seam at column 25
+  const Image colour(64, 48, 3, 0.4f);
+  const GaussianSet front = surface_gaussians(c, depth, take, colour);
+  const GaussianSet back = backing_gaussians(c, depth, take, colour);
+  EXPECT_EQ(back.size(), 15 * 15);  // the 30 x 30 square at half the size
+  Camera side = c;
+  side.c2w = look_at({1.2, 1.5, 3}, {0, 0, 0}, {0, 1, 0});
+  // The seam's pixels in the side view: inside the square's footprint there, not covered.
+  const torch::Tensor front_alpha = render(front, {side}).alpha.squeeze(2);
+  const torch::Tensor both_alpha = render(joined(front, back), {side}).alpha.squeeze(2);
+  const torch::Tensor footprint = render(back, {side}).alpha.squeeze(2) > 0.9;  // well inside the backing
+  const int64_t open_front = footprint.logical_and(front_alpha < 0.5).sum().item<int64_t>();
+  const int64_t open_both = footprint.logical_and(both_alpha < 0.5).sum().item<int64_t>();
+  EXPECT_GT(open_front, 0) << "the front splats alone let the background through at the seam";
+  EXPECT_EQ(open_both, 0) << open_front << " pixels open with the front splats alone";
+  // From the reference camera itself the backing is hidden: the same picture.
+  const RenderOutput alone = render(front, {c}), with = render(joined(front, back), {c});
+  const torch::Tensor inner = square_hole(48, 64, 12, 12, 26);
+  EXPECT_LT((alone.rgb - with.rgb).abs().index({inner}).max().item<double>(), 0.02);
 }
 
 }  // namespace
