@@ -2,11 +2,23 @@
 // opened (screenshot 1), a view of the strip clicked (screenshot 2), one stroke painted over a world
 // point on that view and *Fill* run (screenshot 3, the filled splats from the same camera).
 //
+//
 //   node scripts/serve-fill-screenshot.mjs BIN SPLATS CAPTURE IMAGES VIEW X,Y,Z RADIUS_PX OUT_DIR
-import { mkdirSync, writeFileSync } from "node:fs";
+//
+// With a 2D inpainter's picture of VIEW's photo, the page opens on that view exactly (its camera
+// and size: ?view=I&exact=1), MASK (white = the object, the photo's size) is painted as the
+// stroke, the picture given as the inpainted reference, and *Fill* run (screenshots 4-view.png,
+// 5-filled.png):
+//
+//   node scripts/serve-fill-screenshot.mjs BIN SPLATS CAPTURE IMAGES VIEW --mask MASK --reference PICTURE OUT_DIR
+import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 import * as h from "../tests/web/browser/harness.mjs";
 
+if (process.argv[7] === "--mask") {
+  await withReference(process.argv.slice(3));
+  process.exit(0);
+}
 const [, , , splats, capture, images, view, point, radius, out] = process.argv;
 mkdirSync(out, { recursive: true });
 h.skipUnlessReady();
@@ -44,4 +56,53 @@ try {
 } finally {
   await browser.close();
   server.stop();
+}
+
+// The view exactly, its object painted from a mask file, a 2D inpainter's picture as the reference.
+async function withReference([splats, capture, images, view, , mask, , picture, out]) {
+  mkdirSync(out, { recursive: true });
+  h.skipUnlessReady();
+  const server = await h.serve(["--ply", splats, "--scene", capture, "--images", images, "--out", join(out, "serve")]);
+  const browser = await h.browser();
+  try {
+    const page = await browser.newPage({ viewport: { width: 1500, height: 720 } });
+    const errors = h.collectErrors(page);
+    await page.goto(server.url);
+    await page.evaluate(() => window.instainpaint.ready);
+    const index = await page.evaluate((name) => window.instainpaint.info.scene.views.findIndex((v) => v.name === name), view);
+    if (index < 0) throw new Error(`no view ${view} in ${capture}`);
+    await page.goto(`${server.url.replace(/\/?(\?.*)?$/, "")}/?view=${index}&exact=1`);
+    await page.evaluate(() => window.instainpaint.ready);
+    await page.locator("#fill-paint").click();
+    await h.frames(page, 6);
+    writeFileSync(join(out, "4-view.png"), await page.locator("#viewer canvas").first().screenshot());
+    // The mask onto the paint canvas (its alpha is the stroke), scaled to the canvas's size.
+    const painted = await page.evaluate(async (url) => {
+      const image = await createImageBitmap(await (await fetch(url)).blob());
+      const canvas = document.getElementById("fill-canvas");
+      const scratch = new OffscreenCanvas(canvas.width, canvas.height).getContext("2d");
+      scratch.drawImage(image, 0, 0, canvas.width, canvas.height);
+      const from = scratch.getImageData(0, 0, canvas.width, canvas.height).data;
+      const ctx = canvas.getContext("2d");
+      const to = ctx.createImageData(canvas.width, canvas.height);
+      let count = 0;
+      for (let k = 0; k < from.length; k += 4)
+        if (from[k] > 0) { to.data[k] = 255; to.data[k + 3] = 160; count++; }
+      ctx.putImageData(to, 0, 0);
+      return { count, width: canvas.width, height: canvas.height };
+    }, `data:image/png;base64,${readFileSync(mask).toString("base64")}`);
+    await page.locator("#fill-reference").setInputFiles(picture);
+    await page.locator("#fill-run").click();
+    await page.waitForFunction(() => window.instainpaint.lastFill || window.instainpaint.lastRun?.state === "refused" ||
+      document.getElementById("status").classList.contains("error"), null, { timeout: 600000 });
+    await page.locator("#fill-paint").click();  // the stroke's canvas off: the filled view alone
+    await h.frames(page, 6);
+    writeFileSync(join(out, "5-filled.png"), await page.locator("#viewer canvas").first().screenshot());
+    const fill = await page.evaluate(() => window.instainpaint.lastFill);
+    const state = await page.locator("#status").textContent();
+    console.log(JSON.stringify({ painted, fill: fill?.result?.fill, seconds: fill?.clientSeconds, state, errors }));
+  } finally {
+    await browser.close();
+    server.stop();
+  }
 }

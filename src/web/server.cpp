@@ -554,15 +554,22 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
   };
   if (auto r = read_upload(req, "mask", dir, camera_sized, read_mask, fill.region)) return r;
   if (!reference) return std::nullopt;
-  // The view on screen painted out by a 2D inpainter: the page saves that view at the camera's size.
-  const auto view_sized = [w, h](const ImageInfo& info) -> std::optional<std::string> {
-    if (info.width == w && info.height == h) return std::nullopt;
-    return fmt::format("{}x{} pixels, but the view on screen is {}x{} (save view and mask, paint the view, keep "
-                       "the camera still)",
-                       info.width, info.height, w, h);
+  // The view on screen painted out by a 2D inpainter: the page saves that view at the camera's
+  // size; as the CLI's fill, the view's working size and the official evaluation's crop of it
+  // (904x512 of a 1008x567 view) are taken too.
+  const auto not_too_large = [w, h](const ImageInfo& info) -> std::optional<std::string> {
+    if (static_cast<int64_t>(info.width) * info.height <= 4LL * w * h) return std::nullopt;
+    return fmt::format("{}x{} pixels, more than 4 times the view on screen ({}x{})", info.width, info.height, w, h);
   };
   fill.reference.emplace();
-  return read_upload(req, "reference", dir, view_sized, read_image_rgb, *fill.reference);
+  if (auto r = read_upload(req, "reference", dir, not_too_large, read_image_rgb, *fill.reference)) return r;
+  WorkingSize view;
+  view.width = view.resized_width = w;
+  view.height = view.resized_height = h;
+  if (view_picture_at_working_size(*fill.reference, w, h, view, PreprocessOptions().patch)) return std::nullopt;
+  return Refusal{400, fmt::format("reference: {}x{} pixels, but the view on screen is {}x{} (save view and mask, "
+                                  "paint the view, keep the camera still)",
+                                  fill.reference->width, fill.reference->height, w, h)};
 }
 
 json WebServer::State::run_fill(const JobRequest& fill, const fs::path& dir, int id,
