@@ -12,6 +12,7 @@ PACKAGES=(
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   libstb-dev libzip-dev zlib1g-dev libzstd-dev libwebp-dev libeigen3-dev
   libopencv-imgproc-dev libopencv-calib3d-dev libopencv-photo-dev
+  cimg-dev                      # the patch inpainter (fill's built-in reference): one header
   libgtest-dev libgmock-dev libbenchmark-dev
   libgloo-dev
   ffmpeg                        # videos out (render, serve) and in (capture)

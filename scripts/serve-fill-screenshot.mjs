@@ -5,12 +5,13 @@
 //
 //   node scripts/serve-fill-screenshot.mjs BIN SPLATS CAPTURE IMAGES VIEW X,Y,Z RADIUS_PX OUT_DIR
 //
-// With a 2D inpainter's picture of VIEW's photo, the page opens on that view exactly (its camera
-// and size: ?view=I&exact=1), MASK (white = the object, the photo's size) is painted as the
-// stroke, the picture given as the inpainted reference, and *Fill* run (screenshots 4-view.png,
-// 5-filled.png):
+// With a mask, the page opens on VIEW exactly (its camera and size: ?view=I&exact=1), MASK (white =
+// the object, the photo's size) is painted as the stroke, a 2D inpainter's picture of the photo
+// given as the inpainted reference (else the page's built-in inpainter, or --inpainter NAME), and
+// *Fill* run (screenshots 4-view.png, 5-filled.png):
 //
-//   node scripts/serve-fill-screenshot.mjs BIN SPLATS CAPTURE IMAGES VIEW --mask MASK --reference PICTURE OUT_DIR
+//   node scripts/serve-fill-screenshot.mjs BIN SPLATS CAPTURE IMAGES VIEW --mask MASK
+//       [--reference PICTURE | --inpainter patch|telea] OUT_DIR
 import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 import * as h from "../tests/web/browser/harness.mjs";
@@ -59,7 +60,10 @@ try {
 }
 
 // The view exactly, its object painted from a mask file, a 2D inpainter's picture as the reference.
-async function withReference([splats, capture, images, view, , mask, , picture, out]) {
+async function withReference([splats, capture, images, view, , mask, ...rest]) {
+  const out = rest.pop();
+  const option = (name) => (rest.indexOf(name) >= 0 ? rest[rest.indexOf(name) + 1] : undefined);
+  const picture = option("--reference"), inpainter = option("--inpainter");
   mkdirSync(out, { recursive: true });
   h.skipUnlessReady();
   const server = await h.serve(["--ply", splats, "--scene", capture, "--images", images, "--out", join(out, "serve")]);
@@ -91,7 +95,8 @@ async function withReference([splats, capture, images, view, , mask, , picture, 
       ctx.putImageData(to, 0, 0);
       return { count, width: canvas.width, height: canvas.height };
     }, `data:image/png;base64,${readFileSync(mask).toString("base64")}`);
-    await page.locator("#fill-reference").setInputFiles(picture);
+    if (picture) await page.locator("#fill-reference").setInputFiles(picture);
+    if (inpainter) await page.locator("#fill-inpainter").selectOption(inpainter);
     await page.locator("#fill-run").click();
     await page.waitForFunction(() => window.instainpaint.lastFill || window.instainpaint.lastRun?.state === "refused" ||
       document.getElementById("status").classList.contains("error"), null, { timeout: 600000 });

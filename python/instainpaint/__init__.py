@@ -140,7 +140,7 @@ class Gaussians:
              reference: Union[PathLike, Any, None] = None, reference_view: Optional[str] = None,
              views: int = 4, height: int = 256, up: Optional[Sequence[float]] = None,
              refine: Optional[str] = None, all_views: bool = False, placement: str = "surface",
-             predictor: Optional["Predictor"] = None) -> "Gaussians":
+             inpainter: str = "telea", predictor: Optional["Predictor"] = None) -> "Gaussians":
         """Removes a region and fills the hole it leaves, as `instainpaint fill`; returns new
         Gaussians in the scene's frame (these stay as they are), every other splat as it was.
 
@@ -154,6 +154,8 @@ class Gaussians:
         splats alone. placement="surface" (default) continues the scene's surface around the hole
         and places the reference's pixels on it; "network" takes the network's Gaussians of the
         hole (all_views=True: of every chosen view's hole, not the reference's alone).
+        inpainter= without reference=, the built-in 2D inpainter of the reference's hole: "telea"
+        (default), "ns" or "patch" (patches copied inward: texture continues, no smear).
         predictor: default the built-in model on the best device.
         """
         given: Dict[str, Camera] = {}
@@ -167,7 +169,7 @@ class Gaussians:
             self._g, None if box is None else [float(v) for v in box],
             None if selection is None else selection._g, view or "", mask, given, reference,
             reference_view or "", views, height, None if up is None else [float(v) for v in up],
-            "" if refine is None else str(refine), all_views, placement, predictor._p))
+            "" if refine is None else str(refine), all_views, placement, inpainter, predictor._p))
 
 
 def load_gaussians(path: PathLike) -> Gaussians:

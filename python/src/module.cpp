@@ -23,6 +23,7 @@
 
 #include "common/error.h"
 #include "common/files.h"
+#include "data/inpaint2d.h"
 #include "data/scene_cameras.h"
 #include "io/video.h"
 #include "render/frames.h"
@@ -373,9 +374,10 @@ NB_MODULE(_core, m) {
            const std::string& view, const nb::object& mask, const std::map<std::string, Camera>& cameras,
            const nb::object& reference, const std::string& reference_view, int views, int height,
            const std::optional<std::vector<double>>& up, const std::string& refine, bool all_views,
-           const std::string& placement, const Predictor& predictor) {
+           const std::string& placement, const std::string& inpainter, const Predictor& predictor) {
           FillOptions o;
           o.placement = parse_fill_placement(placement);
+          o.inpainter = parse_inpainter(inpainter);
           o.scene_name = "the Gaussians";
           if (box) {
             std::string text;
@@ -414,7 +416,7 @@ NB_MODULE(_core, m) {
         },
         "gaussians"_a, "box"_a.none(), "selection"_a.none(), "view"_a, "mask"_a.none(), "cameras"_a,
         "reference"_a.none(), "reference_view"_a, "views"_a, "height"_a, "up"_a.none(), "refine"_a,
-        "all_views"_a, "placement"_a, "predictor"_a);
+        "all_views"_a, "placement"_a, "inpainter"_a, "predictor"_a);
 
   m.def("_read_splats", [](const std::string& path) {
     PyGaussians g;

@@ -22,6 +22,7 @@ PACKAGES=(
   libopencv-calib3d-dev libopencv-calib3d406 libopencv-photo-dev libopencv-photo406
   libopencv-features2d-dev libopencv-features2d406 libopencv-flann-dev libopencv-flann406
   libgloo-dev  # Gloo's headers (CPU data-parallel training), which the machines' PyTorch lacks
+  cimg-dev  # the patch inpainter's one header
   libgtest-dev libgmock-dev libbenchmark-dev libbenchmark1debian
   libcpp-httplib-dev libcpp-httplib0.11 libbrotli1 libssl3
   libwebp-dev libwebp7 libwebpmux3 libwebpdemux2 libzstd-dev libzstd1  # SPZ (zstd) and SOG (webp)

@@ -44,9 +44,9 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
                   "The reference view when the context is chosen automatically (default: the --view of a one-mask "
                   "edit, else the view nearest the middle of the capture)");
   cmd->add_option("--reference-inpainter", args.inpainter,
-                  "Classical 2D inpainting of the reference when no --reference is given: telea or ns "
-                  "(Navier-Stokes)")
-      ->check(CLI::IsMember({"telea", "ns"}))
+                  "Classical 2D inpainting of the reference when no --reference is given: telea, ns "
+                  "(Navier-Stokes) or patch (patches of the photo copied inward)")
+      ->check(CLI::IsMember({"telea", "ns", "patch"}))
       ->capture_default_str();
   add_align_depth_option(cmd, args);
 }

@@ -7,18 +7,24 @@
 namespace ii {
 
 std::string inpainter_name(ClassicalInpainter method) {
-  return method == ClassicalInpainter::NavierStokes ? "ns" : "telea";
+  switch (method) {
+    case ClassicalInpainter::NavierStokes: return "ns";
+    case ClassicalInpainter::Patches: return "patch";
+    default: return "telea";
+  }
 }
 
 ClassicalInpainter parse_inpainter(const std::string& name) {
   if (name == "telea") return ClassicalInpainter::Telea;
   if (name == "ns") return ClassicalInpainter::NavierStokes;
-  fail("unknown 2D inpainter '{}' (telea or ns)", name);
+  if (name == "patch") return ClassicalInpainter::Patches;
+  fail("unknown 2D inpainter '{}' (telea, ns or patch)", name);
 }
 
 Image inpaint_classical(const Image& rgb, const Image& mask, ClassicalInpainter method, double radius) {
   if (rgb.channels != 3 || mask.channels != 1 || rgb.width != mask.width || rgb.height != mask.height)
     fail("inpainting needs an RGB image and a one-channel mask of the same size");
+  if (method == ClassicalInpainter::Patches) return inpaint_patches(rgb, mask);
   // cv::inpaint works on 8-bit images.
   cv::Mat src(rgb.height, rgb.width, CV_8UC3), m(rgb.height, rgb.width, CV_8UC1);
   for (size_t i = 0; i < rgb.pixels.size(); ++i)

@@ -258,6 +258,7 @@ nlohmann::json FillResult::report() const {
                         {"output", total - removed + added}}},
                       {"region", region_how},
                       {"placement", fill_placement_name(placement)},
+                      {"inpainter", inpainter},
                       {"cameras", {{"how", cameras.how}, {"reference", cameras.cameras.at(0).name}, {"views", cams}}},
                       {"stages", stages.to_json()},
                       {"total_ms", stages.waited_ms()}};
@@ -477,9 +478,14 @@ SurfaceCamera surface_camera(const FillOptions& options, const NamedCamera& work
 
 // The reference's colours at the surface camera's size: the caller's picture (at the given
 // camera's size, the working size or eval's crop), else the built-in inpainter's of the render.
-Image surface_colours(const FillOptions& options, const SurfaceCamera& at, const CameraViews& view,
-                      const ChosenCameras& chosen) {
+// Diffusion reads the hole's border alone (`view` is drawn near the region); patches are copied
+// from around the hole, so they get the kept scene drawn whole.
+Image surface_colours(const FillOptions& options, const SceneSets& sets, const SurfaceCamera& at,
+                      const CameraViews& view, const ChosenCameras& chosen) {
   const int w = at.camera.K.width, h = at.camera.K.height;
+  if (!options.reference_image && options.inpainter == ClassicalInpainter::Patches)
+    return inpaint_classical(image_from_hwc(render(sets.kept, {at.camera}).rgb.clamp(0, 1).to(torch::kCPU)), view.mask,
+                             options.inpainter);
   if (!options.reference_image) return inpaint_classical(view.kept, view.mask, options.inpainter);
   reference_at_working_size(*options.reference_image, options, chosen);  // one that fits nowhere fails here
   WorkingSize full;
@@ -527,15 +533,16 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
   const SceneSets near = sets.near(at.camera);  // read near the hole alone
   CameraViews full = render_camera(near.scene, near.kept, near.weights, at.camera);
   full.mask = hole_mask(full, other_observers(views, extra, result.cameras.sights, 0, kNone));
-  const Image colour = surface_colours(options, at, full, result.cameras);
+  const Image colour = surface_colours(options, sets, at, full, result.cameras);
   result.stages.lap("render the reference at its size");
   result.surface_width = at.camera.K.width;
   result.surface_height = at.camera.K.height;
   PreprocessOptions p;
   p.height = options.camera_options.height;
-  // The picture of the reference (reference.png): the caller's, else the built-in inpainter's of
-  // the working view drawn whole (the renders above hold the hole's surroundings alone).
-  result.reference = !options.reference_image
+  // The picture of the reference (reference.png): the caller's or the patches' (drawn whole), else
+  // the built-in inpainter's of the working view drawn whole (the renders above hold the hole's
+  // surroundings alone).
+  result.reference = !options.reference_image && options.inpainter != ClassicalInpainter::Patches
                          ? inpaint_classical(views[0].kept, views[0].mask, options.inpainter)
                      : at.camera.K.height == reference.camera.K.height
                          ? colour
@@ -547,8 +554,8 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
 }
 
 // Chosen view `v`'s hole pixels that still render nothing with `added` drawn (what the reference
-// did not see): that view's depth continued there, in the colours the built-in inpainter gives
-// its render; `uncovered` counts them.
+// did not see): that view's depth continued there, in the colours Telea gives its render; `uncovered`
+// counts them.
 GaussianSet view_hole_splats(const SceneSets& sets, const GaussianSet& added, const std::vector<CameraViews>& views,
                              size_t v, const FillOptions& options, FillResult& result, int64_t& uncovered) {
   const NamedCamera& c = result.cameras.cameras[v];
@@ -557,8 +564,10 @@ GaussianSet view_hole_splats(const SceneSets& sets, const GaussianSet& added, co
   const torch::Tensor open = (image_to_tensor(views[v].mask)[0][0] > 0.5).logical_and(alpha < 0.5);
   uncovered = open.sum().item<int64_t>();
   if (uncovered == 0) return {};
+  // Telea whatever the reference's inpainter: these holes are slivers, and `now` is drawn near the
+  // region alone (patches would be copied from the blank rest).
   const Image rgb = image_from_hwc(now.rgb.clamp(0, 1).to(torch::kCPU));
-  const Image paint = inpaint_classical(rgb, image_from_hwc(open.to(torch::kFloat32).unsqueeze(2)), options.inpainter);
+  const Image paint = inpaint_telea(rgb, image_from_hwc(open.to(torch::kFloat32).unsqueeze(2)));
   const GaussianSet more =
       splats_over(c.camera, now.depth.squeeze(2).to(torch::kCPU), alpha >= 0.5, open, paint, c.name, 2);
   return keep_rows(more, in_no_ones_way(more.means.to(torch::kFloat64), views, v), result.dropped);
@@ -649,6 +658,7 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   }
 
   result.placement = options.placement;
+  if (!options.reference_image) result.inpainter = inpainter_name(options.inpainter);
   GaussianSet added;
   if (options.placement == FillPlacement::surface) {
     added = surface_fill(sets, views, extra, options, result);

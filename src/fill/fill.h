@@ -66,6 +66,8 @@ struct FillResult {
   Image reference;                     // the inpainted reference the network saw
   std::vector<double> depth_scales;    // per camera: the network's depth scaled to the scene's around the hole
   FillPlacement placement = FillPlacement::surface;
+  // What painted the reference's hole: "given" (the caller's picture), else the built-in inpainter's name.
+  std::string inpainter = "given";
   // The surface placement: the reference's size it was placed at, and per chosen camera the hole
   // pixels still uncovered after the reference's splats (filled from that view).
   int surface_width = 0, surface_height = 0;

@@ -24,6 +24,8 @@
 #include "common/stage_times.h"
 #include "common/stopwatch.h"
 #include "camera/trajectory.h"
+#include "data/inpaint2d.h"
+#include "data/preprocess.h"
 #include "data/scene_cameras.h"
 #include "edit/scene_masks.h"
 #include "eval/protocol.h"
@@ -202,6 +204,7 @@ struct JobRequest {
   fs::path ply;
   std::optional<OrientedBox> box;
   std::optional<Camera> camera;
+  ClassicalInpainter inpainter = ClassicalInpainter::Telea;  // fill without a reference: its built-in one
 };
 
 // The form's `refine`: fast, balanced, best, a time up to 10 minutes or up to 5000 steps.
@@ -520,6 +523,13 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
   fill.ply = splats_of_url(url, /*standard_ply=*/true);
   if (fill.ply.empty()) return Refusal{400, fmt::format("ply must be the URL of splats this server serves, not '{}'", url)};
   if (auto r = parse_refine(req, fill.refine)) return r;
+  if (req.has_file("inpainter")) {
+    try {
+      fill.inpainter = parse_inpainter(req.get_file_value("inpainter").content);
+    } catch (const Error& e) {
+      return Refusal{400, std::string("inpainter: ") + e.what()};
+    }
+  }
   const bool reference = req.has_file("reference") && !req.get_file_value("reference").content.empty();
   if (req.has_file("box")) {
     if (reference)
@@ -590,6 +600,7 @@ json WebServer::State::run_fill(const JobRequest& fill, const fs::path& dir, int
   }
   o.camera_options.height = options.height;
   o.camera_options.views = options.views;
+  o.inpainter = fill.inpainter;
   if (refine_requested(fill.refine)) {
     o.refine = fill.refine;
     int shown = -1;

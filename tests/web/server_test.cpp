@@ -533,6 +533,14 @@ TEST(Serve, FillOnSplatsAlone) {
   for (int y = 0; y < vh; ++y)
     for (int x = 0; x < vw; ++x) magenta.at(y, x, 0) = magenta.at(y, x, 2) = 1.f;
   write_png(o.out / "magenta.png", magenta);
+  // The box again with the patch inpainter (the page's default): its fill.json says so.
+  auto patched = s.client->Post("/api/fill", httplib::MultipartFormDataItems{
+      {"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}, {"inpainter", "patch", "", ""}});
+  ASSERT_EQ(patched->status, 202) << patched->body;
+  job = s.finished_job();
+  ASSERT_EQ(job["state"], "done") << job;
+  EXPECT_EQ(json::parse(s.client->Get(job["result"]["fill"]["report"].get<std::string>())->body)["inpainter"], "patch");
+
   auto r3 = s.client->Post("/api/fill", httplib::MultipartFormDataItems{
       {"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""}, {"mask", mask, "mask.png", "image/png"},
       {"reference", test::file_bytes(o.out / "magenta.png"), "reference.png", "image/png"}});
@@ -568,6 +576,8 @@ TEST(Serve, FillOnSplatsAlone) {
             fmt::format("reference: 10x10 pixels, but the view on screen is {}x{} (save view and mask, paint the view, "
                         "keep the camera still)",
                         vw, vh));
+  EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}, {"inpainter", "lama", "", ""}})),
+            "inpainter: unknown 2D inpainter 'lama' (telea, ns or patch)");
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""},
                            {"reference", test::file_bytes(o.out / "magenta.png"), "r.png", ""}})),
             "reference: only with a painted region (camera and mask); a box's reference view is the fill's choice");

@@ -634,6 +634,7 @@ async function runFill() {
   const form = new FormData();
   form.append("ply", api.loadedUrl);
   form.append("refine", $("fill-refine").value);
+  form.append("inpainter", $("fill-inpainter").value);
   if (fillMode === "box" && region) {
     const { centre, size, turn } = api.fillBox;
     form.append("box", [...centre, ...size, ...turn].map((v) => +v.toPrecision(7)).join(","));

@@ -47,6 +47,8 @@ try {
   h.check(fill.state === "done" && fill.result.fill.removed > 0 && fill.result.fill.added > 0,
     `the box's splats were removed and the hole filled (${JSON.stringify(fill.result.fill)})`);
   h.check(await page.evaluate(() => window.instainpaint.loadedUrl) === fill.result.splats, "the filled splats are on screen");
+  const report = await page.evaluate(async (url) => (await fetch(url)).json(), fill.result.fill.report);
+  h.check(report.inpainter === "patch", `without a reference the page fills with patches by default (${report.inpainter})`);
   const downloads = await page.evaluate(() => [...document.querySelectorAll("#downloads a")].map((a) => a.getAttribute("href")));
   h.check(downloads.some((d) => d.endsWith(".spz?download=1")) && downloads.some((d) => d.endsWith(".sog?download=1")),
     `downloads offer PLY, SPZ and SOG (${downloads})`);
