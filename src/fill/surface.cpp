@@ -219,8 +219,8 @@ GaussianSet backing_gaussians(const Camera& camera, const torch::Tensor& depth, 
     for (int64_t d = 2; d < t.dim(); ++d) out.push_back(t.size(d));
     return b.reshape(out);
   };
-  // Each block's farthest pixel, its depth and its colour together: over a seam, the far side's
-  // (an average of both sides' colours drew smudges of the near side over the far one).
+  // Each block's farthest pixel, its depth and its colour together: one point of the surface, not
+  // a mix of both sides of a seam (the rooms measured alike either way: 28.26 and 28.24 dB).
   const torch::Tensor d = blocks(depth.to(torch::kFloat32));
   const torch::Tensor far = d.argmax(2, true);  // (hh, hw, 1)
   const torch::Tensor picture =
