@@ -9,7 +9,7 @@
 # Markdown table of the masked PSNR / SSIM (means over the test views) and the fills' times.
 #
 # Usage: scripts/measure-fill.sh [--bin build/instainpaint] [--rooms 3] [--seed 11] [--work DIR]
-#        [--refine fast] [--placement surface|network] [--no-refine]
+#        [--refine fast] [--placement surface|network] [--inpainter telea|ns|patch] [--no-refine]
 # (--no-refine: deletion and fill alone, the refined columns left empty.)
 set -euo pipefail
 BIN=build/instainpaint
@@ -18,6 +18,7 @@ SEED=11
 WORK=measure-fill
 REFINE=fast
 PLACEMENT=surface
+INPAINTER=telea
 NO_REFINE=0
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -27,6 +28,7 @@ while [ $# -gt 0 ]; do
     --work) WORK=$2; shift 2 ;;
     --refine) REFINE=$2; shift 2 ;;
     --placement) PLACEMENT=$2; shift 2 ;;
+    --inpainter) INPAINTER=$2; shift 2 ;;
     --no-refine) NO_REFINE=1; shift ;;
     -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
     *) echo "unknown argument $1 (see --help)" >&2; exit 2 ;;
@@ -57,10 +59,10 @@ for room in "$WORK"/rooms/scene_*; do
   common=(--scene "$room" --box "$box" --height 256 --device cpu)
   say "$name: box $box"
   "$BIN" fill "$room/scene.ply" "${common[@]}" --delete-only --out "$out/deleted.ply" > "$out/deleted.log" 2>&1
-  "$BIN" fill "$room/scene.ply" "${common[@]}" --placement "$PLACEMENT" --out "$out/filled.ply" > "$out/filled.log" 2>&1
+  "$BIN" fill "$room/scene.ply" "${common[@]}" --placement "$PLACEMENT" --inpainter "$INPAINTER" --out "$out/filled.ply" > "$out/filled.log" 2>&1
   methods=(deleted filled)
   if [ "$NO_REFINE" = 0 ]; then
-    "$BIN" fill "$room/scene.ply" "${common[@]}" --placement "$PLACEMENT" --refine "$REFINE" --out "$out/refined.ply" \
+    "$BIN" fill "$room/scene.ply" "${common[@]}" --placement "$PLACEMENT" --inpainter "$INPAINTER" --refine "$REFINE" --out "$out/refined.ply" \
       > "$out/refined.log" 2>&1
     methods+=(refined)
   fi

@@ -284,6 +284,13 @@ def test_fill_removes_a_box_and_fills_it_keeping_every_other_splat(tmp_path, sta
     assert np.median(np.linalg.norm(new - centre, axis=1)) < np.median(spread)  # where the box was
     assert report["cameras"]["how"].startswith("given")
     assert report["placement"] == "surface"
+    assert report["inpainter"] == "telea"
+    patched = scene.fill(box=[*centre, *size], scene=statue, views=2, height=HEIGHT, inpainter="patch",
+                         predictor=predictor)
+    assert patched.fill_report["inpainter"] == "patch"
+    np.testing.assert_array_equal(patched.means[:kept], scene.means[~inside])
+    with pytest.raises(ii.Error, match="unknown 2D inpainter 'lama' \\(telea, ns or patch\\)"):
+        scene.fill(box=[*centre, *size], scene=statue, inpainter="lama", predictor=predictor)
     network = scene.fill(box=[*centre, *size], scene=statue, views=2, height=HEIGHT, placement="network",
                          predictor=predictor)
     assert network.fill_report["placement"] == "network"

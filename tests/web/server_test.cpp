@@ -533,7 +533,7 @@ TEST(Serve, FillOnSplatsAlone) {
   for (int y = 0; y < vh; ++y)
     for (int x = 0; x < vw; ++x) magenta.at(y, x, 0) = magenta.at(y, x, 2) = 1.f;
   write_png(o.out / "magenta.png", magenta);
-  // The box again with the patch inpainter (the page's default): its fill.json says so.
+  // The box again with the patch inpainter (the page's other choice): its fill.json says so.
   auto patched = s.client->Post("/api/fill", httplib::MultipartFormDataItems{
       {"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}, {"inpainter", "patch", "", ""}});
   ASSERT_EQ(patched->status, 202) << patched->body;
