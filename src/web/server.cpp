@@ -6,6 +6,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <fstream>
+#include <functional>
 #include <future>
 #include <map>
 #include <memory>
@@ -220,12 +221,29 @@ std::optional<Refusal> parse_refine(const httplib::Request& req, RefineOptions& 
   return std::nullopt;
 }
 
+// Whether the form carries a file in `field` with something in it (the page sends an empty one
+// when nothing was chosen).
+bool uploaded(const httplib::Request& req, const char* field) {
+  return req.has_file(field) && !req.get_file_value(field).content.empty();
+}
+
+using SizeCheck = std::function<std::optional<std::string>(const ImageInfo&)>;
+
+// Refuses an upload of more than 4 times the pixels of the `width` x `height` picture `what` names.
+SizeCheck at_most_4_times(int width, int height, const std::string& what) {
+  return [width, height, what](const ImageInfo& info) -> std::optional<std::string> {
+    if (static_cast<int64_t>(info.width) * info.height <= 4 * static_cast<int64_t>(width) * height) return std::nullopt;
+    return fmt::format("{}x{} pixels, more than this server decodes for {} ({}x{}: at most 4 times its pixels)",
+                       info.width, info.height, what, width, height);
+  };
+}
+
 // An uploaded image (form field `field`): PNG or JPEG by its first bytes, kept in `dir` under the
 // field's name, its header checked by `refuse_size` (a reason, or none) before `decode` reads it,
 // so that a few kilobytes claiming gigabytes of pixels are never decoded; errors name the field,
 // not the file.
 std::optional<Refusal> read_upload(const httplib::Request& req, const char* field, const fs::path& dir,
-                                   const std::function<std::optional<std::string>(const ImageInfo&)>& refuse_size,
+                                   const SizeCheck& refuse_size,
                                    const std::function<Image(const fs::path&)>& decode, Image& into) {
   const std::string& bytes = req.get_file_value(field).content;
   const char* type = image_type(bytes);
@@ -495,18 +513,12 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
   // (a broken file is the request's fault, not the job's); errors name the field, not the file.
   // The header is read first: a few kilobytes of PNG can claim gigabytes of pixels, so nothing
   // larger than 4 times the view is decoded.
-  const int view_width = view.camera.K.width, view_height = view.camera.K.height;
-  const int64_t max_pixels = 4 * static_cast<int64_t>(view_width) * view_height;
-  const auto at_most_4_views = [&](const ImageInfo& info) -> std::optional<std::string> {
-    if (static_cast<int64_t>(info.width) * info.height <= max_pixels) return std::nullopt;
-    return fmt::format("{}x{} pixels, more than this server decodes for view {} ({}x{}: at most 4 times its pixels)",
-                       info.width, info.height, view.name, view_width, view_height);
-  };
+  const SizeCheck at_most_4_views = at_most_4_times(view.camera.K.width, view.camera.K.height, "view " + view.name);
   if (!req.has_file("mask")) return Refusal{400, "no mask given (a PNG of the view's size, white = region)"};
   if (auto r = read_upload(req, "mask", dir, at_most_4_views, [&](const fs::path& f) { return read_region_mask(f, view); },
                            edit.region))
     return r;
-  if (run_network && req.has_file("reference") && !req.get_file_value("reference").content.empty()) {
+  if (run_network && uploaded(req, "reference")) {
     edit.reference.emplace();
     if (auto r = read_upload(req, "reference", dir, at_most_4_views, read_image_rgb, *edit.reference)) return r;
   }
@@ -530,7 +542,7 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
       return Refusal{400, std::string("inpainter: ") + e.what()};
     }
   }
-  const bool reference = req.has_file("reference") && !req.get_file_value("reference").content.empty();
+  const bool reference = uploaded(req, "reference");
   if (req.has_file("box")) {
     if (reference)
       return Refusal{400, "reference: only with a painted region (camera and mask); a box's reference view is the fill's choice"};
@@ -567,12 +579,10 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
   // The view on screen painted out by a 2D inpainter: the page saves that view at the camera's
   // size; as the CLI's fill, the view's working size and the official evaluation's crop of it
   // (904x512 of a 1008x567 view) are taken too.
-  const auto not_too_large = [w, h](const ImageInfo& info) -> std::optional<std::string> {
-    if (static_cast<int64_t>(info.width) * info.height <= 4LL * w * h) return std::nullopt;
-    return fmt::format("{}x{} pixels, more than 4 times the view on screen ({}x{})", info.width, info.height, w, h);
-  };
   fill.reference.emplace();
-  if (auto r = read_upload(req, "reference", dir, not_too_large, read_image_rgb, *fill.reference)) return r;
+  if (auto r = read_upload(req, "reference", dir, at_most_4_times(w, h, "the view on screen"), read_image_rgb,
+                           *fill.reference))
+    return r;
   WorkingSize view;
   view.width = view.resized_width = w;
   view.height = view.resized_height = h;

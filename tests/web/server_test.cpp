@@ -576,6 +576,11 @@ TEST(Serve, FillOnSplatsAlone) {
             fmt::format("reference: 10x10 pixels, but the view on screen is {}x{} (save view and mask, paint the view, "
                         "keep the camera still)",
                         vw, vh));
+  EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""}, {"mask", mask, "m.png", ""},
+                           {"reference", test::png_header(4000, 4000), "r.png", ""}})),
+            fmt::format("reference: 4000x4000 pixels, more than this server decodes for the view on screen ({}x{}: at "
+                        "most 4 times its pixels)",
+                        vw, vh));
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}, {"inpainter", "lama", "", ""}})),
             "inpainter: unknown 2D inpainter 'lama' (telea, ns or patch)");
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""},
