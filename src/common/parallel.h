@@ -1,8 +1,9 @@
 #pragma once
 // Work split over threads, for code that LibTorch's at::parallel_for cannot serve: in
 // LibTorch 1.13 that is an OpenMP pragma in its header, which runs serially in code built
-// without -fopenmp. Plain std::threads, started per call; nested calls run serially (no
-// oversubscription). The caller gives the thread count (LibTorch's: at::get_num_threads()).
+// without -fopenmp. OpenMP's threads where the compiler has OpenMP (LibTorch's own team: no
+// second pool beside its waiting threads), else std::threads started per call; nested calls run
+// serially (no oversubscription). The caller gives the thread count (LibTorch's: at::get_num_threads()).
 // fn must make its result independent of which thread runs it.
 #include <cstddef>
 #include <cstdint>
@@ -33,6 +34,8 @@ void set_thread_plan(const ThreadPlan& plan);
 void parallel_range(int64_t n, int64_t grain, int threads, const std::function<void(int64_t, int64_t)>& fn);
 // fn(i) for each i, handed out one by one (for items that differ in cost).
 void parallel_dynamic(int64_t n, int threads, const std::function<void(int64_t)>& fn);
+// Whether the two above run on OpenMP's team (LibTorch's), not on threads of their own.
+bool parallel_on_openmp();
 
 // Jobs (file writes: PNG encoding, the atomic writes' fsync) on background threads while the
 // caller goes on, at most `limit` at a time: add() waits for the oldest when that many run.

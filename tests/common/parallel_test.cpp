@@ -3,7 +3,10 @@
 
 #include <atomic>
 #include <cstdlib>
+#include <mutex>
+#include <set>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "common/parallel.h"
@@ -49,6 +52,41 @@ TEST(Parallel, EveryItemOnceAndTheFirstFailureRethrown) {
                  if (b == 0) throw std::runtime_error("first chunk");
                }),
                std::runtime_error);
+}
+
+TEST(Parallel, RangesCoverEachItemOnceAndNestedCallsRunOnTheirCaller) {
+  for (const int64_t n : {7, 1000, 1001}) {  // (one item: no team, and a nested call may have one)
+    std::vector<std::atomic<int>> seen(static_cast<size_t>(n));
+    std::atomic<int> nested_threads_seen{0};
+    parallel_range(n, 1, 3, [&](int64_t b, int64_t e) {
+      const std::thread::id outer = std::this_thread::get_id();
+      for (int64_t i = b; i < e; ++i) ++seen[static_cast<size_t>(i)];
+      parallel_dynamic(4, 4, [&](int64_t) {
+        if (std::this_thread::get_id() != outer) ++nested_threads_seen;
+      });
+    });
+    for (const auto& s : seen) EXPECT_EQ(s.load(), 1) << n;
+    EXPECT_EQ(nested_threads_seen.load(), 0) << "a nested call runs serially on its caller";
+  }
+}
+
+// With OpenMP the work runs on its team, LibTorch's: the same worker threads call after call,
+// never a second pool beside the one that waits after each LibTorch operation.
+TEST(Parallel, WithOpenMpTheWorkersAreOneTeamCallAfterCall) {
+  if (!parallel_on_openmp()) GTEST_SKIP() << "built without OpenMP (the sanitizer build): threads per call";
+  auto workers = [] {
+    const std::thread::id caller = std::this_thread::get_id();
+    std::mutex m;
+    std::set<std::thread::id> ids;
+    parallel_range(2, 1, 2, [&](int64_t, int64_t) {  // one item each for a team of 2
+      const std::lock_guard<std::mutex> lock(m);
+      if (std::this_thread::get_id() != caller) ids.insert(std::this_thread::get_id());
+    });
+    return ids;
+  };
+  const std::set<std::thread::id> first = workers();
+  ASSERT_EQ(first.size(), 1u);
+  EXPECT_EQ(workers(), first);
 }
 
 }  // namespace
