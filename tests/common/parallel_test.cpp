@@ -1,5 +1,6 @@
 // The thread plan every command shares (common/parallel.h) and the helpers that spread work.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cstdlib>
@@ -71,20 +72,21 @@ TEST(Parallel, RangesCoverEachItemOnceAndNestedCallsRunOnTheirCaller) {
 }
 
 // With OpenMP the work runs on its team, LibTorch's: the same worker threads call after call,
-// never a second pool beside the one that waits after each LibTorch operation.
+// never a second pool beside the one that waits after each LibTorch operation. (Kernel thread
+// ids: a new thread gets a new one, where a std::thread::id may be reused after a join.)
 TEST(Parallel, WithOpenMpTheWorkersAreOneTeamCallAfterCall) {
   if (!parallel_on_openmp()) GTEST_SKIP() << "built without OpenMP (the sanitizer build): threads per call";
   auto workers = [] {
-    const std::thread::id caller = std::this_thread::get_id();
+    const pid_t caller = gettid();
     std::mutex m;
-    std::set<std::thread::id> ids;
+    std::set<pid_t> ids;
     parallel_range(2, 1, 2, [&](int64_t, int64_t) {  // one item each for a team of 2
       const std::lock_guard<std::mutex> lock(m);
-      if (std::this_thread::get_id() != caller) ids.insert(std::this_thread::get_id());
+      if (gettid() != caller) ids.insert(gettid());
     });
     return ids;
   };
-  const std::set<std::thread::id> first = workers();
+  const std::set<pid_t> first = workers();
   ASSERT_EQ(first.size(), 1u);
   EXPECT_EQ(workers(), first);
 }
