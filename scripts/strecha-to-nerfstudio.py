@@ -12,10 +12,12 @@ to K (cx' = (cx + 0.5) / s).
 
 Only Python's standard library. Example:
   scripts/strecha-to-nerfstudio.py ../shared/data/realtrain/strecha_fountain_P11 runs/strecha/fountain
+(scripts/device/prepare.sh makes the four with --copy-images for the GPU continuation.)
 """
 import argparse
 import json
 import os
+import shutil
 import sys
 from pathlib import Path
 
@@ -83,6 +85,8 @@ def main():
     parser.add_argument("scene", type=Path, help="a Strecha scene: gt_dense_cameras/ and an image folder")
     parser.add_argument("out", type=Path, help="folder to write transforms.json and the image folder's link into")
     parser.add_argument("--images", default=None, help="image folder of the scene (default: the one images* folder)")
+    parser.add_argument("--copy-images", action="store_true",
+                        help="copy the images instead of linking their folder (for a folder that travels, e.g. to a GPU machine)")
     args = parser.parse_args()
     cameras = args.scene / "gt_dense_cameras"
     if not cameras.is_dir():
@@ -103,7 +107,13 @@ def main():
     link = args.out / images.name
     if link.is_symlink():
         link.unlink()
-    os.symlink(images.resolve(), link)
+    elif link.is_dir():
+        shutil.rmtree(link)
+    if args.copy_images:
+        shutil.copytree(images, link, copy_function=shutil.copyfile)
+        os.chmod(link, 0o755)  # the source's folder may be read-only; a later run replaces this one
+    else:
+        os.symlink(images.resolve(), link)
     tmp = args.out / "transforms.json.tmp"
     tmp.write_text(json.dumps({"camera_model": "OPENCV", "frames": frames}, indent=1))
     os.replace(tmp, args.out / "transforms.json")

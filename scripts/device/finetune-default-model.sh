@@ -4,14 +4,17 @@
 # 256 x 256 (where the statue is judged and `mini` never trained). Starting from the embedded
 # model, a short call can only add to it; a 10 M `medium` model from scratch needed far more
 # than one call (session 12, docs/benchmarks.md). Data as the model card's: synthetic rooms
-# (seed 1001), the validation rooms (seed 777001), and the real fern and statue (fox is left
-# out to fit the 64 MiB a call carries). The judging happens afterwards on any machine
+# (seed 1001), the validation rooms (seed 777001), the real fern and statue (fox is left
+# out to fit the 64 MiB a call carries), and the real captures of .device/realtrain when carried
+# (DTU scans 24 and 37, the four Strecha scenes: exact cameras; session 25 found that the Strecha
+# ones move SPIn-NeRF scene 1 and the fern on the CPU). The judging happens afterwards on any machine
 # (scripts/measure-refinement.sh --steps 0 with --checkpoint). Writes to $OUT:
 #   model-128.safetensors, model-256.safetensors  each phase's model (the 256 one updated while it trains)
 #   train.log, log-128.jsonl, log-256.jsonl
 # Here, before: scripts/device/prepare.sh; then
 #   run(command="bash scripts/device/finetune-default-model.sh",
-#       carry=[".device/debs", ".device/shared/data/statue", ".device/scenes/fern"], timeout_s=590)
+#       carry=[".device/debs", ".device/shared/data/statue", ".device/scenes/fern", ".device/realtrain"],
+#       timeout_s=590)
 # Environment: STEPS_128, STEPS_256 (steps of each phase), SECONDS_128, SECONDS_256 (each phase is
 # stopped after this long; its last checkpoint counts), ROOMS, WORKERS, PHASES ("128 256", or one
 # of them: the 256 phase then starts from the embedded model), REAL_REPEAT (each real scene listed
@@ -36,7 +39,10 @@ source scripts/device/deps.sh
 device_deps_from_debs
 device_build_program_and_rooms "$OUT" "$WORK" "$ROOMS" 256
 SCENES="$WORK/train"
-for _ in $(seq "$REAL_REPEAT"); do SCENES+=",.device/scenes/fern,.device/shared/data/statue"; done
+REAL=".device/scenes/fern,.device/shared/data/statue"
+for scene in .device/realtrain/*/; do [ -d "$scene" ] && REAL+=",${scene%/}"; done
+for _ in $(seq "$REAL_REPEAT"); do SCENES+=",$REAL"; done
+echo "training scenes: $SCENES"
 
 # The phase's model goes to $OUT while it trains: a call cut short still brings one back.
 phase() {  # size batch steps seconds lr init

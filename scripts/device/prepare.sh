@@ -42,6 +42,15 @@ mkdir -p "$DEST/shared/fixtures" "$DEST/shared/data" "$DEST/scenes"
 cp -r "$SHARED/fixtures/official-tiny" "$DEST/shared/fixtures/"
 cp -r "$SHARED/data/render-golden" "$SHARED/data/statue" "$SHARED/data/lpips" "$DEST/shared/data/"
 cp -r "$SHARED/data/fern" "$SHARED/data/fox" "$DEST/scenes/"
+# Real captures with exact cameras for the default model's continuation (finetune-default-model.sh),
+# in one folder so that a call carries them as one path: DTU (LLFF layout) and the four Strecha
+# scenes made readable (nerfstudio), 8 MB.
+rm -rf "$DEST/realtrain"
+mkdir -p "$DEST/realtrain"
+cp -r "$SHARED/data/realtrain/dtu_scan24" "$SHARED/data/realtrain/dtu_scan37" "$DEST/realtrain/"
+for scene in "$SHARED"/data/realtrain/strecha_*; do
+  python3 scripts/strecha-to-nerfstudio.py "$scene" "$DEST/realtrain/$(basename "$scene")" --copy-images
+done
 
 rm -rf "$DEST/wheels"
 python3 -m pip download --quiet --disable-pip-version-check --no-deps --only-binary=:all: --dest "$DEST/wheels" \
