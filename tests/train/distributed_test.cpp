@@ -102,7 +102,11 @@ TEST(DataParallel, TwoProcessesMatchOneWithTheCombinedBatch) {
     for (size_t i = 0; i < names.size(); ++i) {
       const torch::Tensor& g = single.parameters().tensors()[i].grad();
       const torch::Tensor expected = g.defined() ? g : torch::zeros_like(grads[i]);
-      EXPECT_TRUE(torch::allclose(grads[i], expected, 1e-3, 1e-7)) << names[i];
+      // Relative to the tensor's norm, not element by element: a weight-norm direction's gradient
+      // (weight_v) is projected off the direction, and its near-zero elements differ by the sums'
+      // rounding (2.7e-4 of the norm with 2 threads a process). Summed instead of averaged: 1.0.
+      const double error = (grads[i] - expected).norm().item<double>(), scale = expected.norm().item<double>();
+      EXPECT_LE(error, 1e-3 * scale + 1e-7) << names[i] << ": " << error << " of " << scale;
     }
   }
 }
