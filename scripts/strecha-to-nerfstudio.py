@@ -42,15 +42,13 @@ def read_camera(path):
 
 def frame(image, camera_file):
     K, R, C, (full_w, full_h) = read_camera(camera_file)
-    from_size = None
     try:
-        with open(image, "rb") as f:
-            from_size = jpeg_size(f.read())
+        size = jpeg_size(image.read_bytes())
     except OSError as e:
         fail(f"{image}: {e}")
-    if from_size is None:
+    if size is None:
         fail(f"{image}: not a JPEG whose size could be read")
-    w, h = from_size
+    w, h = size
     sx, sy = w / full_w, h / full_h
     if abs(sx - sy) > 1e-3 * sx:
         fail(f"{image}: {w}x{h} is not a uniform downscale of {full_w:g}x{full_h:g}")
