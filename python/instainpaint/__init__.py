@@ -88,6 +88,13 @@ class Gaussians:
                        doc="the views the network saw, reference first (empty for a file)")
 
     @property
+    def geometry(self) -> Optional[dict]:
+        """Where a prediction's depth was scaled to: the scene's points' source and each context
+        view's factor (the run.json "geometry" of `instainpaint infer`), or None for a file."""
+        text = self._g._geometry
+        return json.loads(text) if text else None
+
+    @property
     def refine_report(self) -> Optional[dict]:
         """What the refinement that made these did (steps, time, loss, densification), or None."""
         text = self._g._refine_report
@@ -202,7 +209,8 @@ class Predictor:
 
     def predict(self, scene: Scene, *, context: Sequence[str] = (), views: int = 4,
                 reference: Union[PathLike, Any, None] = None, reference_view: str = "", height: int = 256,
-                masks: Optional[Mapping[str, Any]] = None, keep_object: bool = False) -> Gaussians:
+                masks: Optional[Mapping[str, Any]] = None, keep_object: bool = False,
+                align_depth: str = "photos") -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -211,11 +219,14 @@ class Predictor:
         height: the working height in pixels (a multiple of the patch size after scaling).
         masks: object masks by view name (H x W arrays at the photos' size), instead of the scene's.
         keep_object: reconstruct the scene as captured (no masks, the reference's own photo).
+        align_depth: each context view's depth scaled to the scene's points (`--align-depth`):
+        "photos" (depth maps, else points triangulated from the photos), "any" (COLMAP's points
+        before the photos'), "depth-maps" or "none" (the network's depth as it is).
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
         return Gaussians(self._p._predict(scene, list(context), views, reference, reference_view, height,
-                                          keep_object, dict(masks or {})))
+                                          keep_object, dict(masks or {}), align_depth))
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

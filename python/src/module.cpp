@@ -293,6 +293,9 @@ NB_MODULE(_core, m) {
         return std::make_pair(std::vector<double>{n.mean.x(), n.mean.y(), n.mean.z()}, n.scale);
       })
       .def_prop_ro("_refine_report", [](const PyGaussians& g) { return g.refine_report; })
+      .def_prop_ro("_geometry", [](const PyGaussians& g) {
+        return g.prediction ? g.prediction->describe_geometry().dump() : std::string();
+      })
       .def_prop_ro("_fill_report", [](const PyGaussians& g) { return g.fill_report; })
       .def_prop_ro("context", [](const PyGaussians& g) {
         std::vector<std::string> names;  // the views the network saw, reference first
@@ -440,9 +443,10 @@ NB_MODULE(_core, m) {
       .def("_predict",
            [](const Predictor& p, const Scene& scene, const std::vector<std::string>& context, int views,
               const nb::object& reference, const std::string& reference_view, int height, bool keep_object,
-              const std::map<std::string, AnyArray>& masks) {
+              const std::map<std::string, AnyArray>& masks, const std::string& align_depth) {
              auto input = std::make_shared<SceneInputOptions>(
                  input_options(context, views, reference, reference_view, height, keep_object, masks));
+             input->align_depth = parse_depth_points(align_depth);
              PyGaussians g;
              {
                nb::gil_scoped_release release;
@@ -455,7 +459,7 @@ NB_MODULE(_core, m) {
              return g;
            },
            "scene"_a, "context"_a, "views"_a, "reference"_a.none(), "reference_view"_a, "height"_a, "keep_object"_a,
-           "masks"_a);
+           "masks"_a, "align_depth"_a);
 
   m.def("_masks_from_one",
         [](const Scene& scene, const std::string& view, const nb::object& region, const Predictor* predictor,

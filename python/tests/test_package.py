@@ -100,6 +100,18 @@ def test_render_of_a_saved_and_reloaded_prediction(tmp_path, statue, predictor):
     np.testing.assert_allclose(ii.load_gaussians(tmp_path / "n.ply").means, g.means, atol=1e-6)
 
 
+def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
+    raw = predictor.predict(statue, height=HEIGHT, align_depth="none")
+    g = predictor.predict(statue, height=HEIGHT)
+    assert raw.geometry == {"source": "off", "views": []}
+    assert g.geometry["source"].startswith("points triangulated from 4 views' photos ("), g.geometry
+    assert [v["view"] for v in g.geometry["views"]] == g.context
+    assert all(v["points"] >= 20 and v["scale"] > 0 for v in g.geometry["views"]), g.geometry
+    assert any(abs(v["scale"] - 1) > 0.5 for v in g.geometry["views"]), g.geometry  # the statue is seen too near
+    np.testing.assert_array_equal(g.colors, raw.colors)
+    assert not np.allclose(g.means, raw.means)
+
+
 def test_bad_arguments_raise_clear_errors(tmp_path, statue, predictor):
     with pytest.raises(ii.Error, match="does-not-exist"):
         ii.load_scene(tmp_path / "does-not-exist")
@@ -107,6 +119,8 @@ def test_bad_arguments_raise_clear_errors(tmp_path, statue, predictor):
         statue.camera("nope")
     with pytest.raises(ii.Error, match="nope"):
         predictor.predict(statue, context=["nope"], height=HEIGHT)
+    with pytest.raises(ii.Error, match="--align-depth 'nope': none, depth-maps, photos or any"):
+        predictor.predict(statue, height=HEIGHT, align_depth="nope")
     with pytest.raises(ii.Error, match=r"reference: expected 3 channels, got an array of shape \(4, 4, 1\)"):
         predictor.predict(statue, reference=np.zeros((4, 4, 1), np.float32), height=HEIGHT)
     with pytest.raises(ii.Error, match="unsupported element type"):

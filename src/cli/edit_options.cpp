@@ -54,9 +54,11 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
 void add_align_depth_option(CLI::App* cmd, EditArgs& args) {
   cmd->add_option("--align-depth", args.align_depth,
                   "Scale each context view's predicted depth to the scene's own 3D points: depth-maps (a synthetic "
-                  "scene's depth/), any (those, else COLMAP's sparse points), none (the network's depth as it is, "
-                  "the paper's)")
-      ->check(CLI::IsMember({"none", "depth-maps", "any"}))
+                  "scene's depth/), photos (those, else points triangulated from the context views' photos and "
+                  "their neighbours with the scene's cameras), any (depth maps, else COLMAP's sparse points, else "
+                  "the photos'), none (the network's depth as it is, the paper's). One-mask propagation reads photos as "
+                  "depth-maps (the statue's masks lost precision with the photos' points)")
+      ->check(CLI::IsMember({"none", "depth-maps", "photos", "any"}))
       ->capture_default_str();
 }
 

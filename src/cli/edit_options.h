@@ -21,7 +21,7 @@ struct EditArgs {
   int dilate = -1;  // -1 = automatic
   std::string reference_view;       // --reference-view
   std::string inpainter = "telea";  // --reference-inpainter
-  std::string align_depth = "depth-maps";  // --align-depth
+  std::string align_depth = "photos";  // --align-depth
 };
 
 // --view, --mask, --mode, --depth, --depth-scale, --extent, --dilate.

@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/error.h"
+#include "data/photo_points.h"
 #include "io/npy.h"
 
 namespace ii {
@@ -252,9 +253,29 @@ double median(std::vector<double> values) {
   return *mid;
 }
 
+// Points triangulated from a scene's photos, kept for the last few (scene, views): the page's
+// edits of one scene ask again and again.
+std::shared_ptr<const PhotoPoints> photo_points(const Scene& scene, const std::vector<int>& views) {
+  static std::mutex mutex;
+  static std::deque<std::pair<std::string, std::shared_ptr<const PhotoPoints>>> cache;
+  std::string key;
+  for (int v : views) key += scene.views.at(static_cast<size_t>(v)).image_path.string() + "\n";
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& [k, points] : cache)
+      if (k == key) return points;
+  }
+  auto points = std::make_shared<const PhotoPoints>(triangulate_photo_points(scene, views));
+  std::lock_guard<std::mutex> lock(mutex);
+  cache.emplace_back(key, points);
+  if (cache.size() > 8) cache.pop_front();
+  return points;
+}
+
 }  // namespace
 
-std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colmap, std::string* source, int stride) {
+std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colmap, std::string* source, int stride,
+                                                   const std::vector<int>& triangulate_from) {
   std::vector<Eigen::Vector3d> points;
   int maps = 0;
   for (const View& view : scene.views) {
@@ -280,6 +301,15 @@ std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colm
     if (!sparse->empty()) {
       if (source) *source = fmt::format("the COLMAP model's points ({} used)", sparse->size());
       return *sparse;
+    }
+  }
+  if (!triangulate_from.empty()) {
+    const auto photos = photo_points(scene, triangulate_from);
+    if (!photos->points.empty()) {
+      if (source)
+        *source = fmt::format("points triangulated from {} views' photos ({} points from {} matches, {:.1f} s)",
+                              triangulate_from.size(), photos->points.size(), photos->matches, photos->seconds);
+      return photos->points;
     }
   }
   if (source) *source = "none";

@@ -95,9 +95,11 @@ double typical_scene_depth(const Scene& scene, const Camera& reference, const st
 
 // The 3D points a scene carries, in its own frame: points of its input views' depth maps
 // (synthetic scenes' depth/, every `stride`-th pixel of each), else, with `colmap`, its COLMAP
-// model's (at most 2000, read once per scene); empty when it has none. `source` (optional) says
-// which.
+// model's (at most 2000, read once per scene), else, with `triangulate_from` (indices into
+// scene.views), points triangulated from those views' photos and their neighbours
+// (data/photo_points.h; once per scene and views); empty when it has none. `source` (optional)
+// says which.
 std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colmap, std::string* source = nullptr,
-                                                   int stride = 8);
+                                                   int stride = 8, const std::vector<int>& triangulate_from = {});
 
 }  // namespace ii

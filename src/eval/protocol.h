@@ -61,7 +61,7 @@ struct EvalOptions {
   std::string reference_view;   // automatic context around this reference (default: the edit's view)
   std::optional<OneMask> edit;  // one marked view instead of the scene's masks
   bool keep_object = false;     // a reconstruction: no masks, the reference's own photo
-  DepthPoints align_depth = DepthPoints::depth_maps;  // SceneInputOptions::align_depth
+  DepthPoints align_depth = DepthPoints::photos;  // SceneInputOptions::align_depth
   // Applied to the network's Gaussians before rendering (e.g. refinement, which lives above
   // eval): given the scene, the prediction and its input options; fills `report`.
   std::function<GaussianSet(const Scene&, const Prediction&, const SceneInputOptions&, GaussianSet, nlohmann::json& report)>

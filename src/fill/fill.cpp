@@ -359,6 +359,7 @@ Prediction predict_holes(const std::vector<CameraViews>& views, const ChosenCame
   input.num_views = static_cast<int>(views.size());
   input.inpainter = options.inpainter;
   input.view_cache = &cache;
+  input.align_depth = DepthPoints::none;  // renders in memory: no depth maps, no photos to triangulate
   for (size_t i = 0; i < views.size(); ++i) {
     const NamedCamera& c = cameras.cameras[i];
     View view;

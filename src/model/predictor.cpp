@@ -1,5 +1,7 @@
 #include "model/predictor.h"
 
+#include <future>
+
 #include "data/masks.h"
 
 #include "model/checkpoint.h"
@@ -36,11 +38,34 @@ nlohmann::json Predictor::describe() const {
   return {{"checkpoint", model_name_}, {"format", format_}, {"config", config().to_json()}};
 }
 
+namespace {
+
+struct ScenePoints {
+  std::vector<Eigen::Vector3d> points;
+  std::string source;
+};
+
+ScenePoints gather_scene_points(const Scene& scene, DepthPoints which, const std::vector<int>& context) {
+  ScenePoints out;
+  const bool colmap = which == DepthPoints::any;
+  const bool photos = which == DepthPoints::any || which == DepthPoints::photos;
+  out.points = scene_geometry_points(scene, colmap, &out.source, 8, photos ? context : std::vector<int>{});
+  return out;
+}
+
+}  // namespace
+
 Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& options) const {
   Prediction p;
   p.input = prepare_scene_input(scene, options, &p.stages);
   check_model_fits_input(config(), p.input.input, model_name_);
   p.stages.restart_lap();
+  // The scene's points are the CPU's work (files, features): on a GPU run they are gathered
+  // while the network runs; on a CPU run after it, which then has every core.
+  std::future<ScenePoints> points;
+  if (options.align_depth != DepthPoints::none && !device_.is_cpu())
+    points = std::async(std::launch::async, gather_scene_points, std::cref(scene), options.align_depth,
+                        p.input.context);
   upload_network_inputs(p.input.input, device_);
   synchronize(device_);
   p.stages.lap("upload");
@@ -48,9 +73,10 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
   synchronize(device_);
   p.stages.lap("network");
   if (options.align_depth != DepthPoints::none) {
-    const std::vector<Eigen::Vector3d> points =
-        scene_geometry_points(scene, options.align_depth == DepthPoints::any, &p.geometry);
-    if (!points.empty()) p.depth_alignment = align_depth_to_points(p.maps, p.input, points);
+    const ScenePoints gathered =
+        points.valid() ? points.get() : gather_scene_points(scene, options.align_depth, p.input.context);
+    p.geometry = gathered.source;
+    if (!gathered.points.empty()) p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points);
     p.stages.lap("align depth to the scene's points");
   }
   return p;

@@ -72,15 +72,16 @@ const char* depth_points_name(DepthPoints points) {
   switch (points) {
     case DepthPoints::none: return "none";
     case DepthPoints::depth_maps: return "depth-maps";
+    case DepthPoints::photos: return "photos";
     case DepthPoints::any: return "any";
   }
   return "?";
 }
 
 DepthPoints parse_depth_points(const std::string& name) {
-  for (DepthPoints p : {DepthPoints::none, DepthPoints::depth_maps, DepthPoints::any})
+  for (DepthPoints p : {DepthPoints::none, DepthPoints::depth_maps, DepthPoints::photos, DepthPoints::any})
     if (name == depth_points_name(p)) return p;
-  fail("--align-depth '{}': none, depth-maps or any", name);
+  fail("--align-depth '{}': none, depth-maps, photos or any", name);
 }
 
 SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options, StageTimes* stages) {

@@ -18,10 +18,12 @@
 namespace ii {
 
 // Which of a scene's own 3D points the network's depth is aligned to. COLMAP's sparse points are
-// not the default: on the fern they scaled the views' depth by 0.80-0.98 and its held-out views
-// lost 0.6 dB (16.31 -> 15.64), where the synthetic rooms' depth maps gained (see the model card).
-enum class DepthPoints { none, depth_maps, any };
-const char* depth_points_name(DepthPoints points);  // "none", "depth-maps", "any"
+// not the default: on the fern they scaled the views' depth by 0.90-0.97 and its held-out views
+// lost 0.4 dB (16.88 -> 16.50; session 16's weights: 0.6), where the points triangulated from the
+// context views' photos (0.97-1.02) gained 0.1 and the synthetic rooms' depth maps gained too
+// (see the model card).
+enum class DepthPoints { none, depth_maps, photos, any };
+const char* depth_points_name(DepthPoints points);  // "none", "depth-maps", "photos", "any"
 DepthPoints parse_depth_points(const std::string& name);  // an Error naming the choices
 
 struct SceneInputOptions {
@@ -44,9 +46,11 @@ struct SceneInputOptions {
   // Where the context views come from when set (a server's edits): views prepared before.
   PreparedViewCache* view_cache = nullptr;
   // Predictor::predict: each context view's depth scaled to the scene's own 3D points
-  // (model/depth_alignment.h): those of its depth maps (synthetic scenes; the default), or those
-  // and else its COLMAP points, or none (the network's output as it is, the paper's).
-  DepthPoints align_depth = DepthPoints::depth_maps;
+  // (model/depth_alignment.h): those of its depth maps (synthetic scenes), else points
+  // triangulated from the context views' photos (the default: on real captures the default
+  // model's depth is 1.3-5x too near), or with `any` its COLMAP points before the photos', or
+  // none (the network's output as it is, the paper's).
+  DepthPoints align_depth = DepthPoints::photos;
 };
 
 struct SceneInput {

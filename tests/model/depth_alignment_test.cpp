@@ -1,7 +1,7 @@
 // The network's depth scaled to a scene's own points: a view whose predicted depth is twice the
 // truth comes back onto the points (depth, positions and sizes alike); too few points, or
 // points that fall in the view's mask, change nothing; and a scene's points come from its
-// depth maps.
+// depth maps, else from its photos.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -104,6 +104,35 @@ TEST(DepthAlignment, ASyntheticScenesPointsComeFromItsDepthMaps) {
   std::filesystem::remove_all(dir / "depth");
   EXPECT_TRUE(scene_geometry_points(load_scene(dir), false, &source).empty());
   EXPECT_EQ(source, "none");
+}
+
+TEST(DepthAlignment, WithoutDepthMapsTheScenesPointsAreTriangulatedFromItsPhotos) {
+  const std::filesystem::path dir = test::synthetic_room("depth-alignment-photos", 8, 256, 8);
+  const Scene with_maps = load_scene(dir);
+  const std::optional<Image> truth = load_view_depth(with_maps, with_maps.views[0]);
+  ASSERT_TRUE(truth.has_value());
+  std::filesystem::remove_all(dir / "depth");
+  const Scene scene = load_scene(dir);
+  std::string source;
+  EXPECT_TRUE(scene_geometry_points(scene, false, &source).empty()) << "only when asked";
+  const std::vector<Eigen::Vector3d> points = scene_geometry_points(scene, false, &source, 8, {0, 1});
+  ASSERT_GE(points.size(), 30u) << source;
+  EXPECT_EQ(source.rfind("points triangulated from 2 views' photos (", 0), 0u) << source;
+  // The points seen by view 0 lie at its true depth: the median relative error is small.
+  const Camera& camera = scene.views[0].camera;
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  std::vector<double> errors;
+  for (const Eigen::Vector3d& p : points) {
+    const Eigen::Vector3d c = w2c.block<3, 3>(0, 0) * p + w2c.block<3, 1>(0, 3);
+    if (!(c.z() > 0)) continue;
+    const int x = static_cast<int>(camera.K.fx * c.x() / c.z() + camera.K.cx);
+    const int y = static_cast<int>(camera.K.fy * c.y() / c.z() + camera.K.cy);
+    if (x < 0 || y < 0 || x >= truth->width || y >= truth->height) continue;
+    errors.push_back(std::abs(std::log(c.z() / truth->at(y, x))));
+  }
+  ASSERT_GE(errors.size(), 30u);
+  std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+  EXPECT_LT(errors[errors.size() / 2], 0.03) << source;
 }
 
 }  // namespace

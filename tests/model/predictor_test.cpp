@@ -20,6 +20,7 @@ SceneInputOptions two_views() {
   SceneInputOptions opts;
   opts.context = {"IMG_2720", "IMG_2707"};
   opts.preprocess.height = 64;
+  opts.align_depth = DepthPoints::none;  // the network's output as it is
   return opts;
 }
 
@@ -49,6 +50,31 @@ TEST(Predictor, GivesWhatTheStepsItReplacesGive) {
   EXPECT_EQ(p.gaussians().size(), 2 * 64 * 80);
   // Loaded once, called again: the same answer.
   expect_same_maps(predictor.predict(scene, two_views()).maps, p.maps);
+}
+
+// By default a capture without depth maps or points gets its depth scaled to points
+// triangulated from its photos: each view's maps are the network's times that view's factor.
+TEST(Predictor, ScalesTheDepthToThePhotosPointsByDefault) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  II_REQUIRE_DEFAULT_MODEL();
+  const Scene scene = load_scene(dir);
+  const Predictor predictor("", torch::kCPU, Precision::Float32);
+  const Prediction raw = predictor.predict(scene, two_views());
+  EXPECT_EQ(raw.geometry, "off");
+  SceneInputOptions opts = two_views();
+  opts.align_depth = SceneInputOptions().align_depth;
+  ASSERT_EQ(opts.align_depth, DepthPoints::photos);
+  const Prediction aligned = predictor.predict(scene, opts);
+  EXPECT_EQ(aligned.geometry.rfind("points triangulated from 2 views' photos (", 0), 0u) << aligned.geometry;
+  ASSERT_EQ(aligned.depth_alignment.size(), 2u);
+  for (int64_t v = 0; v < 2; ++v) {
+    const double s = aligned.depth_alignment[static_cast<size_t>(v)].scale;
+    EXPECT_GT(aligned.depth_alignment[static_cast<size_t>(v)].points, 20);
+    EXPECT_GT(s, 1.5) << "the default model sees the statue too near";
+    EXPECT_TRUE(torch::allclose(aligned.maps.depth[0][v], raw.maps.depth[0][v] * s, 1e-4, 1e-5));
+    EXPECT_TRUE(torch::allclose(aligned.maps.scale[0][v], raw.maps.scale[0][v] * s, 1e-4, 1e-7));
+  }
+  EXPECT_TRUE(torch::equal(aligned.maps.rgb, raw.maps.rgb));
 }
 
 TEST(Predictor, ImagesAndMasksInMemoryEqualTheirFiles) {

@@ -1,0 +1,149 @@
+#include "data/photo_points.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include <Eigen/Dense>
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
+
+#include "common/parallel.h"
+#include "common/stopwatch.h"
+#include "data/image_ops.h"
+#include "data/masks.h"
+#include "data/undistort.h"
+#include "io/image.h"
+
+namespace ii {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// A photo at the matching size: its camera there and its SIFT features.
+struct Features {
+  Camera camera;
+  Eigen::Matrix<double, 3, 4> projection;  // K [R | t], OpenCV axes
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+};
+
+Features detect(const View& view, const PhotoPointsOptions& options) {
+  Image rgb = read_image_rgb(view.image_path);
+  if (view.distortion.any()) rgb = undistort_image(rgb, view.camera.K, view.distortion);
+  const int h = std::min(options.height, rgb.height);
+  const int w = std::max(1, static_cast<int>(std::lround(static_cast<double>(rgb.width) * h / rgb.height)));
+  const Image small = resize_area(rgb, w, h);
+  cv::Mat grey(h, w, CV_8UC1);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const float v = 0.299f * small.at(y, x, 0) + 0.587f * small.at(y, x, 1) + 0.114f * small.at(y, x, 2);
+      grey.at<uint8_t>(y, x) = static_cast<uint8_t>(std::clamp(v * 255.f + 0.5f, 0.f, 255.f));
+    }
+  Features f;
+  f.camera = view.camera.resized(w, h);
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+  K(0, 0) = f.camera.K.fx;
+  K(1, 1) = f.camera.K.fy;
+  K(0, 2) = f.camera.K.cx;
+  K(1, 2) = f.camera.K.cy;
+  f.projection = K * f.camera.w2c_opencv().topRows<3>();
+  cv::SIFT::create(options.max_features)->detectAndCompute(grey, cv::noArray(), f.keypoints, f.descriptors);
+  return f;
+}
+
+// Our pixel coordinates put pixel centres at +0.5; OpenCV's at integers.
+Eigen::Vector2d pixel(const cv::KeyPoint& k) { return {k.pt.x + 0.5, k.pt.y + 0.5}; }
+
+// Linear triangulation (DLT) of one match.
+Eigen::Vector3d triangulate(const Eigen::Matrix<double, 3, 4>& P1, const Eigen::Vector2d& a,
+                            const Eigen::Matrix<double, 3, 4>& P2, const Eigen::Vector2d& b) {
+  Eigen::Matrix4d A;
+  A.row(0) = a.x() * P1.row(2) - P1.row(0);
+  A.row(1) = a.y() * P1.row(2) - P1.row(1);
+  A.row(2) = b.x() * P2.row(2) - P2.row(0);
+  A.row(3) = b.y() * P2.row(2) - P2.row(1);
+  const Eigen::Vector4d X = Eigen::JacobiSVD<Eigen::Matrix4d>(A, Eigen::ComputeFullV).matrixV().col(3);
+  return X.head<3>() / X.w();
+}
+
+// The point's pixel in a view and whether it lies in front of it.
+bool project(const Eigen::Matrix<double, 3, 4>& P, const Eigen::Vector3d& X, Eigen::Vector2d& uv) {
+  const Eigen::Vector3d p = P * X.homogeneous();
+  if (!(p.z() > 0)) return false;
+  uv = p.head<2>() / p.z();
+  return true;
+}
+
+void triangulate_pair(const Features& a, const Features& b, const PhotoPointsOptions& options, PhotoPoints& out) {
+  if (a.descriptors.empty() || b.descriptors.empty() || b.keypoints.size() < 2) return;
+  std::vector<std::vector<cv::DMatch>> knn;
+  cv::BFMatcher(cv::NORM_L2).knnMatch(a.descriptors, b.descriptors, knn, 2);
+  ++out.pairs;
+  const double min_sin = std::sin(options.min_angle_deg * kPi / 180.0);
+  const Eigen::Vector3d ca = a.camera.center(), cb = b.camera.center();
+  for (const std::vector<cv::DMatch>& m : knn) {
+    if (m.size() < 2 || m[0].distance > options.ratio * m[1].distance) continue;
+    ++out.matches;
+    const Eigen::Vector2d pa = pixel(a.keypoints[static_cast<size_t>(m[0].queryIdx)]);
+    const Eigen::Vector2d pb = pixel(b.keypoints[static_cast<size_t>(m[0].trainIdx)]);
+    const Eigen::Vector3d X = triangulate(a.projection, pa, b.projection, pb);
+    if (!X.allFinite()) continue;
+    Eigen::Vector2d ra, rb;
+    if (!project(a.projection, X, ra) || !project(b.projection, X, rb)) continue;
+    if ((ra - pa).norm() > options.max_reprojection_px || (rb - pb).norm() > options.max_reprojection_px) continue;
+    const Eigen::Vector3d da = (X - ca).normalized(), db = (X - cb).normalized();
+    if (da.cross(db).norm() < min_sin) continue;
+    out.points.push_back(X);
+  }
+}
+
+Eigen::Vector3d forward(const Camera& c) { return -c.rotation().col(2); }  // OpenGL: the camera looks down -z
+
+}  // namespace
+
+std::vector<int> triangulation_neighbours(const Scene& scene, int view, int count, double max_view_angle_deg) {
+  const Camera& c = scene.views.at(static_cast<size_t>(view)).camera;
+  std::vector<Camera> cameras;
+  for (const View& v : scene.views) cameras.push_back(v.camera);
+  const double wanted = 0.1 * typical_scene_depth(scene, c, cameras);
+  const double min_cos = std::cos(max_view_angle_deg * kPi / 180.0);
+  std::vector<std::pair<double, int>> candidates;
+  for (size_t j = 0; j < scene.views.size(); ++j) {
+    if (static_cast<int>(j) == view) continue;
+    const Camera& o = scene.views[j].camera;
+    const double distance = (o.center() - c.center()).norm();
+    if (!(distance > 0) || forward(o).dot(forward(c)) < min_cos) continue;
+    candidates.emplace_back(std::abs(std::log(distance / wanted)), static_cast<int>(j));
+  }
+  std::sort(candidates.begin(), candidates.end());
+  std::vector<int> out;
+  for (size_t k = 0; k < candidates.size() && static_cast<int>(out.size()) < count; ++k)
+    out.push_back(candidates[k].second);
+  return out;
+}
+
+PhotoPoints triangulate_photo_points(const Scene& scene, const std::vector<int>& views, const PhotoPointsOptions& options) {
+  const Stopwatch clock;
+  PhotoPoints out;
+  std::map<int, std::vector<int>> pairs;  // view -> neighbours
+  std::map<int, Features> features;       // every photo taking part, detected once
+  for (int v : views) {
+    pairs[v] = triangulation_neighbours(scene, v, options.neighbours, options.max_view_angle_deg);
+    features.emplace(v, Features{});
+    for (int n : pairs[v]) features.emplace(n, Features{});
+  }
+  std::vector<std::pair<const int, Features>*> todo;
+  for (auto& entry : features) todo.push_back(&entry);
+  // One photo per thread: decoding and the image pyramid's first levels are serial work.
+  parallel_dynamic(static_cast<int64_t>(todo.size()), thread_plan().cores, [&](int64_t i) {
+    todo[static_cast<size_t>(i)]->second = detect(scene.views.at(static_cast<size_t>(todo[static_cast<size_t>(i)]->first)), options);
+  });
+  for (const auto& [v, neighbours] : pairs)
+    for (int n : neighbours) triangulate_pair(features.at(v), features.at(n), options, out);
+  out.seconds = clock.ms() / 1000.0;
+  return out;
+}
+
+}  // namespace ii

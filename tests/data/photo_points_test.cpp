@@ -1,0 +1,84 @@
+// Points triangulated from a capture's photos with its own cameras: on the fern they lie where
+// its COLMAP reconstruction put the scene, the neighbours chosen look the same way, and an
+// unreadable photo is an error naming the file.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+
+#include "common/error.h"
+#include "data/photo_points.h"
+#include "data/scene.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The median camera z of the points that view sees.
+double median_depth(const Camera& camera, const std::vector<Eigen::Vector3d>& points) {
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  std::vector<double> z;
+  for (const Eigen::Vector3d& p : points) {
+    const Eigen::Vector3d c = w2c.block<3, 3>(0, 0) * p + w2c.block<3, 1>(0, 3);
+    const double u = camera.K.fx * c.x() / c.z() + camera.K.cx, v = camera.K.fy * c.y() / c.z() + camera.K.cy;
+    if (c.z() > 0 && u >= 0 && v >= 0 && u < camera.K.width && v < camera.K.height) z.push_back(c.z());
+  }
+  if (z.empty()) return 0;
+  std::nth_element(z.begin(), z.begin() + z.size() / 2, z.end());
+  return z[z.size() / 2];
+}
+
+TEST(PhotoPoints, TheFernsPointsLieWhereItsColmapModelPutTheScene) {
+  II_REQUIRE_SHARED(dir, "data/fern");
+  const Scene scene = load_scene(dir);
+  const std::vector<Eigen::Vector3d> colmap = load_scene_points(scene);
+  ASSERT_GT(colmap.size(), 1000u);
+  const PhotoPoints photos = triangulate_photo_points(scene, {0, 10});
+  EXPECT_EQ(photos.pairs, 4);
+  EXPECT_GT(photos.points.size(), 300u);
+  EXPECT_LE(static_cast<int>(photos.points.size()), photos.matches);
+  for (int v : {0, 10}) {
+    const double ours = median_depth(scene.views[static_cast<size_t>(v)].camera, photos.points);
+    const double theirs = median_depth(scene.views[static_cast<size_t>(v)].camera, colmap);
+    EXPECT_NEAR(ours / theirs, 1.0, 0.1) << "view " << v << ": " << ours << " against COLMAP's " << theirs;
+  }
+}
+
+TEST(PhotoPoints, NeighboursAreOtherViewsLookingTheSameWay) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  const Scene scene = load_scene(dir);
+  const std::vector<int> n = triangulation_neighbours(scene, 5, 3);
+  ASSERT_EQ(n.size(), 3u);
+  for (int j : n) {
+    EXPECT_NE(j, 5);
+    const Eigen::Vector3d a = -scene.views[5].camera.rotation().col(2), b = -scene.views[static_cast<size_t>(j)].camera.rotation().col(2);
+    EXPECT_GT(a.dot(b), std::cos(35.0 * M_PI / 180.0)) << scene.views[static_cast<size_t>(j)].name;
+  }
+  EXPECT_NE(n[0], n[1]);
+  EXPECT_NE(n[1], n[2]);
+  EXPECT_NE(n[0], n[2]);
+  EXPECT_TRUE(triangulation_neighbours(scene, 5, 3, 0.0).empty()) << "no other view looks exactly the same way";
+}
+
+TEST(PhotoPoints, AnUnreadablePhotoIsAnErrorNamingIt) {
+  II_REQUIRE_SHARED(dir, "data/fern");
+  const fs::path copy = test::temp_dir("photo-points-bad") / "fern";
+  fs::create_directories(copy);
+  fs::copy(dir / "poses_bounds.npy", copy / "poses_bounds.npy");
+  fs::copy(dir / "images_8", copy / "images_8");
+  const Scene scene = load_scene(copy);
+  const fs::path broken = scene.views[0].image_path;
+  std::ofstream(broken, std::ios::trunc) << "not an image";
+  try {
+    triangulate_photo_points(scene, {0});
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(broken.string()), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace ii
