@@ -73,6 +73,9 @@ def main():
     parser.add_argument("--runs", type=int, default=3, help="edits to time (the first includes warm-up)")
     parser.add_argument("--refine", default="0", help="the page's refine setting (default 0: feed-forward)")
     parser.add_argument("--stages", metavar="FILE", help="also write the last run's job JSON (its stages) here")
+    parser.add_argument("--pause", type=float, default=2.0,
+                        help="seconds between the first job and the first edit, as a person marking the region "
+                             "(default 2; the server prepares the photos' features meanwhile)")
     parser.add_argument("serve_args", nargs="*", help="more serve options after --, e.g. -- --device cuda --height 512")
     args, extra = parser.parse_known_args()
     out = tempfile.mkdtemp(prefix="ii-serve-edit-")
@@ -93,6 +96,7 @@ def main():
         print(f"server {base}, model {model.get('checkpoint')} ({model.get('config', {}).get('preset')})")
         first = wait_for_job(base)
         print(f"first job ({first.get('kind', first.get('stage'))}): {first.get('state')} in {first.get('seconds', 0):.2f} s")
+        time.sleep(args.pause)
         views = info["scene"]["views"]
         index = args.view if args.view is not None else len(views) // 2
         status, mask = request(base, f"/api/views/{index}/mask")

@@ -48,11 +48,11 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
                   "(Navier-Stokes) or patch (patches of the photo copied inward)")
       ->check(CLI::IsMember({"telea", "ns", "patch"}))
       ->capture_default_str();
-  add_align_depth_option(cmd, args);
+  add_align_depth_option(cmd, args.align_depth);
 }
 
-void add_align_depth_option(CLI::App* cmd, EditArgs& args) {
-  cmd->add_option("--align-depth", args.align_depth,
+void add_align_depth_option(CLI::App* cmd, std::string& align_depth) {
+  cmd->add_option("--align-depth", align_depth,
                   "Scale each context view's predicted depth to the scene's own 3D points: depth-maps (a synthetic "
                   "scene's depth/), photos (those, else points triangulated from the context views' photos and "
                   "their neighbours with the scene's cameras), any (depth maps, else COLMAP's sparse points, else "

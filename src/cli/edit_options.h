@@ -29,7 +29,7 @@ void add_edit_options(CLI::App* cmd, EditArgs& args);
 // --reference-view, --reference-inpainter (commands that build the network's input).
 void add_reference_options(CLI::App* cmd, EditArgs& args);
 // --align-depth (add_reference_options adds it too).
-void add_align_depth_option(CLI::App* cmd, EditArgs& args);
+void add_align_depth_option(CLI::App* cmd, std::string& align_depth);  // --align-depth
 
 // The request the options describe for this scene, or nullopt without --view/--mask.
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene);

@@ -106,7 +106,7 @@ void add_masks_command(CLI::App& app) {
   cmd->add_option("--views", args->views, "Context views of that reconstruction")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
-  add_align_depth_option(cmd, args->edit);
+  add_align_depth_option(cmd, args->edit.align_depth);
   cmd->add_option("--height", args->height, "Working height of that reconstruction")
       ->capture_default_str()
       ->check(CLI::Range(8, 4096));

@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "cli/commands.h"
+#include "cli/edit_options.h"
 #include "cli/runtime.h"
 #include "common/error.h"
 #include "io/splat_file.h"
@@ -27,6 +28,7 @@ struct ServeArgs {
   std::string token;
   bool no_token = false;
   std::string checkpoint;
+  std::string align_depth = "photos";
   RuntimeOptions runtime;
 };
 
@@ -47,6 +49,7 @@ void run(const ServeArgs& a) {
   o.port = a.port;
   o.height = a.height;
   o.views = a.views;
+  o.align_depth = parse_depth_points(a.align_depth);
   o.token = a.token;
   o.no_token = a.no_token;
   o.reconstruct_at_start = true;
@@ -109,6 +112,7 @@ void add_serve_command(CLI::App& app) {
       ->excludes("--token");
   cmd->add_option("--checkpoint", args->checkpoint, "Model weights (default: the model built into instainpaint)")
       ->check(CLI::ExistingFile);
+  add_align_depth_option(cmd, args->align_depth);
   add_runtime_options(cmd, args->runtime);
   cmd->footer(
       "Examples:\n"

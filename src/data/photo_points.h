@@ -38,8 +38,13 @@ struct PhotoPoints {
 std::vector<int> triangulation_neighbours(const Scene& scene, int view, int count, double max_view_angle_deg = 35.0);
 
 // Points triangulated from each of `views` (indices into scene.views) with its neighbours.
-// Unreadable photos throw an Error naming the file.
+// Unreadable photos throw an Error naming the file. Each photo's features are detected once per
+// process (the last 256 photos are kept).
 PhotoPoints triangulate_photo_points(const Scene& scene, const std::vector<int>& views,
                                      const PhotoPointsOptions& options = {});
+
+// Detects the features of `views` now (a server, while its page is painted on), so that a later
+// triangulate_photo_points of them only matches.
+void prepare_photo_features(const Scene& scene, const std::vector<int>& views, const PhotoPointsOptions& options = {});
 
 }  // namespace ii

@@ -26,6 +26,7 @@
 #include "common/stopwatch.h"
 #include "camera/trajectory.h"
 #include "data/inpaint2d.h"
+#include "data/photo_points.h"
 #include "data/preprocess.h"
 #include "data/scene_cameras.h"
 #include "edit/scene_masks.h"
@@ -641,6 +642,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.preprocess.height = options.height;
   input.num_views = options.views;
   input.view_cache = &views;
+  input.align_depth = options.align_depth;
   OneMask request;
   request.view = view.name;
   request.region = edit.region;
@@ -761,6 +763,7 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   input.num_views = options.views;
   input.keep_object = true;
   input.view_cache = &views;
+  input.align_depth = options.align_depth;
   stage("reconstructing the scene as captured (object kept)", 0.2);
   const Prediction p = predictor->predict(*scene, input);
   stages.merge(p.stages);
@@ -772,6 +775,16 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   stage("writing the Gaussians", 0.9);
   json result = write_splats_of(p.gaussians(), dir, id, stages, behind);
   result["reference_view"] = p.input.views.front().name;
+  // The edits scale their depth to points triangulated from the photos, as this prediction did:
+  // every photo's features are detected behind the answer, while the page is painted on, so that
+  // the first edit only matches them (statue, 2 cores: its edit 0.85 s without, 0.33 s after).
+  if (p.geometry.rfind("points triangulated", 0) == 0) {
+    std::vector<int> all(scene->views.size());
+    for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+    behind.emplace_back("photo features", [this, all, &stages] {
+      stages.time("detect every photo's features (behind)", [&] { prepare_photo_features(*scene, all); }, true);
+    });
+  }
   return result;
 }
 

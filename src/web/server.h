@@ -57,6 +57,7 @@ struct ServeOptions {
   int port = 8080;  // 0 = any free port
   int height = 256;  // working height of edits
   int views = 4;     // context views of edits
+  DepthPoints align_depth = DepthPoints::photos;  // SceneInputOptions::align_depth of every prediction
   size_t max_upload_bytes = 32u << 20;
   // Every request must carry this token; empty: a random one is made (WebServer::token()).
   std::string token;

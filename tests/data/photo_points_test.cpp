@@ -1,6 +1,6 @@
 // Points triangulated from a capture's photos with its own cameras: on the fern they lie where
-// its COLMAP reconstruction put the scene, the neighbours chosen look the same way, and an
-// unreadable photo is an error naming the file.
+// its COLMAP reconstruction put the scene, the neighbours chosen look the same way, features
+// detected beforehand give the same points, and an unreadable photo is an error naming the file.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -63,13 +63,30 @@ TEST(PhotoPoints, NeighboursAreOtherViewsLookingTheSameWay) {
   EXPECT_TRUE(triangulation_neighbours(scene, 5, 3, 0.0).empty()) << "no other view looks exactly the same way";
 }
 
-TEST(PhotoPoints, AnUnreadablePhotoIsAnErrorNamingIt) {
-  II_REQUIRE_SHARED(dir, "data/fern");
-  const fs::path copy = test::temp_dir("photo-points-bad") / "fern";
+// A copy of the fern's photos and cameras in a folder of its own (new files: nothing kept).
+Scene fern_copy(const fs::path& dir, const std::string& tag) {
+  const fs::path copy = test::temp_dir(tag) / "fern";
   fs::create_directories(copy);
   fs::copy(dir / "poses_bounds.npy", copy / "poses_bounds.npy");
   fs::copy(dir / "images_8", copy / "images_8");
-  const Scene scene = load_scene(copy);
+  return load_scene(copy);
+}
+
+TEST(PhotoPoints, FeaturesPreparedBeforehandGiveTheSamePoints) {
+  II_REQUIRE_SHARED(dir, "data/fern");
+  const Scene prepared = fern_copy(dir, "photo-points-prepared"), fresh = fern_copy(dir, "photo-points-fresh");
+  std::vector<int> all(prepared.views.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  prepare_photo_features(prepared, all);
+  const PhotoPoints a = triangulate_photo_points(prepared, {3}), b = triangulate_photo_points(fresh, {3});
+  ASSERT_GT(a.points.size(), 100u);
+  EXPECT_EQ(a.points, b.points);
+  EXPECT_EQ(a.matches, b.matches);
+}
+
+TEST(PhotoPoints, AnUnreadablePhotoIsAnErrorNamingIt) {
+  II_REQUIRE_SHARED(dir, "data/fern");
+  const Scene scene = fern_copy(dir, "photo-points-bad");
   const fs::path broken = scene.views[0].image_path;
   std::ofstream(broken, std::ios::trunc) << "not an image";
   try {

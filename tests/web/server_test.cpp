@@ -3,6 +3,7 @@
 // running, and a whole one-mask edit.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <future>
 #include <map>
 #include <thread>
@@ -428,6 +429,37 @@ TEST(Serve, AScenesReconstructionIsTheFirstJob) {
   with_ply.plys = {file};
   RunningServer t(with_ply);
   EXPECT_EQ(json::parse(t.client->Get("/api/info")->body)["job"]["state"], "idle");
+}
+
+// A capture without depth maps or points: its reconstruction scales the depth to points
+// triangulated from the photos, and every photo's features are detected behind the answer, so
+// that the first edit only matches them; with --align-depth none neither happens.
+TEST(Serve, ACapturesPhotosFeaturesAreDetectedBehindItsReconstruction) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  auto stage_names = [](const json& job) {
+    std::vector<std::string> names;
+    for (const json& st : job["stages"]) names.push_back(st["stage"].get<std::string>());
+    return names;
+  };
+  const std::string behind = "detect every photo's features (behind)";
+  ServeOptions o;
+  o.scene_dir = dir;
+  o.height = 64;
+  o.reconstruct_at_start = true;
+  {
+    RunningServer s(o);
+    const json job = s.finished_job();
+    ASSERT_EQ(job["state"], "done") << job;
+    const std::vector<std::string> names = stage_names(job);
+    EXPECT_NE(std::find(names.begin(), names.end(), behind), names.end()) << job["stages"];
+  }
+  o.align_depth = DepthPoints::none;
+  RunningServer s(o);
+  const json job = s.finished_job();
+  ASSERT_EQ(job["state"], "done") << job;
+  const std::vector<std::string> names = stage_names(job);
+  EXPECT_EQ(std::find(names.begin(), names.end(), behind), names.end()) << job["stages"];
+  EXPECT_EQ(std::find(names.begin(), names.end(), "align depth to the scene's points"), names.end()) << job["stages"];
 }
 
 TEST(Serve, OrbitVideoAndEvaluationReportOfAServedPly) {
