@@ -7,7 +7,8 @@
 # (seed 1001), the validation rooms (seed 777001), the real fern and statue (fox is left
 # out to fit the 64 MiB a call carries), and the real captures of .device/realtrain when carried
 # (DTU scans 24 and 37, the four Strecha scenes: exact cameras; session 25 found that the Strecha
-# ones move SPIn-NeRF scene 1 and the fern on the CPU). The judging happens afterwards on any machine
+# ones move SPIn-NeRF scene 1 and the fern on the CPU); the real captures' depth is supervised at
+# points triangulated from their photos (train --depth-from-photos). The judging happens afterwards on any machine
 # (scripts/measure-refinement.sh --steps 0 with --checkpoint). Writes to $OUT:
 #   model-128.safetensors, model-256.safetensors  each phase's model (the 256 one updated while it trains)
 #   train.log, log-128.jsonl, log-256.jsonl
@@ -53,7 +54,7 @@ phase() {  # size batch steps seconds lr init
   local copier=$!
   timeout "$seconds" "$BIN" train --scenes "$SCENES" \
     --val-scenes "$WORK/val" --out "$run" --stage inpaint --init "$init" --width "$size" --height "$size" \
-    --inputs 4 --targets 4 --batch "$batch" --steps "$steps" --lr "$lr" --warmup 30 --depth-weight 0.2 \
+    --inputs 4 --targets 4 --batch "$batch" --steps "$steps" --lr "$lr" --warmup 30 --depth-weight 0.2 --depth-from-photos \
     --device cuda --precision bf16 --workers "$WORKERS" --val-every 100000 --val-samples 12 --save-every 50 \
     --log-every 25 || echo "phase $size stopped early (status $?)"
   kill "$copier" || true

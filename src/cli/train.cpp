@@ -39,6 +39,7 @@ struct TrainArgs {
   std::string perceptual = "auto", lpips_vgg, lpips_heads;
   std::string precision = "fp32", device = "cpu";
   bool checkpoint_blocks = false;
+  bool depth_from_photos = false;
   int threads = 0, workers = 2;
   uint64_t seed = 1024;
   int val_every = 100, val_samples = 4, val_images = 2, save_every = 200, log_every = 10;
@@ -85,6 +86,7 @@ TrainRunOptions run_options(const TrainArgs& a) {
   o.sampler.height = a.height;
   o.sampler.num_inputs = a.inputs;
   o.sampler.num_targets = a.targets;
+  o.sampler.depth_from_photos = a.depth_from_photos;
   o.sampler.clip_length = a.clip;
   o.sampler.max_mask_count = a.max_masks;
   if (a.mask_mix.size() != 3) fail("--mask-mix needs three weights (instance, random, 3dconsistent)");
@@ -200,6 +202,9 @@ void add_train_command(CLI::App& app) {
                   "(synthetic: depth/, depth_clean/); not in the official recipe")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
+  cmd->add_flag("--depth-from-photos", args->depth_from_photos,
+                "With --depth-weight: scenes without depth maps (real captures) are supervised at points\n"
+                "triangulated from their photos with their cameras (sparse; once per scene)");
   cmd->add_option("--perceptual", args->perceptual,
                   "Perceptual term: auto (LPIPS-VGG when its backbone is available, else 1 - SSIM), lpips, ssim, none")
       ->check(CLI::IsMember({"auto", "lpips", "ssim", "none"}))

@@ -253,26 +253,21 @@ double median(std::vector<double> values) {
   return *mid;
 }
 
-// Points triangulated from a scene's photos, kept for the last few (scene, views): the page's
-// edits of one scene ask again and again.
-std::shared_ptr<const PhotoPoints> photo_points(const Scene& scene, const std::vector<int>& views) {
-  static std::mutex mutex;
-  static std::deque<std::pair<std::string, std::shared_ptr<const PhotoPoints>>> cache;
-  std::string key;
-  for (int v : views) key += scene.views.at(static_cast<size_t>(v)).image_path.string() + "\n";
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    for (const auto& [k, points] : cache)
-      if (k == key) return points;
-  }
-  auto points = std::make_shared<const PhotoPoints>(triangulate_photo_points(scene, views));
-  std::lock_guard<std::mutex> lock(mutex);
-  cache.emplace_back(key, points);
-  if (cache.size() > 8) cache.pop_front();
-  return points;
-}
-
 }  // namespace
+
+Image points_depth(const std::vector<Eigen::Vector3d>& points, const Camera& camera) {
+  Image depth(camera.K.width, camera.K.height, 1, 0.f);
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  for (const Eigen::Vector3d& p : points) {
+    const Eigen::Vector3d c = w2c.block<3, 3>(0, 0) * p + w2c.block<3, 1>(0, 3);
+    if (!(c.z() > 0)) continue;
+    const double u = camera.K.fx * c.x() / c.z() + camera.K.cx, v = camera.K.fy * c.y() / c.z() + camera.K.cy;
+    if (!(u >= 0 && v >= 0 && u < camera.K.width && v < camera.K.height)) continue;
+    float& d = depth.at(static_cast<int>(v), static_cast<int>(u));
+    if (d == 0 || c.z() < d) d = static_cast<float>(c.z());
+  }
+  return depth;
+}
 
 std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colmap, std::string* source, int stride,
                                                    const std::vector<int>& triangulate_from) {
@@ -304,7 +299,7 @@ std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colm
     }
   }
   if (!triangulate_from.empty()) {
-    const auto photos = photo_points(scene, triangulate_from);
+    const auto photos = cached_photo_points(scene, triangulate_from);
     if (!photos->points.empty()) {
       if (source)
         *source = fmt::format("points triangulated from {} views' photos ({} points from {} matches, {:.1f} s)",

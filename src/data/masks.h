@@ -93,6 +93,9 @@ std::optional<Image> load_view_depth(const Scene& scene, const View& view, const
 // camera centres. Always positive.
 double typical_scene_depth(const Scene& scene, const Camera& reference, const std::vector<Camera>& cameras);
 
+// A view's z-depth at `points` (scene frame; the nearest where several meet a pixel), 0 elsewhere.
+Image points_depth(const std::vector<Eigen::Vector3d>& points, const Camera& camera);
+
 // The 3D points a scene carries, in its own frame: points of its input views' depth maps
 // (synthetic scenes' depth/, every `stride`-th pixel of each), else, with `colmap`, its COLMAP
 // model's (at most 2000, read once per scene), else, with `triangulate_from` (indices into

@@ -3,14 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <set>
 
 #include <Eigen/Dense>
-#include <opencv2/core.hpp>
 #include <fmt/format.h>
+#include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 
 #include "common/parallel.h"
@@ -26,13 +27,43 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// A photo at the matching size: its camera there and its SIFT features.
+// A photo's SIFT features at the matching size.
 struct Features {
-  Camera camera;
-  Eigen::Matrix<double, 3, 4> projection;  // K [R | t], OpenCV axes
+  int width = 0, height = 0;
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
 };
+
+// A photo at the matching size with its camera there: the features' pixels in world terms.
+struct PosedFeatures {
+  std::shared_ptr<const Features> features;
+  Camera camera;
+  Eigen::Matrix<double, 3, 4> projection;  // K [R | t], OpenCV axes
+};
+
+PosedFeatures posed(const View& view, std::shared_ptr<const Features> features) {
+  PosedFeatures p;
+  p.camera = view.camera.resized(features->width, features->height);
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+  K(0, 0) = p.camera.K.fx;
+  K(1, 1) = p.camera.K.fy;
+  K(0, 2) = p.camera.K.cx;
+  K(1, 2) = p.camera.K.cy;
+  p.projection = K * p.camera.w2c_opencv().topRows<3>();
+  p.features = std::move(features);
+  return p;
+}
+
+// What a photo's pixels depend on (its file, undistorted with its intrinsics) or, `posed`, also
+// where they lie in the world (its pose): the keys of the caches below.
+std::string view_key(const View& view, bool posed) {
+  const Intrinsics& K = view.camera.K;
+  std::string key = fmt::format("{}\n{} {} {} {} {} {}", view.image_path.string(), K.width, K.height, K.fx, K.fy, K.cx, K.cy);
+  for (double c : view.distortion.coeffs) key += fmt::format(" {}", c);
+  if (posed)
+    for (int i = 0; i < 16; ++i) key += fmt::format(" {}", view.camera.c2w(i / 4, i % 4));
+  return key;
+}
 
 Features detect(const View& view, const PhotoPointsOptions& options) {
   Image rgb = read_image_rgb(view.image_path);
@@ -47,47 +78,45 @@ Features detect(const View& view, const PhotoPointsOptions& options) {
       grey.at<uint8_t>(y, x) = static_cast<uint8_t>(std::clamp(v * 255.f + 0.5f, 0.f, 255.f));
     }
   Features f;
-  f.camera = view.camera.resized(w, h);
-  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
-  K(0, 0) = f.camera.K.fx;
-  K(1, 1) = f.camera.K.fy;
-  K(0, 2) = f.camera.K.cx;
-  K(1, 2) = f.camera.K.cy;
-  f.projection = K * f.camera.w2c_opencv().topRows<3>();
+  f.width = w;
+  f.height = h;
   // Bytes, not floats: OpenCV rounds SIFT's values to bytes either way, and the cache holds 4x more.
   cv::SIFT::create(options.max_features, 3, 0.04, 10, 1.6, CV_8U)
       ->detectAndCompute(grey, cv::noArray(), f.keypoints, f.descriptors);
   return f;
 }
 
-// Photos' features by file and matching size: a server's edits of one scene match the same
-// photos again and again, and it detects them all while the page is painted on
-// (prepare_photo_features). 256 photos of 1,500 features: about 60 MB.
-class FeatureCache {
+// The most recent values made for a key, up to `capacity`: a value is made once while it is kept.
+template <typename T>
+class RecentValues {
  public:
-  std::shared_ptr<const Features> get(const View& view, const PhotoPointsOptions& options) {
-    const std::string key = fmt::format("{}\n{}\n{}", view.image_path.string(), options.height, options.max_features);
+  explicit RecentValues(size_t capacity) : capacity_(capacity) {}
+  std::shared_ptr<const T> get(const std::string& key, const std::function<T()>& make) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      for (const auto& [k, f] : entries_)
-        if (k == key) return f;
+      for (const auto& [k, value] : entries_)
+        if (k == key) return value;
     }
-    auto f = std::make_shared<const Features>(detect(view, options));
+    auto value = std::make_shared<const T>(make());  // outside the lock: other keys go on
     std::lock_guard<std::mutex> lock(mutex_);
-    entries_.emplace_back(key, f);
-    if (entries_.size() > kCapacity) entries_.pop_front();
-    return f;
+    entries_.emplace_back(key, value);
+    if (entries_.size() > capacity_) entries_.pop_front();
+    return value;
   }
 
  private:
-  static constexpr size_t kCapacity = 256;
+  size_t capacity_;
   std::mutex mutex_;
-  std::deque<std::pair<std::string, std::shared_ptr<const Features>>> entries_;
+  std::deque<std::pair<std::string, std::shared_ptr<const T>>> entries_;
 };
 
-FeatureCache& feature_cache() {
-  static FeatureCache cache;
-  return cache;
+// Photos' features by file and matching size: a server's edits of one scene match the same
+// photos again and again, and it detects them all while the page is painted on
+// (prepare_photo_features). 256 photos of 1,500 features: about 60 MB.
+std::shared_ptr<const Features> cached_features(const View& view, const PhotoPointsOptions& options) {
+  static RecentValues<Features> cache(256);
+  return cache.get(fmt::format("{}\n{} {}", view_key(view, false), options.height, options.max_features),
+                   [&] { return detect(view, options); });
 }
 
 // Our pixel coordinates put pixel centres at +0.5; OpenCV's at integers.
@@ -113,12 +142,14 @@ bool project(const Eigen::Matrix<double, 3, 4>& P, const Eigen::Vector3d& X, Eig
   return true;
 }
 
-void triangulate_pair(const Features& a, const Features& b, const PhotoPointsOptions& options, PhotoPoints& out) {
-  if (a.descriptors.empty() || b.descriptors.empty() || b.keypoints.size() < 2) return;
+void triangulate_pair(const PosedFeatures& a, const PosedFeatures& b, const PhotoPointsOptions& options,
+                      PhotoPoints& out) {
+  const Features &fa = *a.features, &fb = *b.features;
+  if (fa.descriptors.empty() || fb.descriptors.empty() || fb.keypoints.size() < 2) return;
   // Matched as floats: OpenCV's L2 distance of bytes has no vector path (3-4x slower).
   cv::Mat da, db;
-  a.descriptors.convertTo(da, CV_32F);
-  b.descriptors.convertTo(db, CV_32F);
+  fa.descriptors.convertTo(da, CV_32F);
+  fb.descriptors.convertTo(db, CV_32F);
   std::vector<std::vector<cv::DMatch>> knn;
   cv::BFMatcher(cv::NORM_L2).knnMatch(da, db, knn, 2);
   ++out.pairs;
@@ -127,8 +158,8 @@ void triangulate_pair(const Features& a, const Features& b, const PhotoPointsOpt
   for (const std::vector<cv::DMatch>& m : knn) {
     if (m.size() < 2 || m[0].distance > options.ratio * m[1].distance) continue;
     ++out.matches;
-    const Eigen::Vector2d pa = pixel(a.keypoints[static_cast<size_t>(m[0].queryIdx)]);
-    const Eigen::Vector2d pb = pixel(b.keypoints[static_cast<size_t>(m[0].trainIdx)]);
+    const Eigen::Vector2d pa = pixel(fa.keypoints[static_cast<size_t>(m[0].queryIdx)]);
+    const Eigen::Vector2d pb = pixel(fb.keypoints[static_cast<size_t>(m[0].trainIdx)]);
     const Eigen::Vector3d X = triangulate(a.projection, pa, b.projection, pb);
     if (!X.allFinite()) continue;
     Eigen::Vector2d ra, rb;
@@ -169,15 +200,15 @@ namespace {
 
 // The features of each of `views` (indices into scene.views), one photo per thread: decoding and
 // the image pyramid's first levels are serial work.
-std::map<int, std::shared_ptr<const Features>> features_of(const Scene& scene, const std::set<int>& views,
-                                                           const PhotoPointsOptions& options) {
+std::map<int, PosedFeatures> features_of(const Scene& scene, const std::set<int>& views,
+                                         const PhotoPointsOptions& options) {
   std::vector<int> list(views.begin(), views.end());
   std::vector<std::shared_ptr<const Features>> found(list.size());
   parallel_dynamic(static_cast<int64_t>(list.size()), thread_plan().cores, [&](int64_t i) {
-    found[static_cast<size_t>(i)] = feature_cache().get(scene.views.at(static_cast<size_t>(list[static_cast<size_t>(i)])), options);
+    found[static_cast<size_t>(i)] = cached_features(scene.views.at(static_cast<size_t>(list[static_cast<size_t>(i)])), options);
   });
-  std::map<int, std::shared_ptr<const Features>> out;
-  for (size_t i = 0; i < list.size(); ++i) out.emplace(list[i], found[i]);
+  std::map<int, PosedFeatures> out;
+  for (size_t i = 0; i < list.size(); ++i) out.emplace(list[i], posed(scene.views.at(static_cast<size_t>(list[i])), found[i]));
   return out;
 }
 
@@ -197,11 +228,18 @@ PhotoPoints triangulate_photo_points(const Scene& scene, const std::vector<int>&
     photos.insert(v);
     photos.insert(pairs[v].begin(), pairs[v].end());
   }
-  const std::map<int, std::shared_ptr<const Features>> features = features_of(scene, photos, options);
+  const std::map<int, PosedFeatures> features = features_of(scene, photos, options);
   for (const auto& [v, neighbours] : pairs)
-    for (int n : neighbours) triangulate_pair(*features.at(v), *features.at(n), options, out);
+    for (int n : neighbours) triangulate_pair(features.at(v), features.at(n), options, out);
   out.seconds = clock.ms() / 1000.0;
   return out;
+}
+
+std::shared_ptr<const PhotoPoints> cached_photo_points(const Scene& scene, const std::vector<int>& views) {
+  static RecentValues<PhotoPoints> cache(8);
+  std::string key;
+  for (int v : views) key += view_key(scene.views.at(static_cast<size_t>(v)), true) + "\n";
+  return cache.get(key, [&] { return triangulate_photo_points(scene, views); });
 }
 
 }  // namespace ii

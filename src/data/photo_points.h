@@ -6,6 +6,7 @@
 // the point lies in front of both cameras, reprojects within a pixel or two into both, and is
 // seen under a useful angle. Enough for what the points are for here: the median ratio that
 // scales a view's predicted depth (model/depth_alignment.h).
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,10 @@ std::vector<int> triangulation_neighbours(const Scene& scene, int view, int coun
 // process (the last 256 photos are kept).
 PhotoPoints triangulate_photo_points(const Scene& scene, const std::vector<int>& views,
                                      const PhotoPointsOptions& options = {});
+
+// triangulate_photo_points with the default options, kept for the last 8 sets of views asked
+// (by file, intrinsics and pose): the page's edits of one scene ask again and again.
+std::shared_ptr<const PhotoPoints> cached_photo_points(const Scene& scene, const std::vector<int>& views);
 
 // Detects the features of `views` now (a server, while its page is painted on), so that a later
 // triangulate_photo_points of them only matches.

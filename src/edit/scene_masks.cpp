@@ -38,18 +38,7 @@ Image read_region_mask(const std::filesystem::path& file, const View& view) {
 std::optional<Image> colmap_points_depth(const Scene& scene, const View& view) {
   const std::vector<Eigen::Vector3d> points = load_scene_points(scene);
   if (points.empty()) return std::nullopt;
-  const Camera& cam = view.camera;
-  const Eigen::Matrix4d w2c = cam.w2c_opencv();
-  Image depth(cam.K.width, cam.K.height, 1);
-  for (const Eigen::Vector3d& X : points) {
-    const Eigen::Vector3d Y = w2c.topLeftCorner<3, 3>() * X + w2c.topRightCorner<3, 1>();
-    if (!(Y.z() > 0)) continue;
-    const double u = cam.K.fx * Y.x() / Y.z() + cam.K.cx, v = cam.K.fy * Y.y() / Y.z() + cam.K.cy;
-    if (!(u >= 0 && v >= 0 && u < cam.K.width && v < cam.K.height)) continue;
-    float& d = depth.at(static_cast<int>(v), static_cast<int>(u));
-    if (d == 0 || Y.z() < d) d = static_cast<float>(Y.z());
-  }
-  return depth;
+  return points_depth(points, view.camera);
 }
 
 Image depth_at_image_size(const torch::Tensor& working_depth, double normalization_scale, const View& view,

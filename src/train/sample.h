@@ -17,7 +17,8 @@
 //    input's mask also covers that view's own (dilated) object mask, so the object never shows
 //    in an input while the targets lack it. Stage 1 uses the photos as they are.
 //  - Scenes with depth maps (synthetic ones) give each input's depth for an optional depth
-//    loss: depth_clean/ where the reference and targets are clean, depth/ otherwise.
+//    loss: depth_clean/ where the reference and targets are clean, depth/ otherwise; with
+//    depth_from_photos, scenes without them give it at points triangulated from their photos.
 //  - The reference's mask channel is zero (as inference feeds it; the official training kept
 //    the mask there, spec §9.1).
 #include <array>
@@ -49,6 +50,9 @@ struct SamplerOptions {
   int height = 256, width = 256;           // working size after resize + crop
   std::array<double,3> mask_mix{1, 2, 1};  // instance : random : 3dconsistent
   int max_mask_count = 4;
+  // Scenes without depth maps (real captures): each input's depth at points triangulated from the
+  // scene's photos (data/photo_points.h; sparse, 0 elsewhere), for the depth loss.
+  bool depth_from_photos = false;
 };
 
 struct TrainingSample {
@@ -57,7 +61,8 @@ struct TrainingSample {
   std::vector<Camera> target_cameras;  // normalised like input.view_cameras, exact intrinsics at H x W
   std::string scene;                   // scene folder name, for logs
   // (V, 1, H, W) float32 z-depth of each input in the normalised camera units, 0 = unknown;
-  // undefined when the scene has no depth maps (only synthetic scenes have them).
+  // undefined when the scene has no depth maps (only synthetic scenes have them) and
+  // depth_from_photos is off.
   torch::Tensor input_depths;
 };
 
@@ -85,7 +90,7 @@ struct SampleInfo {
   int crop_x = 0, crop_y = 0;
   bool clean_reference = false;  // reference and targets from <root>/clean
   std::string depth_source;      // 3D-consistent masks: "injected", "depth/", "plane"
-  std::string input_depth_folder;  // where input_depths came from: "depth", "depth_clean" or "" (none)
+  std::string input_depth_folder;  // where input_depths came from: "depth", "depth_clean", "photos" or "" (none)
 };
 
 // Reference depth for 3D-consistent masks: z-depth in scene units at the view image's own

@@ -7,6 +7,7 @@
 
 #include "data/scene.h"
 #include "io/npy.h"
+#include "synthetic_room.h"
 #include "train/sample.h"
 #include "test_support.h"
 
@@ -279,6 +280,34 @@ TEST(Sample, InputDepthsFollowTheImagesTheInputsShouldShow) {
   }
   // Scenes without depth maps: none.
   EXPECT_FALSE(make_scene_sample(load_scene(write_scene(16)), o, 3).input_depths.defined());
+}
+
+// A scene without depth maps, with depth_from_photos: each input's depth at points triangulated
+// from its photos, sparse, where the same room's depth maps have it.
+TEST(Sample, WithoutDepthMapsTheInputsDepthComesFromThePhotosPoints) {
+  const Scene with_maps = load_scene(test::synthetic_room("sample-depth-maps", 8, 256, 8));
+  const fs::path bare = test::synthetic_room("sample-depth-photos", 8, 256, 8);
+  fs::remove_all(bare / "depth");
+  fs::remove_all(bare / "depth_clean");
+  const Scene scene = load_scene(bare);
+  SamplerOptions o = small_options(TrainStage::Reconstruct);
+  o.width = o.height = 128;
+  EXPECT_FALSE(make_scene_sample(scene, o, 5).input_depths.defined()) << "only when asked";
+  o.depth_from_photos = true;
+  SampleInfo info, dense_info;
+  const TrainingSample sparse = make_scene_sample(scene, o, 5, {}, &info);
+  const TrainingSample dense = make_scene_sample(with_maps, o, 5, {}, &dense_info);
+  EXPECT_EQ(info.input_depth_folder, "photos");
+  EXPECT_EQ(dense_info.input_depth_folder, "depth");
+  ASSERT_EQ(info.inputs, dense_info.inputs);
+  ASSERT_TRUE(sparse.input_depths.defined());
+  ASSERT_EQ(sparse.input_depths.sizes(), dense.input_depths.sizes());
+  const torch::Tensor known = sparse.input_depths > 0;
+  const int64_t count = known.sum().item<int64_t>();
+  EXPECT_GT(count, 4 * 20) << "points in each view";
+  EXPECT_LT(count, sparse.input_depths.numel() / 10) << "sparse";
+  const torch::Tensor error = (sparse.input_depths.index({known}) / dense.input_depths.index({known})).log().abs();
+  EXPECT_LT(error.median().item<double>(), 0.03);
 }
 
 TEST(Sample, CleanFolderGivesTheReferenceAndTargets) {
