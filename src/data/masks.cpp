@@ -10,6 +10,7 @@
 #include <Eigen/Dense>
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
 
 #include "common/error.h"
 #include "data/photo_points.h"
@@ -299,7 +300,14 @@ std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colm
     }
   }
   if (!triangulate_from.empty()) {
-    const auto photos = cached_photo_points(scene, triangulate_from);
+    std::shared_ptr<const PhotoPoints> photos;
+    try {
+      photos = cached_photo_points(scene, triangulate_from);
+    } catch (const Error& e) {  // a neighbour's unreadable photo: the network's depth as it is
+      spdlog::warn("no points triangulated from the photos: {}", e.what());
+      if (source) *source = fmt::format("none (triangulating the photos failed: {})", e.what());
+      return points;
+    }
     if (!photos->points.empty()) {
       if (source)
         *source = fmt::format("points triangulated from {} views' photos ({} points from {} matches, {:.1f} s)",

@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "common/error.h"
+#include "data/masks.h"
 #include "data/photo_points.h"
 #include "data/scene.h"
 #include "test_support.h"
@@ -95,6 +96,18 @@ TEST(PhotoPoints, AnUnreadablePhotoIsAnErrorNamingIt) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find(broken.string()), std::string::npos) << e.what();
   }
+}
+
+// The network's depth is then kept as it is: the prediction goes on, saying why.
+TEST(PhotoPoints, AnUnreadablePhotoLeavesTheScenesPointsEmptyAndSaysWhy) {
+  II_REQUIRE_SHARED(dir, "data/fern");
+  const Scene scene = fern_copy(dir, "photo-points-bad-geometry");
+  const fs::path broken = scene.views[0].image_path;
+  std::ofstream(broken, std::ios::trunc) << "not an image";
+  std::string source;
+  EXPECT_TRUE(scene_geometry_points(scene, false, &source, 8, {0}).empty());
+  EXPECT_EQ(source.rfind("none (triangulating the photos failed: ", 0), 0u) << source;
+  EXPECT_NE(source.find(broken.string()), std::string::npos) << source;
 }
 
 }  // namespace
