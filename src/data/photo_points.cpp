@@ -242,4 +242,17 @@ std::shared_ptr<const PhotoPoints> cached_photo_points(const Scene& scene, const
   return cache.get(key, [&] { return triangulate_photo_points(scene, views); });
 }
 
+std::shared_ptr<const std::vector<std::vector<Eigen::Vector3d>>> photo_points_of_every_view(const Scene& scene) {
+  using ByView = std::vector<std::vector<Eigen::Vector3d>>;
+  static RecentValues<ByView> cache(1024);
+  std::string key;
+  for (const View& view : scene.views) key += view_key(view, true) + "\n";
+  return cache.get(key, [&] {
+    ByView by_view;
+    for (size_t v = 0; v < scene.views.size(); ++v)
+      by_view.push_back(triangulate_photo_points(scene, {static_cast<int>(v)}).points);
+    return by_view;
+  });
+}
+
 }  // namespace ii

@@ -48,6 +48,11 @@ PhotoPoints triangulate_photo_points(const Scene& scene, const std::vector<int>&
 // (by file, intrinsics and pose): the page's edits of one scene ask again and again.
 std::shared_ptr<const PhotoPoints> cached_photo_points(const Scene& scene, const std::vector<int>& views);
 
+// Each view's own points (triangulated from its features with its neighbours, so that it sees
+// them), for every view of the scene: a capture's sparse depth for training. Kept for the last
+// 1024 scenes asked (by file, intrinsics and pose of every view).
+std::shared_ptr<const std::vector<std::vector<Eigen::Vector3d>>> photo_points_of_every_view(const Scene& scene);
+
 // Detects the features of `views` now (a server, while its page is painted on), so that a later
 // triangulate_photo_points of them only matches.
 void prepare_photo_features(const Scene& scene, const std::vector<int>& views, const PhotoPointsOptions& options = {});

@@ -3,9 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <list>
-#include <map>
 #include <memory>
-#include <mutex>
 #include <numeric>
 #include <unordered_map>
 
@@ -239,24 +237,6 @@ Image reference_depth(const Scene& scene, const View& view, const ViewGeometry& 
   return Image(o.width, o.height, 1, static_cast<float>(typical_scene_depth(scene, view.camera, clip_cameras)));
 }
 
-// Points triangulated from each view's own features with its neighbours (so that the view sees
-// them), once per scene folder: the depth supervision of captures without depth maps.
-std::shared_ptr<const std::vector<std::vector<Eigen::Vector3d>>> photo_points_by_view(const Scene& scene) {
-  using ByView = std::vector<std::vector<Eigen::Vector3d>>;
-  static std::mutex mutex;
-  static std::map<std::string, std::shared_ptr<const ByView>> cache;
-  const std::string key = scene.root.string() + "\n" + (scene.views.empty() ? "" : scene.views[0].image_path.string());
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    if (auto it = cache.find(key); it != cache.end()) return it->second;
-  }
-  auto by_view = std::make_shared<ByView>();
-  for (size_t v = 0; v < scene.views.size(); ++v)
-    by_view->push_back(triangulate_photo_points(scene, {static_cast<int>(v)}).points);
-  std::lock_guard<std::mutex> lock(mutex);
-  return cache.emplace(key, std::move(by_view)).first->second;
-}
-
 // Input positions inside a clip of `length` frames: [0, 4, 9, 14] for 4 of 15, evenly
 // spread otherwise.
 std::vector<int> input_positions(int length, int count) {
@@ -384,7 +364,7 @@ TrainingSample make_scene_sample(const Scene& scene, const SamplerOptions& o, ui
   } else if (o.depth_from_photos) {
     // No depth maps (a real capture): the points triangulated from its photos, sparse. The
     // photos show the object, so only where the reference and the targets do too.
-    const auto points = photo_points_by_view(scene);
+    const auto points = photo_points_of_every_view(scene);
     depths.clear();
     for (int k = 0; k < K && !info.clean_reference; ++k)
       depths.push_back(image_to_tensor(points_depth((*points)[static_cast<size_t>(info.inputs[k])],
