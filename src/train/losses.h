@@ -28,6 +28,10 @@ struct LossOptions {
   // (synthetic scenes). Not in the official recipe, hence 0 by default; it teaches a small
   // model geometry far sooner than rendering losses alone.
   double depth_weight = 0.0;
+  // Weight of the own-view term: each input's own Gaussians rendered at its camera against its
+  // image outside its mask (MSE). A one-Gaussian-per-pixel model should give its inputs back; the
+  // novel-view loss alone lets it blur them (wide, faint Gaussians hide misplaced depth).
+  double own_view_weight = 0.0;
 };
 
 // Mean |log(predicted) − log(target)| over the pixels where target > 0 (0 when there are

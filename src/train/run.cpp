@@ -90,7 +90,9 @@ nlohmann::json options_json(const TrainRunOptions& o, const DistributedConfig& d
                      {"weight_decay", t.adamw.weight_decay}}},
           {"clip_norm", t.clip_norm},
           {"loss", {{"mse", t.loss.mse_weight}, {"perceptual", t.loss.perceptual_weight}, {"kind", perceptual},
-                    {"depth", t.loss.depth_weight}}},
+                    {"depth", t.loss.depth_weight}, {"own_view", t.loss.own_view_weight}}},
+          {"align_depth", t.align_depth},
+          {"depth_from_photos", o.sampler.depth_from_photos},
           {"precision", precision_name(t.precision)},
           {"checkpoint_blocks", t.checkpoint_blocks},
           {"device", t.device.str()}};
@@ -241,7 +243,7 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
 
   // Loss and PSNR over the validation samples (each process its share), into `line`.
   auto validate = [&](int64_t step, nlohmann::json& line) {
-    std::vector<double> sums(7, 0.0);  // loss, mse, perceptual, psnr, count, depth, depth count
+    std::vector<double> sums(8, 0.0);  // loss, mse, perceptual, psnr, count, depth, depth count, own-view PSNR
     int images_written = 0;  // rank 0 writes the images of its first val_images samples
     for (const auto& [index, sample] : val_set) {
       torch::Tensor renders;
@@ -252,6 +254,7 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
       sums[2] += e.perceptual;
       sums[3] += e.psnr;
       sums[4] += 1;
+      sums[7] += e.own_psnr;
       if (e.depth) {
         sums[5] += *e.depth;
         sums[6] += 1;
@@ -272,12 +275,14 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
     line["val_mse"] = sums[1] / n;
     line["val_perceptual"] = sums[2] / n;
     line["val_psnr"] = sums[3] / n;
+    line["val_own_psnr"] = sums[7] / n;
     if (sums[6] > 0) line["val_depth"] = sums[5] / sums[6];
     if (lead) {
       if (progress_open) std::fputc('\n', stderr);
       progress_open = false;
-      spdlog::info("step {}: validation loss {:.4f}, PSNR {:.2f} dB{} ({} samples)", step, sums[0] / n, sums[3] / n,
-                   sums[6] > 0 ? fmt::format(", depth error {:.3f}", sums[5] / sums[6]) : "", static_cast<int>(n));
+      spdlog::info("step {}: validation loss {:.4f}, PSNR {:.2f} dB{}, own views {:.2f} dB ({} samples)", step,
+                   sums[0] / n, sums[3] / n, sums[6] > 0 ? fmt::format(", depth error {:.3f}", sums[5] / sums[6]) : "",
+                   sums[7] / n, static_cast<int>(n));
     }
   };
   // The starting point, as step 0 of the log.
@@ -322,6 +327,7 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
                            {"mse", s.mse},
                            {"perceptual", s.perceptual},
                            {"depth", s.depth},
+                           {"own_view", s.own_view},
                            {"lr", s.lr},
                            {"grad_norm", s.grad_norm},
                            {"clipped_tensors", s.clipped_tensors},
@@ -349,7 +355,8 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
       const double done = static_cast<double>(step - start_step);
       const double eta = run_clock.ms() / 1000.0 / done * static_cast<double>(end_step - step);
       const std::string depth_text =
-          options.trainer.loss.depth_weight > 0 ? fmt::format(", depth {:.4f}", s.depth) : std::string();
+          (options.trainer.loss.depth_weight > 0 ? fmt::format(", depth {:.4f}", s.depth) : std::string()) +
+          (options.trainer.loss.own_view_weight > 0 ? fmt::format(", own views {:.4f}", s.own_view) : std::string());
       const std::string text =
           fmt::format("step {}/{} ({:.0f}%) loss {:.4f} (mse {:.4f}, perceptual {:.4f}{}) lr {:.2e} | {:.0f} ms/step, "
                       "{:.2f} samples/s | ETA {}",

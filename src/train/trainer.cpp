@@ -12,6 +12,7 @@
 #include "io/safetensors.h"
 #include "tensor/tensor_file.h"
 #include "gaussians/gaussians.h"
+#include "model/depth_alignment.h"
 #include "render/rasterizer.h"
 #include "train/distributed.h"
 
@@ -41,6 +42,72 @@ GaussianMaps slice(const GaussianMaps& m, int64_t b) {
 torch::Tensor to_signed_image(const torch::Tensor& rgb) {
   return (rgb * 2.0 - 1.0).clamp(-1.0, 1.0).permute({2, 0, 1}).unsqueeze(0);
 }
+
+// `maps` cut from their graph: losses back-propagate one at a time into the copy's leaves, and
+// pass_back() carries what they gathered through the maps' own graph in one backward pass.
+class GradientCut {
+ public:
+  explicit GradientCut(const GaussianMaps& maps) {
+    for (const torch::Tensor* t : {&maps.xyz, &maps.rgb, &maps.opacity, &maps.scale, &maps.rotation, &maps.depth})
+      if (t->defined()) roots_.push_back(*t);
+    auto leaf = [&](const torch::Tensor& t) {
+      if (!t.defined()) return torch::Tensor();
+      leaves_.push_back(t.detach().requires_grad_(true));
+      return leaves_.back();
+    };
+    copy_.xyz = leaf(maps.xyz);
+    copy_.rgb = leaf(maps.rgb);
+    copy_.opacity = leaf(maps.opacity);
+    copy_.scale = leaf(maps.scale);
+    copy_.rotation = leaf(maps.rotation);
+    copy_.depth = leaf(maps.depth);
+  }
+  const GaussianMaps& maps() const { return copy_; }
+  void pass_back() const {
+    std::vector<torch::Tensor> roots, grads;
+    for (size_t i = 0; i < leaves_.size(); ++i)
+      if (leaves_[i].grad().defined() && roots_[i].requires_grad()) {
+        roots.push_back(roots_[i]);
+        grads.push_back(leaves_[i].grad());
+      }
+    if (!roots.empty()) torch::autograd::backward(roots, grads);
+  }
+
+ private:
+  std::vector<torch::Tensor> roots_, leaves_;
+  GaussianMaps copy_;
+};
+
+// Sample b's maps (1, V, C, H, W), each view scaled to the sample's depth when `align` and the
+// sample has some (TrainerOptions::align_depth); the factors carry no gradient.
+GaussianMaps sample_maps(const GaussianMaps& maps, int64_t b, const TrainingSample& s,
+                         const torch::Tensor& predicted_depth, const torch::Tensor& rays_o, bool align) {
+  GaussianMaps m = slice(maps, b);
+  if (!align || !s.input_depths.defined()) return m;
+  const torch::Tensor factors = median_depth_ratios(predicted_depth[b], s.input_depths.to(predicted_depth.device()));
+  // (V, 3): a pinhole view's rays share one origin, its camera centre.
+  const torch::Tensor centres = rays_o[b].select(1, 0).select(1, 0);
+  return scaled_about_cameras(m, factors, centres);
+}
+
+// Input view v's own Gaussians (of one sample's maps) rendered at its own camera: the MSE against
+// its image outside its mask, in [-1, 1] (eval's "own views" check, as a loss).
+torch::Tensor own_view_mse(const GaussianMaps& m, const TrainingSample& s, int64_t v, const torch::Device& device) {
+  GaussianMaps view;
+  view.xyz = m.xyz.narrow(1, v, 1);
+  view.rgb = m.rgb.narrow(1, v, 1);
+  view.opacity = m.opacity.narrow(1, v, 1);
+  view.scale = m.scale.narrow(1, v, 1);
+  view.rotation = m.rotation.narrow(1, v, 1);
+  const RenderOutput r = render(gaussians_from_maps(view), RenderCamera{s.input.view_cameras[static_cast<size_t>(v)]});
+  const torch::Tensor image = s.input.images[v].to(device);  // RGB (0 inside the mask), then the mask
+  const torch::Tensor outside = (image[3] <= 0.5).to(torch::kFloat32);
+  const torch::Tensor error = (to_signed_image(r.rgb)[0] - image.narrow(0, 0, 3)).pow(2) * outside;
+  return error.sum() / (3.0 * outside.sum().clamp_min(1));
+}
+
+// PSNR in dB of an MSE measured in [-1, 1] (images mapped to [0, 1]).
+double psnr_of_signed_mse(double mse) { return -10.0 * std::log10(std::max(mse / 4.0, 1e-10)); }
 
 Network& moved_to(Network& network, const torch::Device& device) {
   network.to(device);
@@ -124,7 +191,7 @@ StepStats Trainer::step(const std::vector<TrainingSample>& batch) {
       if (p.grad().defined()) grads.push_back(p.grad());
     group_->allreduce_mean(grads, "the gradient allreduce");
     const torch::Tensor terms =
-        torch::tensor({stats.loss, stats.mse, stats.perceptual, double(stats.samples), stats.depth},
+        torch::tensor({stats.loss, stats.mse, stats.perceptual, double(stats.samples), stats.depth, stats.own_view},
                       torch::TensorOptions().dtype(torch::kFloat64).device(options_.device));
     group_->allreduce_mean({terms}, "the loss allreduce");
     const torch::Tensor t = terms.cpu();
@@ -133,6 +200,7 @@ StepStats Trainer::step(const std::vector<TrainingSample>& batch) {
     stats.perceptual = t[2].item<double>();
     stats.samples = static_cast<int>(std::lround(t[3].item<double>() * group_->world_size()));
     stats.depth = t[4].item<double>();
+    stats.own_view = t[5].item<double>();
   }
   const ClipStats clip = clip_gradients_per_tensor(params_.tensors(), options_.clip_norm);
   stats.lr = options_.schedule.at(optimizer_->steps());
@@ -154,9 +222,9 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
 
   // The logged terms are summed where they are computed and read once at the end: reading each
   // view's would make the CPU wait for the GPU before it could queue the next view's render.
-  torch::Tensor sums = torch::zeros({4}, torch::TensorOptions().dtype(torch::kFloat64).device(options_.device));
-  enum { kLoss, kMse, kPerceptual, kDepth };
-  int64_t targets = 0, depth_samples = 0;
+  torch::Tensor sums = torch::zeros({5}, torch::TensorOptions().dtype(torch::kFloat64).device(options_.device));
+  enum { kLoss, kMse, kPerceptual, kDepth, kOwnView };
+  int64_t targets = 0, depth_samples = 0, own_views = 0;
   Stopwatch clock;
   double forward_ms = 0, render_ms = 0;
   for (const TrainingSample& s : batch) targets += static_cast<int64_t>(s.target_cameras.size());
@@ -165,34 +233,32 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
     const GaussianMaps& maps = out.gaussians;
     forward_ms = clock.lap();
     // Spec §6.4 memory saving: renders back-propagate one at a time into detached copies of
-    // the maps; the network's backward then runs once with the accumulated gradients.
-    std::vector<torch::Tensor> roots{maps.xyz, maps.rgb, maps.opacity, maps.scale, maps.rotation};
-    // xyz is made from depth, so a depth loss enters through a sixth leaf of its own.
+    // the maps; the network's backward then runs once with the accumulated gradients. xyz is
+    // made from depth, so a depth loss enters through a leaf of its own.
     const double depth_weight = options_.loss.depth_weight;
     const bool supervise_depth =
         depth_weight > 0 &&
         std::any_of(batch.begin(), batch.end(), [](const TrainingSample& s) { return s.input_depths.defined(); });
-    if (supervise_depth) roots.push_back(maps.depth);
-    std::vector<torch::Tensor> leaves;
-    for (const torch::Tensor& r : roots) leaves.push_back(r.detach().requires_grad_(true));
-    GaussianMaps detached;
-    detached.xyz = leaves[0];
-    detached.rgb = leaves[1];
-    detached.opacity = leaves[2];
-    detached.scale = leaves[3];
-    detached.rotation = leaves[4];
+    GaussianMaps cut_maps = maps;
+    if (!supervise_depth) cut_maps.depth = torch::Tensor();
+    const GradientCut network_cut(cut_maps);
+    const GaussianMaps& detached = network_cut.maps();
 
     const double weight = 1.0 / static_cast<double>(targets);
     for (size_t b = 0; b < batch.size(); ++b) {
       const TrainingSample& s = batch[b];
       if (supervise_depth && s.input_depths.defined()) {
-        const torch::Tensor& depth_leaf = leaves.back();
-        const torch::Tensor d = depth_loss(depth_leaf[static_cast<int64_t>(b)], s.input_depths.to(options_.device));
+        const torch::Tensor d = depth_loss(detached.depth[static_cast<int64_t>(b)], s.input_depths.to(options_.device));
         (d * (depth_weight / static_cast<double>(batch.size()))).backward();
         sums[kDepth] += d.detach().to(torch::kFloat64);
         ++depth_samples;
       }
-      const GaussianSet set = gaussians_from_maps(slice(detached, static_cast<int64_t>(b)));
+      // The alignment's products keep what they multiply for their backward, which runs once:
+      // another cut.
+      const GradientCut sample_cut(
+          sample_maps(detached, static_cast<int64_t>(b), s, maps.depth, in.rays_o, options_.align_depth));
+      const GaussianMaps& per_sample = sample_cut.maps();
+      const GaussianSet set = gaussians_from_maps(per_sample);
       const torch::Tensor target_images = s.target_images.to(options_.device);
       for (size_t m = 0; m < s.target_cameras.size(); ++m) {
         const RenderOutput r = render(set, RenderCamera{s.target_cameras[m]});
@@ -200,21 +266,33 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
         (t.total * weight).backward();
         sums.narrow(0, kLoss, 3) += torch::stack({t.total, t.mse, t.perceptual}).detach().to(torch::kFloat64);
       }
+      const double own_weight = options_.loss.own_view_weight;
+      if (own_weight > 0) {
+        const int64_t views = per_sample.xyz.size(1);
+        for (int64_t v = 0; v < views; ++v) {
+          const torch::Tensor e = own_view_mse(per_sample, s, v, options_.device);
+          (e * (own_weight / static_cast<double>(views * static_cast<int64_t>(batch.size())))).backward();
+          sums[kOwnView] += e.detach().to(torch::kFloat64);
+          ++own_views;
+        }
+      }
+      sample_cut.pass_back();
     }
-    std::vector<torch::Tensor> grads;
-    for (const torch::Tensor& l : leaves) grads.push_back(l.grad().defined() ? l.grad() : torch::zeros_like(l));
     render_ms = clock.lap();
-    torch::autograd::backward(roots, grads);
+    network_cut.pass_back();
   }
 
   const torch::Tensor read = sums.cpu();
   const double* sum = read.data_ptr<double>();
-  const double loss_sum = sum[kLoss], mse_sum = sum[kMse], perceptual_sum = sum[kPerceptual], depth_sum = sum[kDepth];
+  const double loss_sum = sum[kLoss], mse_sum = sum[kMse], perceptual_sum = sum[kPerceptual], depth_sum = sum[kDepth],
+               own_sum = sum[kOwnView];
   StepStats stats;
   stats.mse = mse_sum / targets;
   stats.perceptual = perceptual_sum / targets;
   stats.depth = depth_samples > 0 ? depth_sum / depth_samples : 0.0;
-  stats.loss = loss_sum / targets + options_.loss.depth_weight * depth_sum / static_cast<double>(batch.size());
+  stats.own_view = own_views > 0 ? own_sum / static_cast<double>(own_views) : 0.0;
+  stats.loss = loss_sum / targets + options_.loss.depth_weight * depth_sum / static_cast<double>(batch.size()) +
+               options_.loss.own_view_weight * stats.own_view;
   stats.samples = static_cast<int>(batch.size());
   stats.step = optimizer_->steps();
   stats.forward_ms = forward_ms;
@@ -228,9 +306,13 @@ EvalStats Trainer::evaluate(const TrainingSample& sample, torch::Tensor* renders
   torch::NoGradGuard no_grad;
   const Batch in = collate({sample});
   const NetworkOutput out = network_.forward(in.images, in.plucker, in.rays_o, in.rays_d_un, options_.precision);
-  const GaussianSet set = gaussians_from_maps(out.gaussians);
+  const GaussianMaps maps = sample_maps(out.gaussians, 0, sample, out.gaussians.depth, in.rays_o, options_.align_depth);
+  const GaussianSet set = gaussians_from_maps(maps);
   const torch::Tensor targets = sample.target_images.to(options_.device);
   EvalStats stats;
+  const int64_t views = maps.xyz.size(1);
+  for (int64_t v = 0; v < views; ++v)
+    stats.own_psnr += psnr_of_signed_mse(own_view_mse(maps, sample, v, options_.device).item<double>()) / views;
   if (sample.input_depths.defined())
     stats.depth = depth_loss(out.gaussians.depth[0], sample.input_depths.to(options_.device)).item<double>();
   std::vector<torch::Tensor> images;

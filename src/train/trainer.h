@@ -38,6 +38,11 @@ struct TrainerOptions {
   Precision precision = Precision::Float32;  // network forward; rendering and losses stay fp32
   bool checkpoint_blocks = false;            // recompute transformer blocks in backward
   torch::Device device = torch::kCPU;
+  // Each input's Gaussians scaled about its camera to the sample's depth (median_depth_ratios)
+  // before the renders, in training and validation: what infer/eval/serve do by default with
+  // --align-depth, so the renders are learnt where they will be drawn. Samples without depth
+  // keep the network's.
+  bool align_depth = false;
 };
 
 struct StepStats {
@@ -45,6 +50,8 @@ struct StepStats {
   double loss = 0, mse = 0, perceptual = 0;  // means over all targets of all processes
   double depth = 0;  // depth_loss, mean over the samples with depth maps (0: none); its weighted
                      // mean over all samples is part of `loss`
+  double own_view = 0;  // own-view MSE, mean over the input views (0 when its weight is 0); its
+                        // weighted mean is part of `loss`
   double lr = 0;
   double grad_norm = 0;  // global norm after zeroing non-finite values, before clipping
   int clipped_tensors = 0, nonfinite_tensors = 0;
@@ -58,6 +65,8 @@ struct StepStats {
 struct EvalStats {
   double loss = 0, mse = 0, perceptual = 0;  // image terms (no depth term)
   std::optional<double> depth;  // depth_loss of the inputs when the sample has depth maps
+  double own_psnr = 0;  // each input's own Gaussians at its camera against its image outside its
+                        // mask (eval's "own views"), mean over the inputs
   double psnr = 0;  // mean over targets, images mapped to [0, 1]
   int targets = 0;
 };
