@@ -39,7 +39,7 @@ struct TrainArgs {
   std::string perceptual = "auto", lpips_vgg, lpips_heads;
   std::string precision = "fp32", device = "cpu";
   bool checkpoint_blocks = false;
-  bool depth_from_photos = false, align_depth = false;
+  bool depth_from_photos = false;
   double own_view_weight = 0.0;
   int threads = 0, workers = 2;
   uint64_t seed = 1024;
@@ -108,7 +108,6 @@ TrainRunOptions run_options(const TrainArgs& a) {
   t.loss.perceptual = a.perceptual;
   t.loss.depth_weight = a.depth_weight;
   t.loss.own_view_weight = a.own_view_weight;
-  t.align_depth = a.align_depth;
   if (!a.lpips_vgg.empty()) t.loss.lpips_backbone = fs::path(a.lpips_vgg);
   if (!a.lpips_heads.empty()) t.loss.lpips_heads = fs::path(a.lpips_heads);
   t.precision = a.precision == "bf16" ? Precision::BFloat16 : Precision::Float32;
@@ -208,9 +207,6 @@ void add_train_command(CLI::App& app) {
   cmd->add_flag("--depth-from-photos", args->depth_from_photos,
                 "With --depth-weight: scenes without depth maps (real captures) are supervised at points\n"
                 "triangulated from their photos with their cameras (sparse; once per scene)");
-  cmd->add_flag("--align-depth", args->align_depth,
-                "Scale each input's predicted depth about its camera to the sample's depth (maps, or the\n"
-                "photos' points with --depth-from-photos) before rendering, as infer/eval/serve do by default");
   cmd->add_option("--own-view-weight", args->own_view_weight,
                   "Weight of an MSE term for each input's own Gaussians at its own camera against its image\n"
                   "outside its mask (eval's own-views check); not in the official recipe")

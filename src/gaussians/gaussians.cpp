@@ -59,6 +59,11 @@ GaussianSet joined(const GaussianSet& kept, const GaussianSet& added) {
   return out;
 }
 
+GaussianMaps narrowed(const GaussianMaps& maps, int64_t dim, int64_t index) {
+  auto part = [&](const torch::Tensor& t) { return t.defined() ? t.narrow(dim, index, 1) : t; };
+  return {part(maps.depth), part(maps.rgb), part(maps.opacity), part(maps.scale), part(maps.rotation), part(maps.xyz)};
+}
+
 GaussianSet gaussians_from_maps(const GaussianMaps& maps) {
   if (!maps.xyz.defined() || maps.xyz.dim() != 5 || maps.xyz.size(0) != 1)
     fail("gaussians_from_maps: expected maps of shape (1, V, C, H, W)");

@@ -28,6 +28,10 @@ struct GaussianMaps {
   torch::Tensor xyz;       // C=3, world position
 };
 
+// Index `index` of dimension `dim` (0: the sample, 1: the view) of every attribute that is
+// there, kept as a dimension of size 1: views of `maps`.
+GaussianMaps narrowed(const GaussianMaps& maps, int64_t dim, int64_t index);
+
 // Activated Gaussian parameters, one row per Gaussian, all float32 or float64 on one device
 // (mixed float dtypes are converted to that of `means`).
 struct GaussianSet {

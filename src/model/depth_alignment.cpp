@@ -3,9 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include <fmt/ranges.h>
-
-#include "common/error.h"
 #include "common/torch.h"
 #include "data/masks.h"
 
@@ -87,37 +84,6 @@ std::vector<DepthAlignment> align_depth_to_points(GaussianMaps& maps, const Scen
     maps.xyz[0][vi].sub_(centre).mul_(a.scale).add_(centre);
     maps.scale[0][vi].mul_(a.scale);
   }
-  return out;
-}
-
-torch::Tensor median_depth_ratios(const torch::Tensor& predicted, const torch::Tensor& target, int64_t min_points) {
-  if (predicted.sizes() != target.sizes() || predicted.dim() != 4)
-    fail("depth alignment: predicted depth [{}] and target [{}] must both be (V, 1, H, W)",
-         fmt::join(predicted.sizes(), ", "), fmt::join(target.sizes(), ", "));
-  torch::NoGradGuard no_grad;
-  const torch::Tensor p = predicted.detach().to(torch::kFloat32), t = target.to(torch::kFloat32);
-  std::vector<float> factors;
-  for (int64_t v = 0; v < p.size(0); ++v) {
-    const torch::Tensor known = (t[v] > 0) & (p[v] > 0) & torch::isfinite(t[v]) & torch::isfinite(p[v]);
-    const torch::Tensor ratios = t[v].masked_select(known) / p[v].masked_select(known);
-    float f = 1.f;
-    if (ratios.numel() >= min_points) f = ratios.median().item<float>();
-    factors.push_back(std::isfinite(f) && f > 0 ? f : 1.f);
-  }
-  return torch::tensor(factors, torch::kFloat32).to(predicted.device());
-}
-
-GaussianMaps scaled_about_cameras(const GaussianMaps& maps, const torch::Tensor& factors, const torch::Tensor& centres) {
-  const int64_t views = maps.xyz.size(1);
-  if (maps.xyz.dim() != 5 || maps.xyz.size(0) != 1 || factors.numel() != views || centres.sizes() != torch::IntArrayRef{views, 3})
-    fail("depth alignment: maps [{}] need one factor and one camera centre per view (got {} and [{}])",
-         fmt::join(maps.xyz.sizes(), ", "), factors.numel(), fmt::join(centres.sizes(), ", "));
-  const torch::Tensor f = factors.to(maps.xyz.options()).view({1, views, 1, 1, 1});
-  const torch::Tensor c = centres.to(maps.xyz.options()).view({1, views, 3, 1, 1});
-  GaussianMaps out = maps;
-  out.xyz = c + f * (maps.xyz - c);
-  out.scale = maps.scale * f;
-  if (maps.depth.defined()) out.depth = maps.depth * f;
   return out;
 }
 

@@ -26,14 +26,4 @@ struct DepthAlignment {
 std::vector<DepthAlignment> align_depth_to_points(GaussianMaps& maps, const SceneInput& input,
                                                   const std::vector<Eigen::Vector3d>& points, int64_t min_points = 20);
 
-// The same alignment in training, where a sample's depth target is known per pixel (depth maps,
-// or sparse points triangulated from the photos, 0 where unknown): per view, the median of
-// target / predicted over the pixels where both are positive, 1 where fewer than `min_points`.
-// `predicted` and `target` are (V, 1, H, W); the factors (V) come without autograd history.
-torch::Tensor median_depth_ratios(const torch::Tensor& predicted, const torch::Tensor& target, int64_t min_points = 20);
-
-// `maps` (1, V, C, H, W) with each view's positions, depths and sizes scaled by `factors` (V)
-// about its camera centre `centres` (V, 3), out of place: differentiable in the maps.
-GaussianMaps scaled_about_cameras(const GaussianMaps& maps, const torch::Tensor& factors, const torch::Tensor& centres);
-
 }  // namespace ii

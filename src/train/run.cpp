@@ -91,7 +91,6 @@ nlohmann::json options_json(const TrainRunOptions& o, const DistributedConfig& d
           {"clip_norm", t.clip_norm},
           {"loss", {{"mse", t.loss.mse_weight}, {"perceptual", t.loss.perceptual_weight}, {"kind", perceptual},
                     {"depth", t.loss.depth_weight}, {"own_view", t.loss.own_view_weight}}},
-          {"align_depth", t.align_depth},
           {"depth_from_photos", o.sampler.depth_from_photos},
           {"precision", precision_name(t.precision)},
           {"checkpoint_blocks", t.checkpoint_blocks},

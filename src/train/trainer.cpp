@@ -12,7 +12,6 @@
 #include "io/safetensors.h"
 #include "tensor/tensor_file.h"
 #include "gaussians/gaussians.h"
-#include "model/depth_alignment.h"
 #include "render/rasterizer.h"
 #include "train/distributed.h"
 
@@ -25,17 +24,6 @@ namespace {
 // Checkpoint names of the non-model tensors (model keys keep their official names).
 constexpr std::string_view kExpAvg = "optimizer.exp_avg.", kExpAvgSq = "optimizer.exp_avg_sq.",
                            kRng = "rng.cpu_generator";
-
-// Per-sample slice b of the per-pixel maps, (1, V, C, H, W).
-GaussianMaps slice(const GaussianMaps& m, int64_t b) {
-  GaussianMaps out;
-  out.xyz = m.xyz.narrow(0, b, 1);
-  out.rgb = m.rgb.narrow(0, b, 1);
-  out.opacity = m.opacity.narrow(0, b, 1);
-  out.scale = m.scale.narrow(0, b, 1);
-  out.rotation = m.rotation.narrow(0, b, 1);
-  return out;
-}
 
 // The official renderer's output mapping (spec §4.3): (H, W, 3) colour C -> (1, 3, H, W)
 // clamp(2C − 1, −1, 1).
@@ -78,28 +66,11 @@ class GradientCut {
   GaussianMaps copy_;
 };
 
-// Sample b's maps (1, V, C, H, W), each view scaled to the sample's depth when `align` and the
-// sample has some (TrainerOptions::align_depth); the factors carry no gradient.
-GaussianMaps sample_maps(const GaussianMaps& maps, int64_t b, const TrainingSample& s,
-                         const torch::Tensor& predicted_depth, const torch::Tensor& rays_o, bool align) {
-  GaussianMaps m = slice(maps, b);
-  if (!align || !s.input_depths.defined()) return m;
-  const torch::Tensor factors = median_depth_ratios(predicted_depth[b], s.input_depths.to(predicted_depth.device()));
-  // (V, 3): a pinhole view's rays share one origin, its camera centre.
-  const torch::Tensor centres = rays_o[b].select(1, 0).select(1, 0);
-  return scaled_about_cameras(m, factors, centres);
-}
-
 // Input view v's own Gaussians (of one sample's maps) rendered at its own camera: the MSE against
 // its image outside its mask, in [-1, 1] (eval's "own views" check, as a loss).
 torch::Tensor own_view_mse(const GaussianMaps& m, const TrainingSample& s, int64_t v, const torch::Device& device) {
-  GaussianMaps view;
-  view.xyz = m.xyz.narrow(1, v, 1);
-  view.rgb = m.rgb.narrow(1, v, 1);
-  view.opacity = m.opacity.narrow(1, v, 1);
-  view.scale = m.scale.narrow(1, v, 1);
-  view.rotation = m.rotation.narrow(1, v, 1);
-  const RenderOutput r = render(gaussians_from_maps(view), RenderCamera{s.input.view_cameras[static_cast<size_t>(v)]});
+  const RenderOutput r =
+      render(gaussians_from_maps(narrowed(m, 1, v)), RenderCamera{s.input.view_cameras[static_cast<size_t>(v)]});
   const torch::Tensor image = s.input.images[v].to(device);  // RGB (0 inside the mask), then the mask
   const torch::Tensor outside = (image[3] <= 0.5).to(torch::kFloat32);
   const torch::Tensor error = (to_signed_image(r.rgb)[0] - image.narrow(0, 0, 3)).pow(2) * outside;
@@ -253,11 +224,7 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
         sums[kDepth] += d.detach().to(torch::kFloat64);
         ++depth_samples;
       }
-      // The alignment's products keep what they multiply for their backward, which runs once:
-      // another cut.
-      const GradientCut sample_cut(
-          sample_maps(detached, static_cast<int64_t>(b), s, maps.depth, in.rays_o, options_.align_depth));
-      const GaussianMaps& per_sample = sample_cut.maps();
+      const GaussianMaps per_sample = narrowed(detached, 0, static_cast<int64_t>(b));
       const GaussianSet set = gaussians_from_maps(per_sample);
       const torch::Tensor target_images = s.target_images.to(options_.device);
       for (size_t m = 0; m < s.target_cameras.size(); ++m) {
@@ -276,7 +243,6 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
           ++own_views;
         }
       }
-      sample_cut.pass_back();
     }
     render_ms = clock.lap();
     network_cut.pass_back();
@@ -306,7 +272,7 @@ EvalStats Trainer::evaluate(const TrainingSample& sample, torch::Tensor* renders
   torch::NoGradGuard no_grad;
   const Batch in = collate({sample});
   const NetworkOutput out = network_.forward(in.images, in.plucker, in.rays_o, in.rays_d_un, options_.precision);
-  const GaussianMaps maps = sample_maps(out.gaussians, 0, sample, out.gaussians.depth, in.rays_o, options_.align_depth);
+  const GaussianMaps& maps = out.gaussians;
   const GaussianSet set = gaussians_from_maps(maps);
   const torch::Tensor targets = sample.target_images.to(options_.device);
   EvalStats stats;

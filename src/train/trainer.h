@@ -38,11 +38,6 @@ struct TrainerOptions {
   Precision precision = Precision::Float32;  // network forward; rendering and losses stay fp32
   bool checkpoint_blocks = false;            // recompute transformer blocks in backward
   torch::Device device = torch::kCPU;
-  // Each input's Gaussians scaled about its camera to the sample's depth (median_depth_ratios)
-  // before the renders, in training and validation: what infer/eval/serve do by default with
-  // --align-depth, so the renders are learnt where they will be drawn. Samples without depth
-  // keep the network's.
-  bool align_depth = false;
 };
 
 struct StepStats {

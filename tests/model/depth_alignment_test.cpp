@@ -88,38 +88,6 @@ TEST(DepthAlignment, TooFewPointsOrPointsInTheMaskChangeNothing) {
   EXPECT_EQ(a[0].points, 0);
 }
 
-// Training's form: the factors from a per-pixel target with unknown (0) pixels, and the scaling
-// out of place with its gradient (the factor is a constant: d xyz' / d xyz = f).
-TEST(DepthAlignment, TrainingScalesEachViewToItsDepthTargetDifferentiably) {
-  OneView o = one_view(2.0);
-  torch::Tensor predicted = torch::cat({o.maps.depth[0], o.maps.depth[0] * 0.25, o.maps.depth[0]});  // (3, 1, H, W)
-  torch::Tensor target = o.truth.view({1, 1, kH, kW}).repeat({3, 1, 1, 1});
-  target.select(3, 0).zero_();                   // unknown pixels in every view
-  target[2].zero_();
-  target[2][0][0].slice(0, 0, 19).fill_(1.0);    // 19 known pixels: fewer than 20
-  const torch::Tensor f = median_depth_ratios(predicted, target);
-  ASSERT_EQ(f.numel(), 3);
-  EXPECT_NEAR(f[0].item<double>(), 0.5, 1e-5);
-  EXPECT_NEAR(f[1].item<double>(), 2.0, 1e-5);
-  EXPECT_EQ(f[2].item<double>(), 1.0);
-  EXPECT_FALSE(f.requires_grad());
-
-  GaussianMaps maps = o.maps;
-  maps.xyz = maps.xyz.clone().requires_grad_(true);
-  maps.scale = maps.scale.clone().requires_grad_(true);
-  const Eigen::Vector3d c = o.input.views[0].camera.center();
-  const torch::Tensor centre = torch::tensor({c.x(), c.y(), c.z()}, torch::kFloat32).view({1, 3});
-  const GaussianMaps scaled = scaled_about_cameras(maps, f.narrow(0, 0, 1), centre);
-  EXPECT_LT(scaled.xyz[0][0][2].abs().max().item<double>(), 1e-4) << "the positions are on the plane z = 0";
-  EXPECT_LT((scaled.depth.view({kH, kW}) - o.truth).abs().max().item<double>(), 1e-4 * o.truth.max().item<double>());
-  EXPECT_NEAR(scaled.scale.max().item<double>(), 0.005, 1e-6);
-  (scaled.xyz.sum() + scaled.scale.sum()).backward();
-  EXPECT_TRUE(torch::allclose(maps.xyz.grad(), torch::full_like(maps.xyz, 0.5)));
-  EXPECT_TRUE(torch::allclose(maps.scale.grad(), torch::full_like(maps.scale, 0.5)));
-  EXPECT_THROW(median_depth_ratios(predicted, target.narrow(0, 0, 2)), Error);
-  EXPECT_THROW(scaled_about_cameras(maps, f, centre), Error);
-}
-
 TEST(DepthAlignment, ASyntheticScenesPointsComeFromItsDepthMaps) {
   const std::filesystem::path dir = test::synthetic_room("depth-alignment", 4, 32, 8);
   const Scene scene = load_scene(dir);

@@ -1,4 +1,4 @@
-// `instainpaint train --depth-weight` (and --align-depth, --own-view-weight) end to end: runs the built executable (beside the tests'
+// `instainpaint train --depth-weight` (and --own-view-weight) end to end: runs the built executable (beside the tests'
 // folder); skipped when it has not been built.
 #include <gtest/gtest.h>
 
@@ -47,18 +47,13 @@ TEST(TrainCli, DepthWeightReachesTheLossAndTheLogs) {
   EXPECT_EQ(steps, 2);
   EXPECT_GE(validations, 1);
 
-  // Trained as it is run (the depth aligned to the room's maps) with the own-view term: both in
-  // run.json, the term in every step's line, the own views' PSNR in the validation's.
-  ASSERT_EQ(test::run_command(common + (dir / "aligned").string() + "' --depth-weight 0.5 --align-depth --own-view-weight 0.5",
-                              log),
-            0)
-      << read_file_text(log);
-  const json run = json::parse(read_file_text(dir / "aligned" / "run.json"));
-  EXPECT_EQ(run["align_depth"], true);
-  EXPECT_EQ(run["loss"]["own_view"], 0.5);
-  std::ifstream aligned_lines(dir / "aligned" / "log.jsonl");
+  // The own-view term: in run.json, in every step's line, and the own views' PSNR in the
+  // validation's.
+  ASSERT_EQ(test::run_command(common + (dir / "own").string() + "' --own-view-weight 0.5", log), 0) << read_file_text(log);
+  EXPECT_EQ(json::parse(read_file_text(dir / "own" / "run.json"))["loss"]["own_view"], 0.5);
+  std::ifstream own_lines(dir / "own" / "log.jsonl");
   int own_terms = 0, own_psnrs = 0;
-  while (std::getline(aligned_lines, line)) {
+  while (std::getline(own_lines, line)) {
     const json j = json::parse(line);
     if (j.contains("own_view")) own_terms += j["own_view"].get<double>() > 0;
     if (j.contains("val_own_psnr")) own_psnrs += j["val_own_psnr"].get<double>() > 5;
