@@ -11,6 +11,7 @@
 
 #include "cli/commands.h"
 #include "cli/runtime.h"
+#include "cli/size_option.h"
 #include "common/error.h"
 #include "common/stopwatch.h"
 #include "common/torch_compat.h"
@@ -36,28 +37,6 @@ struct BenchArgs {
   int64_t tokens = 16384, heads = 16, head_dim = 64;
   RuntimeOptions runtime;
 };
-
-struct InputSize {
-  int width = 0, height = 0;
-};
-
-// "512" (square) or "904x512" (width x height).
-InputSize parse_size(const std::string& text) {
-  InputSize s;
-  const size_t x = text.find('x');
-  try {
-    size_t used = 0;
-    s.width = std::stoi(text.substr(0, x), &used);
-    if (used != (x == std::string::npos ? text.size() : x)) throw std::invalid_argument(text);
-    s.height = x == std::string::npos ? s.width : std::stoi(text.substr(x + 1), &used);
-    if (x != std::string::npos && used != text.size() - x - 1) throw std::invalid_argument(text);
-  } catch (const std::exception&) {
-    fail("--sizes: '{}' is not a size (expected N for N x N, or WIDTHxHEIGHT)", text);
-  }
-  if (s.width < 8 || s.height < 8 || s.width > 8192 || s.height > 8192)
-    fail("--sizes: {}x{} is outside 8..8192 pixels", s.width, s.height);
-  return s;
-}
 
 struct Inputs {
   torch::Tensor images, plucker, rays;
@@ -196,7 +175,7 @@ void run(const BenchArgs& a) {
   const std::string baseline = a.baseline == "auto" ? (gpu ? "official" : "textbook") : a.baseline;
   const bool graphs = gpu && a.cuda_graph && GraphedForward::available();
   std::vector<InputSize> sizes;
-  for (const std::string& s : a.sizes) sizes.push_back(parse_size(s));
+  for (const std::string& s : a.sizes) sizes.push_back(parse_size(s, "--sizes"));
   for (const std::string& preset : a.presets) {
     const int patch = ModelConfig::from_preset(preset).patch;
     for (const InputSize& size : sizes)

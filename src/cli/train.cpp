@@ -7,6 +7,7 @@
 #include <iterator>
 
 #include "cli/commands.h"
+#include "cli/size_option.h"
 #include "common/error.h"
 #include "model/config.h"
 #include "model/device.h"
@@ -32,6 +33,7 @@ struct TrainArgs {
   int width = 256, height = 256;
   int inputs = 4, targets = 8, clip = 15, max_masks = 4;
   std::vector<double> mask_mix{1, 2, 1};
+  std::vector<std::string> size_cycle;
   double lr = 8e-5, lr_start = 1e-10, lr_final = 1e-6;
   int64_t warmup = -1;
   double weight_decay = 0.05, clip_norm = 1.0;
@@ -85,6 +87,10 @@ TrainRunOptions run_options(const TrainArgs& a) {
   o.sampler.stage = a.stage == "reconstruct" ? TrainStage::Reconstruct : TrainStage::Inpaint;
   o.sampler.width = a.width;
   o.sampler.height = a.height;
+  for (const std::string& text : a.size_cycle) {
+    const InputSize size = parse_size(text, "--size-cycle");
+    o.sampler.size_cycle.emplace_back(size.width, size.height);
+  }
   o.sampler.num_inputs = a.inputs;
   o.sampler.num_targets = a.targets;
   o.sampler.depth_from_photos = a.depth_from_photos;
@@ -182,6 +188,11 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--batch", args->batch, "Samples per process and step")->capture_default_str();
   cmd->add_option("--width", args->width, "Training image width")->capture_default_str();
   cmd->add_option("--height", args->height, "Training image height")->capture_default_str();
+  cmd->add_option("--size-cycle", args->size_cycle,
+                  "Working sizes taken in turn, one per step, in place of --width/--height: N or WxH each,\n"
+                  "repeated for weight (128,128,128,256: every fourth step at 256 x 256); validation\n"
+                  "samples take them in turn too")
+      ->delimiter(',');
   cmd->add_option("--inputs", args->inputs, "Input views per sample (reference first)")->capture_default_str();
   cmd->add_option("--targets", args->targets, "Supervised target views per sample")->capture_default_str();
   cmd->add_option("--clip", args->clip, "Clip length in frames that inputs and targets come from")->capture_default_str();

@@ -80,6 +80,7 @@ nlohmann::json options_json(const TrainRunOptions& o, const DistributedConfig& d
           {"processes", d.world_size},
           {"seed", o.seed},
           {"size", {o.sampler.width, o.sampler.height}},
+          {"size_cycle", o.sampler.size_cycle},
           {"inputs", o.sampler.num_inputs},
           {"targets", o.sampler.num_targets},
           {"clip_length", o.sampler.clip_length},
@@ -223,11 +224,16 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
   // (and from other scenes when --val-scenes is given); each process evaluates its share.
   const uint64_t val_seed = options.seed ^ 0x76616c6964617465ULL;
   std::vector<std::pair<int, TrainingSample>> val_set;
+  // With a size cycle, each training step takes one size (every sample of the global batch) and the
+  // validation samples take them in turn.
+  SamplerOptions sampler = options.sampler, val_sampler = options.sampler;
+  sampler.step_samples = options.batch * world;
+  val_sampler.step_samples = 1;
   if (options.val_every > 0)
     for (int i = rank; i < options.val_samples; i += world)
-      val_set.emplace_back(i, make_sample(val_scenes, options.sampler, val_seed, i));
+      val_set.emplace_back(i, make_sample(val_scenes, val_sampler, val_seed, i));
 
-  SampleStream stream(std::move(scenes), options.sampler, options.seed, first_index, rank, world, options.workers);
+  SampleStream stream(std::move(scenes), sampler, options.seed, first_index, rank, world, options.workers);
   std::ofstream log;
   if (lead) {
     log.open(log_file, std::ios::app);
@@ -339,6 +345,8 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
                            {"backward_ms", s.backward_ms},
                            {"update_ms", s.update_ms},
                            {"samples_per_s", 1000.0 * s.samples / step_ms}};
+    if (!options.sampler.size_cycle.empty())
+      line["size"] = {batch.front().input.images.size(3), batch.front().input.images.size(2)};
     if (s.nonfinite_tensors > 0 && lead)
       spdlog::warn("step {}: {} gradient tensor(s) held NaN/Inf values (set to 0)", step, s.nonfinite_tensors);
 

@@ -5,6 +5,7 @@
 #include <list>
 #include <memory>
 #include <numeric>
+#include <tuple>
 #include <unordered_map>
 
 #include "common/error.h"
@@ -124,6 +125,9 @@ void check_sampler_options(const SamplerOptions& o) {
   if (o.clip_length < o.num_inputs + 1)
     fail("sampler: clip_length {} leaves no supervision frame besides {} inputs", o.clip_length, o.num_inputs);
   if (o.height < 8 || o.width < 8) fail("sampler: working size {}x{} is too small", o.width, o.height);
+  for (const auto& [w, h] : o.size_cycle)
+    if (h < 8 || w < 8) fail("sampler: working size {}x{} of the size cycle is too small", w, h);
+  if (o.step_samples < 1) fail("sampler: step_samples must be at least 1, got {}", o.step_samples);
   if (o.max_mask_count < 1) fail("sampler: max_mask_count must be at least 1, got {}", o.max_mask_count);
   for (double w : o.mask_mix)
     if (!std::isfinite(w) || w < 0)
@@ -388,10 +392,19 @@ TrainingSample make_scene_sample(const Scene& scene, const SamplerOptions& o, ui
   return sample;
 }
 
+SamplerOptions options_for_index(const SamplerOptions& options, int64_t index) {
+  SamplerOptions o = options;
+  if (!o.size_cycle.empty()) {
+    const auto turn = static_cast<size_t>(index / std::max(1, o.step_samples)) % o.size_cycle.size();
+    std::tie(o.width, o.height) = o.size_cycle[turn];
+  }
+  return o;
+}
+
 TrainingSample make_sample(const std::vector<Scene>& scenes, const SamplerOptions& options, uint64_t seed,
                            int64_t index) {
   const Scene& scene = scenes[scene_for_index(scenes.size(), seed, index)];
-  return make_scene_sample(scene, options, sample_seed(seed, index));
+  return make_scene_sample(scene, options_for_index(options, index), sample_seed(seed, index));
 }
 
 // ---- prefetching stream ------------------------------------------------------------------

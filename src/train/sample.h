@@ -53,7 +53,16 @@ struct SamplerOptions {
   // Scenes without depth maps (real captures): each input's depth at points triangulated from the
   // scene's photos (data/photo_points.h; sparse, 0 elsewhere), for the depth loss.
   bool depth_from_photos = false;
+  // Working sizes (width, height) taken in turn, one per training step (steps_samples consecutive
+  // sample indices: the global batch), in place of width x height when not empty: a model run at
+  // several sizes is trained at each of them in one run, which training them one after the other
+  // did not give (session 24: 200 steps at 256² after 128² lost 2.8 dB at 128²).
+  std::vector<std::pair<int, int>> size_cycle;
+  int step_samples = 1;
 };
+
+// `options` with the working size that sample `index` takes (SamplerOptions::size_cycle).
+SamplerOptions options_for_index(const SamplerOptions& options, int64_t index);
 
 struct TrainingSample {
   ModelInput input;                    // num_inputs views, reference first, images (V,4,H,W) in [-1,1] (+ mask)

@@ -392,6 +392,34 @@ TEST(Sample, StreamPrefetchesInOrder) {
   EXPECT_EQ(test::error_message([&] { SampleStream({}, o, 1, 0); }), "sample stream: no training scenes");
 }
 
+// A size cycle: every sample of a step (the global batch: step_samples indices) takes that step's
+// size, in turn, with the intrinsics of that size; ranks of a world agree; a size too small is refused.
+TEST(Sample, ASizeCycleGivesEachStepOneSizeInTurn) {
+  const std::vector<Scene> scenes = {load_scene(write_scene(18)), load_scene(write_scene(9))};
+  SamplerOptions o = small_options();
+  o.num_targets = 2;
+  o.size_cycle = {{32, 32}, {32, 32}, {48, 40}};
+  o.step_samples = 4;  // batch 2 on 2 ranks
+  auto size_of = [](const TrainingSample& s) { return std::make_pair(int(s.input.images.size(3)), int(s.input.images.size(2))); };
+  for (int rank : {0, 1}) {
+    SampleStream stream(scenes, o, 42, 0, rank, 2, 2, 2);
+    for (int step = 0; step < 6; ++step)
+      for (int j = 0; j < 2; ++j) {
+        const TrainingSample s = stream.next();
+        const std::pair<int, int> want = step % 3 == 2 ? std::make_pair(48, 40) : std::make_pair(32, 32);
+        EXPECT_EQ(size_of(s), want) << "rank " << rank << " step " << step;
+        EXPECT_EQ(s.target_images.size(3), want.first);
+        EXPECT_EQ(s.target_cameras[0].K.width, want.first);
+        EXPECT_EQ(s.target_cameras[0].K.height, want.second);
+      }
+  }
+  EXPECT_EQ(options_for_index(o, 9).width, 48);
+  EXPECT_EQ(options_for_index(o, 12).width, 32);
+  o.size_cycle.emplace_back(4, 32);
+  EXPECT_EQ(test::error_message([&] { check_sampler_options(o); }),
+            "sampler: working size 4x32 of the size cycle is too small");
+}
+
 TEST(Sample, StreamWorkerErrorsSurfaceAsExceptions) {
   const fs::path dir = write_scene(8, SceneFiles::with(false, false, false));
   const std::vector<Scene> scenes = {load_scene(dir)};

@@ -1,4 +1,4 @@
-// `instainpaint train --depth-weight` (and --own-view-weight) end to end: runs the built executable (beside the tests'
+// `instainpaint train --depth-weight` (and --own-view-weight, --size-cycle) end to end: runs the built executable (beside the tests'
 // folder); skipped when it has not been built.
 #include <gtest/gtest.h>
 
@@ -60,6 +60,20 @@ TEST(TrainCli, DepthWeightReachesTheLossAndTheLogs) {
   }
   EXPECT_EQ(own_terms, 2);
   EXPECT_GE(own_psnrs, 1);
+
+  // A size cycle: one size per step, in turn, logged; in run.json; a size that is none refused.
+  ASSERT_EQ(test::run_command(common + (dir / "sizes").string() + "' --size-cycle 32,40x32", log), 0)
+      << read_file_text(log);
+  EXPECT_EQ(json::parse(read_file_text(dir / "sizes" / "run.json"))["size_cycle"].dump(), "[[32,32],[40,32]]");
+  std::ifstream size_lines(dir / "sizes" / "log.jsonl");
+  std::vector<std::string> sizes;
+  while (std::getline(size_lines, line))
+    if (json::parse(line).contains("size")) sizes.push_back(json::parse(line)["size"].dump());
+  EXPECT_EQ(sizes, (std::vector<std::string>{"[32,32]", "[40,32]"}));
+  EXPECT_NE(test::run_command(common + (dir / "bad-size").string() + "' --size-cycle 32,big", log), 0);
+  EXPECT_NE(read_file_text(log).find("--size-cycle: 'big' is not a size (expected N for N x N, or WIDTHxHEIGHT)"),
+            std::string::npos)
+      << read_file_text(log);
 
   // A negative weight is refused before anything runs.
   EXPECT_NE(test::run_command(common + (dir / "bad").string() + "' --depth-weight -1", log), 0);
