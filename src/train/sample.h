@@ -53,7 +53,7 @@ struct SamplerOptions {
   // Scenes without depth maps (real captures): each input's depth at points triangulated from the
   // scene's photos (data/photo_points.h; sparse, 0 elsewhere), for the depth loss.
   bool depth_from_photos = false;
-  // Working sizes (width, height) taken in turn, one per training step (steps_samples consecutive
+  // Working sizes (width, height) taken in turn, one per training step (step_samples consecutive
   // sample indices: the global batch), in place of width x height when not empty: a model run at
   // several sizes is trained at each of them in one run, which training them one after the other
   // did not give (session 24: 200 steps at 256² after 128² lost 2.8 dB at 128²).
