@@ -270,8 +270,11 @@ Image points_depth(const std::vector<Eigen::Vector3d>& points, const Camera& cam
   return depth;
 }
 
-std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colmap, std::string* source, int stride,
+std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colmap, PointsOrigin* origin, int stride,
                                                    const std::vector<int>& triangulate_from) {
+  auto say = [&](PointsSource kind, std::string description) {
+    if (origin) *origin = {kind, std::move(description)};
+  };
   std::vector<Eigen::Vector3d> points;
   int maps = 0;
   for (const View& view : scene.views) {
@@ -289,13 +292,13 @@ std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colm
       }
   }
   if (!points.empty()) {
-    if (source) *source = fmt::format("{} views' depth maps ({} points)", maps, points.size());
+    say(PointsSource::DepthMaps, fmt::format("{} views' depth maps ({} points)", maps, points.size()));
     return points;
   }
   if (colmap) {
     const auto sparse = scene_points(scene);
     if (!sparse->empty()) {
-      if (source) *source = fmt::format("the COLMAP model's points ({} used)", sparse->size());
+      say(PointsSource::Colmap, fmt::format("the COLMAP model's points ({} used)", sparse->size()));
       return *sparse;
     }
   }
@@ -305,17 +308,17 @@ std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colm
       photos = cached_photo_points(scene, triangulate_from);
     } catch (const Error& e) {  // a neighbour's unreadable photo: the network's depth as it is
       spdlog::warn("no points triangulated from the photos: {}", e.what());
-      if (source) *source = fmt::format("none (triangulating the photos failed: {})", e.what());
+      say(PointsSource::None, fmt::format("none (triangulating the photos failed: {})", e.what()));
       return points;
     }
     if (!photos->points.empty()) {
-      if (source)
-        *source = fmt::format("points triangulated from {} views' photos ({} points from {} matches, {:.1f} s)",
-                              triangulate_from.size(), photos->points.size(), photos->matches, photos->seconds);
+      say(PointsSource::Photos,
+          fmt::format("points triangulated from {} views' photos ({} points from {} matches, {:.1f} s)",
+                      triangulate_from.size(), photos->points.size(), photos->matches, photos->seconds));
       return photos->points;
     }
   }
-  if (source) *source = "none";
+  say(PointsSource::None, "none");
   return points;
 }
 

@@ -96,13 +96,20 @@ double typical_scene_depth(const Scene& scene, const Camera& reference, const st
 // A view's z-depth at `points` (scene frame; the nearest where several meet a pixel), 0 elsewhere.
 Image points_depth(const std::vector<Eigen::Vector3d>& points, const Camera& camera);
 
+// Which of a scene's geometries gave its points (scene_geometry_points), and in words.
+enum class PointsSource { None, DepthMaps, Colmap, Photos };
+struct PointsOrigin {
+  PointsSource kind = PointsSource::None;
+  std::string description = "none";  // e.g. "4 views' depth maps (64 points)"; with None, why
+};
+
 // The 3D points a scene carries, in its own frame: points of its input views' depth maps
 // (synthetic scenes' depth/, every `stride`-th pixel of each), else, with `colmap`, its COLMAP
 // model's (at most 2000, read once per scene), else, with `triangulate_from` (indices into
 // scene.views), points triangulated from those views' photos and their neighbours
-// (data/photo_points.h; once per scene and views); empty when it has none. `source` (optional)
+// (data/photo_points.h; once per scene and views); empty when it has none. `origin` (optional)
 // says which.
-std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colmap, std::string* source = nullptr,
+std::vector<Eigen::Vector3d> scene_geometry_points(const Scene& scene, bool colmap, PointsOrigin* origin = nullptr,
                                                    int stride = 8, const std::vector<int>& triangulate_from = {});
 
 }  // namespace ii

@@ -42,14 +42,14 @@ namespace {
 
 struct ScenePoints {
   std::vector<Eigen::Vector3d> points;
-  std::string source;
+  PointsOrigin origin;
 };
 
 ScenePoints gather_scene_points(const Scene& scene, DepthPoints which, const std::vector<int>& context) {
   ScenePoints out;
   const bool colmap = which == DepthPoints::any;
   const bool photos = which == DepthPoints::any || which == DepthPoints::photos;
-  out.points = scene_geometry_points(scene, colmap, &out.source, 8, photos ? context : std::vector<int>{});
+  out.points = scene_geometry_points(scene, colmap, &out.origin, 8, photos ? context : std::vector<int>{});
   return out;
 }
 
@@ -75,7 +75,8 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
   if (options.align_depth != DepthPoints::none) {
     const ScenePoints gathered =
         points.valid() ? points.get() : gather_scene_points(scene, options.align_depth, p.input.context);
-    p.geometry = gathered.source;
+    p.geometry = gathered.origin.description;
+    p.geometry_kind = gathered.origin.kind;
     if (!gathered.points.empty()) p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points);
     p.stages.lap("align depth to the scene's points");
   }

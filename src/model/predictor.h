@@ -16,6 +16,7 @@
 #include "gaussians/gaussians.h"
 #include "model/config.h"
 #include "model/network.h"
+#include "data/masks.h"
 #include "model/depth_alignment.h"
 #include "model/scene_input.h"
 
@@ -29,6 +30,7 @@ struct Prediction {
   // With SceneInputOptions::align_depth: each context view's depth scaled to the scene's points.
   std::vector<DepthAlignment> depth_alignment;
   std::string geometry = "off";  // the points' source, "none" when the scene has none, or "off"
+  PointsSource geometry_kind = PointsSource::None;  // which it was (None when off)
 
   // What run.json and metrics.json record of the depth alignment.
   nlohmann::json describe_geometry() const;

@@ -778,7 +778,7 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   // The edits scale their depth to points triangulated from the photos, as this prediction did:
   // every photo's features are detected behind the answer, while the page is painted on, so that
   // the first edit only matches them (statue, 2 cores: the first edit 0.85 s without, 0.47 s with).
-  if (p.geometry.rfind("points triangulated", 0) == 0) {
+  if (p.geometry_kind == PointsSource::Photos) {
     std::vector<int> all(scene->views.size());
     for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
     behind.emplace_back("photo features", [this, all, &stages] {

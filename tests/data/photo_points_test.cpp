@@ -104,10 +104,11 @@ TEST(PhotoPoints, AnUnreadablePhotoLeavesTheScenesPointsEmptyAndSaysWhy) {
   const Scene scene = fern_copy(dir, "photo-points-bad-geometry");
   const fs::path broken = scene.views[0].image_path;
   std::ofstream(broken, std::ios::trunc) << "not an image";
-  std::string source;
-  EXPECT_TRUE(scene_geometry_points(scene, false, &source, 8, {0}).empty());
-  EXPECT_EQ(source.rfind("none (triangulating the photos failed: ", 0), 0u) << source;
-  EXPECT_NE(source.find(broken.string()), std::string::npos) << source;
+  PointsOrigin origin;
+  EXPECT_TRUE(scene_geometry_points(scene, false, &origin, 8, {0}).empty());
+  EXPECT_EQ(origin.description.rfind("none (triangulating the photos failed: ", 0), 0u) << origin.description;
+  EXPECT_EQ(origin.kind, PointsSource::None);
+  EXPECT_NE(origin.description.find(broken.string()), std::string::npos) << origin.description;
 }
 
 }  // namespace

@@ -91,10 +91,11 @@ TEST(DepthAlignment, TooFewPointsOrPointsInTheMaskChangeNothing) {
 TEST(DepthAlignment, ASyntheticScenesPointsComeFromItsDepthMaps) {
   const std::filesystem::path dir = test::synthetic_room("depth-alignment", 4, 32, 8);
   const Scene scene = load_scene(dir);
-  std::string source;
-  const std::vector<Eigen::Vector3d> points = scene_geometry_points(scene, false, &source);
+  PointsOrigin origin;
+  const std::vector<Eigen::Vector3d> points = scene_geometry_points(scene, false, &origin);
   EXPECT_EQ(points.size(), 4u * 16u);  // every 8th pixel of 32 x 32, 4 views
-  EXPECT_EQ(source, "4 views' depth maps (64 points)");
+  EXPECT_EQ(origin.description, "4 views' depth maps (64 points)");
+  EXPECT_EQ(origin.kind, PointsSource::DepthMaps);
   // Each point is at its depth map's depth from its view.
   const std::optional<Image> depth = load_view_depth(scene, scene.views[0]);
   ASSERT_TRUE(depth.has_value());
@@ -102,8 +103,9 @@ TEST(DepthAlignment, ASyntheticScenesPointsComeFromItsDepthMaps) {
   const Eigen::Vector3d c = w2c.block<3, 3>(0, 0) * points[0] + w2c.block<3, 1>(0, 3);
   EXPECT_NEAR(c.z(), depth->at(4, 4), 1e-4 * depth->at(4, 4));
   std::filesystem::remove_all(dir / "depth");
-  EXPECT_TRUE(scene_geometry_points(load_scene(dir), false, &source).empty());
-  EXPECT_EQ(source, "none");
+  EXPECT_TRUE(scene_geometry_points(load_scene(dir), false, &origin).empty());
+  EXPECT_EQ(origin.description, "none");
+  EXPECT_EQ(origin.kind, PointsSource::None);
 }
 
 TEST(DepthAlignment, WithoutDepthMapsTheScenesPointsAreTriangulatedFromItsPhotos) {
@@ -113,11 +115,12 @@ TEST(DepthAlignment, WithoutDepthMapsTheScenesPointsAreTriangulatedFromItsPhotos
   ASSERT_TRUE(truth.has_value());
   std::filesystem::remove_all(dir / "depth");
   const Scene scene = load_scene(dir);
-  std::string source;
-  EXPECT_TRUE(scene_geometry_points(scene, false, &source).empty()) << "only when asked";
-  const std::vector<Eigen::Vector3d> points = scene_geometry_points(scene, false, &source, 8, {0, 1});
-  ASSERT_GE(points.size(), 30u) << source;
-  EXPECT_EQ(source.rfind("points triangulated from 2 views' photos (", 0), 0u) << source;
+  PointsOrigin origin;
+  EXPECT_TRUE(scene_geometry_points(scene, false, &origin).empty()) << "only when asked";
+  const std::vector<Eigen::Vector3d> points = scene_geometry_points(scene, false, &origin, 8, {0, 1});
+  ASSERT_GE(points.size(), 30u) << origin.description;
+  EXPECT_EQ(origin.description.rfind("points triangulated from 2 views' photos (", 0), 0u) << origin.description;
+  EXPECT_EQ(origin.kind, PointsSource::Photos);
   // The points seen by view 0 lie at its true depth: the median relative error is small.
   const Camera& camera = scene.views[0].camera;
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
@@ -132,7 +135,7 @@ TEST(DepthAlignment, WithoutDepthMapsTheScenesPointsAreTriangulatedFromItsPhotos
   }
   ASSERT_GE(errors.size(), 30u);
   std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
-  EXPECT_LT(errors[errors.size() / 2], 0.03) << source;
+  EXPECT_LT(errors[errors.size() / 2], 0.03) << origin.description;
 }
 
 }  // namespace

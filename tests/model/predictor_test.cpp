@@ -61,11 +61,13 @@ TEST(Predictor, ScalesTheDepthToThePhotosPointsByDefault) {
   const Predictor predictor("", torch::kCPU, Precision::Float32);
   const Prediction raw = predictor.predict(scene, two_views());
   EXPECT_EQ(raw.geometry, "off");
+  EXPECT_EQ(raw.geometry_kind, PointsSource::None);
   SceneInputOptions opts = two_views();
   opts.align_depth = SceneInputOptions().align_depth;
   ASSERT_EQ(opts.align_depth, DepthPoints::photos);
   const Prediction aligned = predictor.predict(scene, opts);
   EXPECT_EQ(aligned.geometry.rfind("points triangulated from 2 views' photos (", 0), 0u) << aligned.geometry;
+  EXPECT_EQ(aligned.geometry_kind, PointsSource::Photos);
   ASSERT_EQ(aligned.depth_alignment.size(), 2u);
   for (int64_t v = 0; v < 2; ++v) {
     const double s = aligned.depth_alignment[static_cast<size_t>(v)].scale;
