@@ -107,13 +107,18 @@ TEST(Trainer, TwoPhaseBackwardEqualsJointBackward) {
   EXPECT_GT(params.tensors()[0].grad().abs().max().item<double>(), 0);  // the patch embedding learns
 }
 
-TEST(Trainer, DepthLossEntersTheTwoPhaseBackward) {
-  std::vector<TrainingSample> batch = test::tiny_batch(3, 0, 2);
-  // Depth for the first sample only (the second stands for a real scene without depth maps),
-  // with unknown (0) pixels.
+// Depth for the first sample only (the second stands for a real scene without depth maps),
+// with unknown (0) pixels; seeded.
+void give_the_first_sample_depth(std::vector<TrainingSample>& batch) {
   const torch::Tensor& images = batch[0].input.images;
+  torch::manual_seed(5);
   batch[0].input_depths = torch::rand({images.size(0), 1, images.size(2), images.size(3)}) * 3 + 0.5;
   batch[0].input_depths.select(3, 0).zero_();
+}
+
+TEST(Trainer, DepthLossEntersTheTwoPhaseBackward) {
+  std::vector<TrainingSample> batch = test::tiny_batch(3, 0, 2);
+  give_the_first_sample_depth(batch);
   TrainerOptions o = options_for_test();
   o.loss.depth_weight = 0.7;
   Trainer trainer(test::seeded_network(2), o);
@@ -135,10 +140,7 @@ TEST(Trainer, DepthLossEntersTheTwoPhaseBackward) {
 // mean is the loss's share.
 TEST(Trainer, OwnViewTermEntersTheTwoPhaseBackward) {
   std::vector<TrainingSample> batch = test::tiny_batch(3, 0, 2);
-  const torch::Tensor& images = batch[0].input.images;
-  torch::manual_seed(5);
-  batch[0].input_depths = torch::rand({images.size(0), 1, images.size(2), images.size(3)}) * 3 + 0.5;
-  batch[0].input_depths.select(3, 0).zero_();
+  give_the_first_sample_depth(batch);
   TrainerOptions o = options_for_test();
   o.loss.depth_weight = 0.3;
   o.loss.own_view_weight = 0.5;
