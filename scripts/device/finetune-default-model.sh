@@ -60,7 +60,9 @@ phase() {  # size ("cycle": SIZE_CYCLE) batch steps seconds lr init
   local size=$1 batch=$2 steps=$3 seconds=$4 lr=$5 init=$6 run="$WORK/run-$1"
   local size_args=(--width "$size" --height "$size")
   [ "$size" = cycle ] && size_args=(--size-cycle "$SIZE_CYCLE")
-  step "phase at $size x $size: $steps steps, batch $batch, peak lr $lr, at most $seconds s"
+  local label="$size x $size"
+  [ "$size" = cycle ] && label="the sizes $SIZE_CYCLE in turn"
+  step "phase at $label: $steps steps, batch $batch, peak lr $lr, at most $seconds s"
   ( while sleep 15; do [ -f "$run/model.safetensors" ] && cp "$run/model.safetensors" "$OUT/model-$size.safetensors.tmp" &&
       mv "$OUT/model-$size.safetensors.tmp" "$OUT/model-$size.safetensors"; done ) &
   local copier=$!
