@@ -85,9 +85,8 @@ try {
     exact.on("pageerror", (e) => errors.push(`page: ${e.message}`));
     await exact.goto(server.page(`view=2&exact=1&ply=${encodeURIComponent(ply)}`), { timeout: 120000 });
     await exact.evaluate(() => window.instainpaint.ready);
-    await h.frames(exact, 10);
     const shot = join(dir, `${tag}.png`);
-    writeFileSync(shot, await exact.locator("canvas").first().screenshot());
+    writeFileSync(shot, await h.settledScreenshot(exact, exact.locator("canvas").first()));
     await exact.close();
     const m = JSON.parse(h.run(["metrics", shot, join(scene, "clean", "view_002.png"), "--mask",
       join(scene, "images_4", "label", "view_002.png"), "--json"]));

@@ -29,9 +29,8 @@ try {
 
   // The box around the object: the splats inside are hidden at once.
   const shot = async (name) => {
-    await h.frames(page, 10);
     const file = join(dir, name);
-    writeFileSync(file, await page.locator("#viewer canvas").first().screenshot());
+    writeFileSync(file, await h.settledScreenshot(page, page.locator("#viewer canvas").first()));
     return file;
   };
   const before = await shot("before.png");

@@ -93,6 +93,23 @@ export async function frames(page, count) {
   await page.waitForFunction((n) => window.instainpaint.frames >= n, target, { timeout: 120000 });
 }
 
+// A screenshot of `locator` once the viewer's picture has settled: batches of `count` frames, a
+// pause between them, until two screenshots in a row are the same (at most `tries` batches). Spark
+// sorts in a worker; on a loaded machine a fixed number of frames was once not enough (CI, the
+// edit's masked PSNR measured on a half-drawn picture).
+export async function settledScreenshot(page, locator, count = 10, tries = 10) {
+  await frames(page, count);
+  let shot = await locator.screenshot();
+  for (let i = 0; i < tries; ++i) {
+    await new Promise((resolve) => setTimeout(resolve, 250));
+    await frames(page, count);
+    const next = await locator.screenshot();
+    if (next.equals(shot)) return next;
+    shot = next;
+  }
+  return shot;
+}
+
 // The share of the viewer's pixels that are not the white background (runs in the page:
 // page.evaluate(h.drawnFraction)).
 export function drawnFraction() {

@@ -24,9 +24,8 @@ try {
   // From scene view 1, at its size, with its intrinsics.
   await page.goto(server.page("view=1&exact=1"));
   await page.evaluate(() => window.instainpaint.ready);
-  await h.frames(page, 10);  // Spark sorts in a worker: let it settle
   const shot = join(dir, "page-view_001.png");
-  writeFileSync(shot, await page.locator("canvas").first().screenshot());
+  writeFileSync(shot, await h.settledScreenshot(page, page.locator("canvas").first()));
   h.run(["render", "--ply", ply, "--scene", scene, "--views", "view_001", "--no-video", "--out",
     join(dir, "render")]);
   const m = JSON.parse(h.run(["metrics", shot, join(dir, "render", "rgb", "0000.png"), "--json"]));
@@ -46,9 +45,8 @@ try {
     errors.push(...h.collectErrors(cpage));
     await cpage.goto(other.page("view=1&exact=1"));
     await cpage.evaluate(() => window.instainpaint.ready);
-    await h.frames(cpage, 10);
     const cshot = join(dir, `page-view_001-${file}.png`);
-    writeFileSync(cshot, await cpage.locator("canvas").first().screenshot());
+    writeFileSync(cshot, await h.settledScreenshot(cpage, cpage.locator("canvas").first()));
     const mc = JSON.parse(h.run(["metrics", cshot, join(dir, "render", "rgb", "0000.png"), "--json"]));
     const cpsnr = mc.psnr === "inf" ? Infinity : mc.psnr;
     console.log(`page (${file}) vs render of the float PLY from view_001: PSNR ${cpsnr.toFixed(2)} dB, SSIM ${mc.ssim.toFixed(3)}`);
