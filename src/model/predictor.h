@@ -13,10 +13,10 @@
 #include <nlohmann/json.hpp>
 
 #include "common/stage_times.h"
+#include "data/masks.h"
 #include "gaussians/gaussians.h"
 #include "model/config.h"
 #include "model/network.h"
-#include "data/masks.h"
 #include "model/depth_alignment.h"
 #include "model/scene_input.h"
 
