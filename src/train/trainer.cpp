@@ -31,41 +31,6 @@ torch::Tensor to_signed_image(const torch::Tensor& rgb) {
   return (rgb * 2.0 - 1.0).clamp(-1.0, 1.0).permute({2, 0, 1}).unsqueeze(0);
 }
 
-// `maps` cut from their graph: losses back-propagate one at a time into the copy's leaves, and
-// pass_back() carries what they gathered through the maps' own graph in one backward pass.
-class GradientCut {
- public:
-  explicit GradientCut(const GaussianMaps& maps) {
-    for (const torch::Tensor* t : {&maps.xyz, &maps.rgb, &maps.opacity, &maps.scale, &maps.rotation, &maps.depth})
-      if (t->defined()) roots_.push_back(*t);
-    auto leaf = [&](const torch::Tensor& t) {
-      if (!t.defined()) return torch::Tensor();
-      leaves_.push_back(t.detach().requires_grad_(true));
-      return leaves_.back();
-    };
-    copy_.xyz = leaf(maps.xyz);
-    copy_.rgb = leaf(maps.rgb);
-    copy_.opacity = leaf(maps.opacity);
-    copy_.scale = leaf(maps.scale);
-    copy_.rotation = leaf(maps.rotation);
-    copy_.depth = leaf(maps.depth);
-  }
-  const GaussianMaps& maps() const { return copy_; }
-  void pass_back() const {
-    std::vector<torch::Tensor> roots, grads;
-    for (size_t i = 0; i < leaves_.size(); ++i)
-      if (leaves_[i].grad().defined() && roots_[i].requires_grad()) {
-        roots.push_back(roots_[i]);
-        grads.push_back(leaves_[i].grad());
-      }
-    if (!roots.empty()) torch::autograd::backward(roots, grads);
-  }
-
- private:
-  std::vector<torch::Tensor> roots_, leaves_;
-  GaussianMaps copy_;
-};
-
 // Input view v's own Gaussians (of one sample's maps) rendered at its own camera: the MSE against
 // its image outside its mask, in [-1, 1] (eval's "own views" check, as a loss).
 torch::Tensor own_view_mse(const GaussianMaps& m, const TrainingSample& s, int64_t v, const torch::Device& device) {
@@ -204,16 +169,23 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
     const GaussianMaps& maps = out.gaussians;
     forward_ms = clock.lap();
     // Spec §6.4 memory saving: renders back-propagate one at a time into detached copies of
-    // the maps; the network's backward then runs once with the accumulated gradients. xyz is
-    // made from depth, so a depth loss enters through a leaf of its own.
+    // the maps; the network's backward then runs once with the accumulated gradients.
+    std::vector<torch::Tensor> roots{maps.xyz, maps.rgb, maps.opacity, maps.scale, maps.rotation};
+    // xyz is made from depth, so a depth loss enters through a sixth leaf of its own.
     const double depth_weight = options_.loss.depth_weight;
     const bool supervise_depth =
         depth_weight > 0 &&
         std::any_of(batch.begin(), batch.end(), [](const TrainingSample& s) { return s.input_depths.defined(); });
-    GaussianMaps cut_maps = maps;
-    if (!supervise_depth) cut_maps.depth = torch::Tensor();
-    const GradientCut network_cut(cut_maps);
-    const GaussianMaps& detached = network_cut.maps();
+    if (supervise_depth) roots.push_back(maps.depth);
+    std::vector<torch::Tensor> leaves;
+    for (const torch::Tensor& r : roots) leaves.push_back(r.detach().requires_grad_(true));
+    GaussianMaps detached;
+    detached.xyz = leaves[0];
+    detached.rgb = leaves[1];
+    detached.opacity = leaves[2];
+    detached.scale = leaves[3];
+    detached.rotation = leaves[4];
+    if (supervise_depth) detached.depth = leaves[5];
 
     const double weight = 1.0 / static_cast<double>(targets);
     for (size_t b = 0; b < batch.size(); ++b) {
@@ -244,8 +216,10 @@ StepStats Trainer::compute_gradients(const std::vector<TrainingSample>& batch) {
         }
       }
     }
+    std::vector<torch::Tensor> grads;
+    for (const torch::Tensor& l : leaves) grads.push_back(l.grad().defined() ? l.grad() : torch::zeros_like(l));
     render_ms = clock.lap();
-    network_cut.pass_back();
+    torch::autograd::backward(roots, grads);
   }
 
   const torch::Tensor read = sums.cpu();
