@@ -33,6 +33,7 @@ ModelConfig ModelConfig::from_preset(const std::string& name) {
     c.depth_far = 20.0;
     c.depth_bias = -2.0;
     c.scale_bias = -3.3;  // about a pixel wide at 64-128 px instead of 2-5 px
+    c.scale_reference_height = 128;  // where it is trained
     c.rgb_from_input = true;
     return c;
   }
@@ -92,6 +93,9 @@ void ModelConfig::validate() const {
     fail("model config: embed_dim {} is not divisible by {} heads", embed_dim, heads);
   if (image_channels != 3 && image_channels != 4)
     fail("model config: image_channels must be 3 (RGB) or 4 (RGB + mask), got {}", image_channels);
+  if (scale_reference_height < 0)
+    fail("model config: scale_reference_height must be 0 (sizes in scene units) or a height in pixels, got {}",
+         scale_reference_height);
 }
 
 nlohmann::json ModelConfig::to_json() const {
@@ -111,6 +115,7 @@ nlohmann::json ModelConfig::to_json() const {
           {"scale_min", scale_min},
           {"scale_max", scale_max},
           {"opacity_bias", opacity_bias},
+          {"scale_reference_height", scale_reference_height},
           {"rgb_from_input", rgb_from_input}};
 }
 
@@ -140,6 +145,7 @@ ModelConfig ModelConfig::from_json(const nlohmann::json& j) {
   get("scale_min", c.scale_min);
   get("scale_max", c.scale_max);
   get("opacity_bias", c.opacity_bias);
+  get("scale_reference_height", c.scale_reference_height);
   get("rgb_from_input", c.rgb_from_input);
   return c;
 }

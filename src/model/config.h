@@ -23,6 +23,11 @@ struct ModelConfig {
   double depth_near = 0.0, depth_far = 500.0, depth_bias = -4.0;
   double scale_bias = -2.3, scale_min = 1e-4, scale_max = 0.3;
   double opacity_bias = -2.0;
+  // Ours, not official: 0 = the scale head gives sizes in scene units at any working height (the
+  // official model's, trained at 512 rows). N = its sizes are those of N-row pictures and shrink
+  // with the working height H by N / H, so that each Gaussian keeps its width in pixels: a
+  // model trained at 128 rows and run at 512 otherwise draws every Gaussian four pixels wide.
+  int scale_reference_height = 0;
   // Ours, not official: the colour head predicts a correction to the input pixel's colour
   // instead of the colour itself. A small model trained briefly otherwise spends its steps
   // learning to copy colours through the transformer (and renders blurry averages).

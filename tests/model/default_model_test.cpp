@@ -15,6 +15,7 @@ TEST(DefaultModel, IsEmbeddedAndRunsAsTheMiniInpaintingModel) {
   EXPECT_EQ(ck.config.preset, "mini");
   EXPECT_EQ(ck.config.image_channels, 4);  // stage 2: RGB + mask
   EXPECT_TRUE(ck.config.rgb_from_input);
+  EXPECT_EQ(ck.config.scale_reference_height, 128) << "sizes of the 128-row pictures it was trained on";
   const Network net = network_from_checkpoint(ck, kDefaultModelName);
 
   torch::manual_seed(3);

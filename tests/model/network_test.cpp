@@ -116,6 +116,33 @@ TEST(Network, RgbFromInputAddsTheHeadToTheInputColour) {
   EXPECT_LT((with_skip - expected).abs().max().item<float>(), 1e-6);
 }
 
+// A model whose sizes are those of 128-row pictures, run at 16 rows: every Gaussian 8 times as
+// large as in scene units, everything else alike; the setting travels with the config.
+TEST(Network, ScaleReferenceHeightKeepsTheGaussiansWidthInPixels) {
+  torch::manual_seed(6);
+  ModelConfig c = ModelConfig::from_preset("tiny");
+  Network in_scene_units(c);
+  const torch::Tensor images = torch::rand({1, 2, 4, 16, 16}) * 2 - 1;
+  const torch::Tensor plucker = torch::randn({1, 2, 6, 16, 16});
+  const torch::Tensor rays = torch::randn({1, 2, 16, 16, 3});
+  const GaussianMaps plain = in_scene_units.forward(images, plucker, rays, rays).gaussians;
+  c.scale_reference_height = 128;
+  Network in_pixels(c, false);
+  std::map<std::string, torch::Tensor> state(in_scene_units.named_parameters().begin(),
+                                             in_scene_units.named_parameters().end());
+  in_pixels.load(state, "test");
+  const GaussianMaps scaled = in_pixels.forward(images, plucker, rays, rays).gaussians;
+  EXPECT_TRUE(torch::allclose(scaled.scale, plain.scale * 8.0, 1e-6, 0));
+  EXPECT_TRUE(torch::equal(scaled.xyz, plain.xyz));
+  EXPECT_TRUE(torch::equal(scaled.opacity, plain.opacity));
+  EXPECT_EQ(ModelConfig::from_json(c.to_json()).scale_reference_height, 128);
+  EXPECT_EQ(ModelConfig::from_preset("mini").scale_reference_height, 128);
+  EXPECT_EQ(ModelConfig::from_preset("release").scale_reference_height, 0) << "the official model's sizes are in scene units";
+  c.scale_reference_height = -1;
+  EXPECT_EQ(test::error_message([&] { c.validate(); }),
+            "model config: scale_reference_height must be 0 (sizes in scene units) or a height in pixels, got -1");
+}
+
 // The heads' first Linears run as one product over a concatenation kept between inference
 // calls; loading other weights must not leave the old concatenation (or its bf16 copy) behind.
 TEST(Network, FusedHeadsFollowEveryLoad) {
