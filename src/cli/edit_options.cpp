@@ -49,6 +49,7 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
       ->check(CLI::IsMember({"telea", "ns", "patch"}))
       ->capture_default_str();
   add_align_depth_option(cmd, args.align_depth);
+  add_frame_margin_option(cmd, args.frame_margin);
 }
 
 void add_align_depth_option(CLI::App* cmd, std::string& align_depth) {
@@ -62,10 +63,20 @@ void add_align_depth_option(CLI::App* cmd, std::string& align_depth) {
       ->capture_default_str();
 }
 
+void add_frame_margin_option(CLI::App* cmd, double& fraction) {
+  cmd->add_option("--frame-margin", fraction,
+                  "Continue each context view's Gaussians past the edges of its picture by this fraction of its "
+                  "height (its border pixels repeated outward along their rays), so that views a little beside the "
+                  "context cameras show the scene's edge instead of the background; 0 = none (the paper's)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+}
+
 void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
   options.inpainter = parse_inpainter(args.inpainter);
   options.align_depth = parse_depth_points(args.align_depth);
+  options.frame_margin.fraction = args.frame_margin;
 }
 
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene) {

@@ -94,11 +94,13 @@ MetricNetworks load_metric_networks(const EvalOptions& o, const torch::Device& d
 json own_views(const Prediction& p, const GaussianSet& g) {
   torch::NoGradGuard no_grad;
   json views = json::array();
-  const int64_t pixels = g.size() / static_cast<int64_t>(p.input.views.size());
+  // g's rows: each view's pixels in turn (the maps' order), then those past the frames.
+  const int64_t pixels = p.maps.depth.size(3) * p.maps.depth.size(4);
+  const torch::Tensor view_of_row = torch::arange(g.size(), g.means.device()).div(pixels, "floor");
   double sum = 0;
   for (size_t v = 0; v < p.input.views.size(); ++v) {
     const PreparedView& view = p.input.views[v];
-    const GaussianSet own = select_rows(g, torch::arange(g.size(), g.means.device()).div(pixels, "floor").eq(static_cast<int64_t>(v)));
+    const GaussianSet own = select_rows(g, view_of_row.eq(static_cast<int64_t>(v)));
     RenderCamera rc;
     rc.camera = p.input.normalization.apply(view.camera);
     const torch::Tensor rendered = render(own, rc).rgb.permute({2, 0, 1}).unsqueeze(0).to(torch::kCPU);
@@ -151,6 +153,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   opts.reference_view = o.reference_view;
   opts.keep_object = o.keep_object;
   opts.align_depth = o.align_depth;
+  opts.frame_margin = o.frame_margin;
   if (o.edit) {
     spdlog::info("masks for every view from the region on {}", o.edit->view);
     const SceneMasks masks =

@@ -31,6 +31,7 @@
 #include "data/scene.h"
 #include "edit/scene_masks.h"
 #include "eval/metrics.h"
+#include "model/frame_margin.h"
 #include "model/network.h"
 #include "model/predictor.h"
 
@@ -62,6 +63,7 @@ struct EvalOptions {
   std::optional<OneMask> edit;  // one marked view instead of the scene's masks
   bool keep_object = false;     // a reconstruction: no masks, the reference's own photo
   DepthPoints align_depth = DepthPoints::photos;  // SceneInputOptions::align_depth
+  FrameMarginOptions frame_margin;                // SceneInputOptions::frame_margin
   // Applied to the network's Gaussians before rendering (e.g. refinement, which lives above
   // eval): given the scene, the prediction and its input options; fills `report`.
   std::function<GaussianSet(const Scene&, const Prediction&, const SceneInputOptions&, GaussianSet, nlohmann::json& report)>

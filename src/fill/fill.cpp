@@ -360,6 +360,7 @@ Prediction predict_holes(const std::vector<CameraViews>& views, const ChosenCame
   input.inpainter = options.inpainter;
   input.view_cache = &cache;
   input.align_depth = DepthPoints::none;  // renders in memory: no depth maps, no photos to triangulate
+  input.frame_margin.fraction = 0;        // the region's Gaussians are taken from the maps alone
   for (size_t i = 0; i < views.size(); ++i) {
     const NamedCamera& c = cameras.cameras[i];
     View view;

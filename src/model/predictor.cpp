@@ -80,14 +80,22 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
     if (!gathered.points.empty()) p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points);
     p.stages.lap("align depth to the scene's points");
   }
+  p.beyond_frame = gaussians_beyond_frame(p.maps, p.input.input, options.frame_margin);
+  p.frame_margin = describe_frame_margin(options.frame_margin, p.maps.depth.size(3), p.beyond_frame.size());
+  if (p.beyond_frame.size() > 0) p.stages.lap("Gaussians past the frames");
   return p;
+}
+
+GaussianSet Prediction::gaussians() const {
+  const GaussianSet per_pixel = gaussians_from_maps(maps);
+  return beyond_frame.size() > 0 ? joined(per_pixel, beyond_frame) : per_pixel;
 }
 
 nlohmann::json Prediction::describe_geometry() const {
   nlohmann::json views = nlohmann::json::array();
   for (const DepthAlignment& a : depth_alignment)
     views.push_back({{"view", a.view}, {"scale", a.scale}, {"points", a.points}});
-  return {{"source", geometry}, {"views", views}};
+  return {{"source", geometry}, {"views", views}, {"frame_margin", frame_margin}};
 }
 
 }  // namespace ii

@@ -18,6 +18,7 @@
 #include "model/config.h"
 #include "model/network.h"
 #include "model/depth_alignment.h"
+#include "model/frame_margin.h"
 #include "model/scene_input.h"
 
 namespace ii {
@@ -32,11 +33,17 @@ struct Prediction {
   std::string geometry = "off";  // the points' source, "none" when the scene has none, or "off"
   PointsSource geometry_kind = PointsSource::None;  // which it was (None when off)
 
+  // With SceneInputOptions::frame_margin: each view's Gaussians past the edges of its picture
+  // (model/frame_margin.h), an empty set without.
+  GaussianSet beyond_frame;
+  nlohmann::json frame_margin;  // what run.json and metrics.json record of it
+
   // What run.json and metrics.json record of the depth alignment.
   nlohmann::json describe_geometry() const;
 
-  // One Gaussian per input pixel, rows in the official order (views of `maps`).
-  GaussianSet gaussians() const { return gaussians_from_maps(maps); }
+  // One Gaussian per input pixel, rows in the official order (views of `maps`), then those past
+  // the frames.
+  GaussianSet gaussians() const;
 };
 
 class Predictor {

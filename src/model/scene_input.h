@@ -13,6 +13,7 @@
 #include "data/preprocess.h"
 #include "data/scene.h"
 #include "gaussians/gaussians.h"
+#include "model/frame_margin.h"
 #include "model/model_input.h"
 
 namespace ii {
@@ -51,6 +52,9 @@ struct SceneInputOptions {
   // model's depth is 1.3-5x too near), or with `any` its COLMAP points before the photos', or
   // none (the network's output as it is, the paper's).
   DepthPoints align_depth = DepthPoints::photos;
+  // Predictor::predict: each view's Gaussians continued past the edges of its picture
+  // (model/frame_margin.h); fraction 0 = none (the paper's).
+  FrameMarginOptions frame_margin;
 };
 
 struct SceneInput {

@@ -643,6 +643,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.num_views = options.views;
   input.view_cache = &views;
   input.align_depth = options.align_depth;
+  input.frame_margin = options.frame_margin;
   OneMask request;
   request.view = view.name;
   request.region = edit.region;
@@ -764,6 +765,7 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   input.keep_object = true;
   input.view_cache = &views;
   input.align_depth = options.align_depth;
+  input.frame_margin = options.frame_margin;
   stage("reconstructing the scene as captured (object kept)", 0.2);
   const Prediction p = predictor->predict(*scene, input);
   stages.merge(p.stages);

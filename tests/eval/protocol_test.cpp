@@ -283,15 +283,20 @@ TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
   EXPECT_EQ(m["prediction"]["checkpoint"], checkpoint.string());
   EXPECT_EQ(m["prediction"]["context"], json::array({"03", "02", "04", "05"}));
   EXPECT_EQ(m["prediction"]["reference"], "telea");
-  EXPECT_EQ(m["prediction"]["gaussians"], 4 * test::kSceneWidth * test::kSceneHeight);
+  // One Gaussian a pixel, then those past the frames (an eighth of the height past each edge).
+  const int margin = static_cast<int>(std::lround(test::kSceneHeight / 8.0));
+  const int past = (test::kSceneWidth + 2 * margin) * (test::kSceneHeight + 2 * margin) - test::kSceneWidth * test::kSceneHeight;
+  EXPECT_EQ(m["prediction"]["gaussians"], 4 * (test::kSceneWidth * test::kSceneHeight + past));
+  EXPECT_EQ(m["prediction"]["geometry"]["frame_margin"]["pixels"], margin);
   // The prediction's stages come first; computation is the work between the files.
   const std::vector<std::string> names = stage_names(m);
-  ASSERT_GE(names.size(), 11u);
-  EXPECT_EQ(std::vector<std::string>(names.begin(), names.begin() + 11),
+  ASSERT_GE(names.size(), 12u);
+  EXPECT_EQ(std::vector<std::string>(names.begin(), names.begin() + 12),
             std::vector<std::string>({"read scene", "load model: read checkpoint", "load model: network from checkpoint",
                                       "load model: weights to cpu", "prepare context views",
                                       "inpaint reference (telea)", "network input", "upload", "network",
-                                      "align depth to the scene's points", "gaussians to the renderer"}));
+                                      "align depth to the scene's points", "Gaussians past the frames",
+                                      "gaussians to the renderer"}));
   EXPECT_EQ(m["prediction"]["geometry"]["source"], "none");  // the test scene has no depth maps or points
   ASSERT_EQ(m["prediction"]["own_views"]["views"].size(), 4u);
   EXPECT_TRUE(m["prediction"]["own_views"]["mean_psnr_outside_mask"].is_number());

@@ -47,7 +47,8 @@ TEST(Predictor, GivesWhatTheStepsItReplacesGive) {
   const SceneInput si = prepare_scene_input(scene, two_views());
   const Network net = network_from_checkpoint(default_checkpoint(), "default");
   expect_same_maps(p.maps, run_network(net, si.input, Precision::Float32));
-  EXPECT_EQ(p.gaussians().size(), 2 * 64 * 80);
+  // One Gaussian a pixel, then 8 pixels (an eighth of 64 rows) past each frame's edges.
+  EXPECT_EQ(p.gaussians().size(), 2 * 64 * 80 + 2 * (96 * 80 - 80 * 64));
   // Loaded once, called again: the same answer.
   expect_same_maps(predictor.predict(scene, two_views()).maps, p.maps);
 }

@@ -1,0 +1,126 @@
+// Gaussians past the frame: each view's border pixels continued outward. Every new Gaussian
+// takes its nearest border pixel's attributes and depth and sits on its own pixel's ray, checked
+// against the rays of a larger camera (the same pose and focal length, the principal point moved
+// by the margin) computed independently; a margin of 0 adds nothing; the prediction joins them
+// after the per-pixel rows and records them.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "camera/trajectory.h"
+#include "model/frame_margin.h"
+#include "model/model_input.h"
+#include "model/predictor.h"
+#include "synthetic_room.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+constexpr int kW = 12, kH = 8, kViews = 2;
+
+Camera view_camera(int v) {
+  Camera c;
+  c.K = Intrinsics::from_fov(kW, kH, 60 * M_PI / 180, 2 * std::atan(std::tan(30 * M_PI / 180) * kH / kW));
+  c.c2w = look_at({0.3 + v, 0.2, 3}, {0, 0, 0}, {0, 1, 0});
+  return c;
+}
+
+struct Views {
+  ModelInput input;
+  GaussianMaps maps;
+};
+
+// Two views with seeded random attributes, their positions on their rays at their depth.
+Views two_views() {
+  Views s;
+  torch::manual_seed(7);
+  const std::vector<Camera> cameras = {view_camera(0), view_camera(1)};
+  compute_ray_tensors(cameras, s.input.rays_o, s.input.rays_d, s.input.rays_d_un, s.input.plucker);
+  s.input.view_cameras = cameras;
+  s.maps.depth = 1.0 + torch::rand({1, kViews, 1, kH, kW});
+  s.maps.rgb = torch::rand({1, kViews, 3, kH, kW});
+  s.maps.opacity = torch::rand({1, kViews, 1, kH, kW});
+  s.maps.scale = 0.01 * torch::rand({1, kViews, 3, kH, kW});
+  s.maps.rotation = torch::randn({1, kViews, 4, kH, kW});
+  s.maps.xyz = s.input.rays_o.permute({0, 3, 1, 2}).unsqueeze(0) +
+               s.maps.depth * s.input.rays_d_un.permute({0, 3, 1, 2}).unsqueeze(0);
+  return s;
+}
+
+TEST(FrameMargin, EachNewGaussianRepeatsItsNearestBorderPixelOnItsOwnRay) {
+  const Views s = two_views();
+  FrameMarginOptions options;
+  options.fraction = 0.25;  // 2 pixels at 8 rows
+  ASSERT_EQ(frame_margin_pixels(kH, options), 2);
+  const GaussianSet g = gaussians_beyond_frame(s.maps, s.input, options);
+  constexpr int m = 2, kOuterW = kW + 2 * m, kOuterH = kH + 2 * m;
+  constexpr int per_view = kOuterW * kOuterH - kW * kH;
+  ASSERT_EQ(g.size(), kViews * per_view);
+
+  for (int v = 0; v < kViews; ++v) {
+    // The same camera on a frame 2 pixels larger on every side: its pixel (u + m, v + m) is
+    // this view's pixel (u, v), past the frame too.
+    Camera larger = view_camera(v);
+    larger.K.width = kOuterW;
+    larger.K.height = kOuterH;
+    larger.K.cx += m;
+    larger.K.cy += m;
+    const Rays rays = compute_rays(larger);
+    int k = v * per_view;
+    for (int row = -m; row < kH + m; ++row)
+      for (int col = -m; col < kW + m; ++col) {
+        if (row >= 0 && row < kH && col >= 0 && col < kW) continue;
+        const int br = std::clamp(row, 0, kH - 1), bc = std::clamp(col, 0, kW - 1);
+        const double depth = s.maps.depth[0][v][0][br][bc].item<double>();
+        const size_t ray = static_cast<size_t>((row + m) * kOuterW + (col + m)) * 3;
+        for (int c = 0; c < 3; ++c) {
+          const double expected = rays.origin[ray + c] + depth * rays.dir_unnorm[ray + c];
+          ASSERT_NEAR(g.means[k][c].item<double>(), expected, 1e-5) << "view " << v << " pixel " << col << "," << row;
+          ASSERT_EQ(g.colors[k][c].item<float>(), s.maps.rgb[0][v][c][br][bc].item<float>());
+          ASSERT_EQ(g.scales[k][c].item<float>(), s.maps.scale[0][v][c][br][bc].item<float>());
+        }
+        ASSERT_EQ(g.opacities[k].item<float>(), s.maps.opacity[0][v][0][br][bc].item<float>());
+        for (int c = 0; c < 4; ++c) ASSERT_EQ(g.quats[k][c].item<float>(), s.maps.rotation[0][v][c][br][bc].item<float>());
+        ++k;
+      }
+    ASSERT_EQ(k, (v + 1) * per_view);
+  }
+}
+
+TEST(FrameMargin, NoMarginAddsNothingAndABadFractionIsNamed) {
+  const Views s = two_views();
+  FrameMarginOptions none;
+  none.fraction = 0;
+  EXPECT_EQ(gaussians_beyond_frame(s.maps, s.input, none).size(), 0);
+  FrameMarginOptions bad;
+  bad.fraction = -0.1;
+  EXPECT_EQ(test::error_message([&] { frame_margin_pixels(kH, bad); }),
+            "frame margin: the fraction of the height must be between 0 and 1 (got -0.1)");
+}
+
+TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
+  const std::filesystem::path dir = test::synthetic_room("frame-margin", 4, 64, 8);
+  const Scene scene = load_scene(dir);
+  const Predictor predictor("", torch::kCPU, Precision::Float32);
+  SceneInputOptions options;
+  options.keep_object = true;
+  options.preprocess.height = 64;
+  const Prediction with = predictor.predict(scene, options);
+  options.frame_margin.fraction = 0;
+  const Prediction without = predictor.predict(scene, options);
+  const int64_t pixels = 4 * 64 * 64, margin = 4 * (80 * 80 - 64 * 64);  // 8 pixels at 64 rows
+  EXPECT_EQ(without.gaussians().size(), pixels);
+  const GaussianSet joined_set = with.gaussians();
+  ASSERT_EQ(joined_set.size(), pixels + margin);
+  EXPECT_TRUE(torch::equal(joined_set.means.narrow(0, 0, pixels), without.gaussians().means));
+  EXPECT_TRUE(torch::equal(joined_set.means.narrow(0, pixels, margin), with.beyond_frame.means));
+  const nlohmann::json recorded = with.describe_geometry()["frame_margin"];
+  EXPECT_EQ(recorded["fraction"], 0.125);
+  EXPECT_EQ(recorded["pixels"], 8);
+  EXPECT_EQ(recorded["gaussians"], margin);
+  EXPECT_EQ(without.describe_geometry()["frame_margin"]["gaussians"], 0);
+}
+
+}  // namespace
+}  // namespace ii
