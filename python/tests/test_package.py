@@ -41,7 +41,10 @@ def test_attributes_are_arrays_over_the_librarys_memory(statue, predictor):
     g = predictor.predict(statue, height=HEIGHT)
     n = len(g)
     photo = statue.camera(statue.views[0])
-    assert n == 4 * HEIGHT * (photo.width * HEIGHT // photo.height // 8 * 8)  # one per pixel of 4 views
+    width = photo.width * HEIGHT // photo.height // 8 * 8
+    margin = round(HEIGHT / 8)  # Gaussians past each frame's edges, an eighth of its height
+    assert n == 4 * (width + 2 * margin) * (HEIGHT + 2 * margin)
+    assert len(predictor.predict(statue, height=HEIGHT, frame_margin=0)) == 4 * HEIGHT * width  # one per pixel
     for name, shape in [("means", (n, 3)), ("quats", (n, 4)), ("scales", (n, 3)), ("opacities", (n,)),
                         ("colors", (n, 3))]:
         a = getattr(g, name)
@@ -103,7 +106,8 @@ def test_render_of_a_saved_and_reloaded_prediction(tmp_path, statue, predictor):
 def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
     raw = predictor.predict(statue, height=HEIGHT, align_depth="none")
     g = predictor.predict(statue, height=HEIGHT)
-    assert raw.geometry == {"source": "off", "views": []}
+    assert raw.geometry["source"] == "off" and raw.geometry["views"] == []
+    assert raw.geometry["frame_margin"]["fraction"] == 0.125
     assert g.geometry["source"].startswith("points triangulated from 4 views' photos ("), g.geometry
     assert [v["view"] for v in g.geometry["views"]] == g.context
     assert all(v["points"] >= 20 and v["scale"] > 0 for v in g.geometry["views"]), g.geometry
