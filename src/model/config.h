@@ -24,9 +24,11 @@ struct ModelConfig {
   double scale_bias = -2.3, scale_min = 1e-4, scale_max = 0.3;
   double opacity_bias = -2.0;
   // Ours, not official: 0 = the scale head gives sizes in scene units at any working height (the
-  // official model's, trained at 512 rows). N = its sizes are those of N-row pictures and shrink
-  // with the working height H by N / H, so that each Gaussian keeps its width in pixels: a
-  // model trained at 128 rows and run at 512 otherwise draws every Gaussian four pixels wide.
+  // official model's, trained at 512 rows). N = its sizes are those of N-row pictures: at a
+  // working height H above N they shrink by N / H, so that each Gaussian keeps its width in
+  // pixels (a model trained at 128 rows and run at 512 otherwise draws every Gaussian four pixels
+  // wide); below N they stay (the default model was trained at 64 rows too: twice as wide at 64
+  // rows blurred the page's edit, web.browser.edit).
   int scale_reference_height = 0;
   // Ours, not official: the colour head predicts a correction to the input pixel's colour
   // instead of the colour itself. A small model trained briefly otherwise spends its steps

@@ -374,7 +374,8 @@ NetworkOutput Network::forward(const torch::Tensor& images, const torch::Tensor&
   g.rgb = config_.rgb_from_input ? raw[1] + (images.slice(2, 0, 3).to(torch::kFloat32) + 1.0) * 0.5 : raw[1];
   g.opacity = torch::sigmoid(raw[2] + config_.opacity_bias);
   g.scale = torch::clamp(torch::exp(raw[3] + config_.scale_bias), config_.scale_min, config_.scale_max);
-  if (config_.scale_reference_height > 0) g.scale = g.scale * (static_cast<double>(config_.scale_reference_height) / H);
+  if (config_.scale_reference_height > 0 && H > config_.scale_reference_height)
+    g.scale = g.scale * (static_cast<double>(config_.scale_reference_height) / H);
   // The norm over the 4 quaternion channels as a sum of squares: LibTorch 1.13's norm() over
   // that outer dimension took 340 ms at 4 x 904 x 512 on 2 cores, the sum 10 ms or less.
   g.rotation = raw[4] / torch::clamp_min((raw[4] * raw[4]).sum(2, true).sqrt(), 1e-5);

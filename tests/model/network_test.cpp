@@ -116,8 +116,9 @@ TEST(Network, RgbFromInputAddsTheHeadToTheInputColour) {
   EXPECT_LT((with_skip - expected).abs().max().item<float>(), 1e-6);
 }
 
-// A model whose sizes are those of 128-row pictures, run at 16 rows: every Gaussian 8 times as
-// large as in scene units, everything else alike; the setting travels with the config.
+// A model whose sizes are those of 8-row pictures, run at 16 rows: every Gaussian half as large
+// as in scene units, everything else alike; at 16 rows or fewer (a reference of 16 or 32) as in
+// scene units; the setting travels with the config.
 TEST(Network, ScaleReferenceHeightKeepsTheGaussiansWidthInPixels) {
   torch::manual_seed(6);
   ModelConfig c = ModelConfig::from_preset("tiny");
@@ -126,15 +127,21 @@ TEST(Network, ScaleReferenceHeightKeepsTheGaussiansWidthInPixels) {
   const torch::Tensor plucker = torch::randn({1, 2, 6, 16, 16});
   const torch::Tensor rays = torch::randn({1, 2, 16, 16, 3});
   const GaussianMaps plain = in_scene_units.forward(images, plucker, rays, rays).gaussians;
-  c.scale_reference_height = 128;
-  Network in_pixels(c, false);
-  std::map<std::string, torch::Tensor> state(in_scene_units.named_parameters().begin(),
-                                             in_scene_units.named_parameters().end());
-  in_pixels.load(state, "test");
-  const GaussianMaps scaled = in_pixels.forward(images, plucker, rays, rays).gaussians;
-  EXPECT_TRUE(torch::allclose(scaled.scale, plain.scale * 8.0, 1e-6, 0));
+  const std::map<std::string, torch::Tensor> state(in_scene_units.named_parameters().begin(),
+                                                   in_scene_units.named_parameters().end());
+  auto run_with_reference = [&](int reference) {
+    c.scale_reference_height = reference;
+    Network in_pixels(c, false);
+    in_pixels.load(state, "test");
+    return in_pixels.forward(images, plucker, rays, rays).gaussians;
+  };
+  const GaussianMaps scaled = run_with_reference(8);
+  EXPECT_TRUE(torch::allclose(scaled.scale, plain.scale * 0.5, 1e-6, 0));
   EXPECT_TRUE(torch::equal(scaled.xyz, plain.xyz));
   EXPECT_TRUE(torch::equal(scaled.opacity, plain.opacity));
+  EXPECT_TRUE(torch::equal(run_with_reference(16).scale, plain.scale));
+  EXPECT_TRUE(torch::equal(run_with_reference(32).scale, plain.scale));
+  c.scale_reference_height = 128;
   EXPECT_EQ(ModelConfig::from_json(c.to_json()).scale_reference_height, 128);
   EXPECT_EQ(ModelConfig::from_preset("mini").scale_reference_height, 128);
   EXPECT_EQ(ModelConfig::from_preset("release").scale_reference_height, 0) << "the official model's sizes are in scene units";
