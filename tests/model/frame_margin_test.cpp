@@ -5,9 +5,11 @@
 // after the per-pixel rows and records them.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "camera/trajectory.h"
+#include "model/default_model.h"
 #include "model/frame_margin.h"
 #include "model/model_input.h"
 #include "model/predictor.h"
@@ -100,6 +102,7 @@ TEST(FrameMargin, NoMarginAddsNothingAndABadFractionIsNamed) {
 }
 
 TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
+  if (!has_default_model()) GTEST_SKIP() << "this build has no default model";
   const std::filesystem::path dir = test::synthetic_room("frame-margin", 4, 64, 8);
   const Scene scene = load_scene(dir);
   const Predictor predictor("", torch::kCPU, Precision::Float32);
