@@ -49,12 +49,12 @@ GaussianSet gaussians_beyond_frame(const GaussianMaps& maps, const ModelInput& i
 
   // Rays of a pinhole camera are affine in the pixel index: continue them past the frame from
   // the first pixel's ray and its steps along a row and down a column.
-  const torch::Tensor rays = input.rays_d_un.to(f32);  // (V, H, W, 3), z-depth directions
-  const torch::Tensor first = rays.select(1, 0).select(1, 0).view({V, 1, 3});
-  const torch::Tensor along_row = (rays.select(1, 0).select(1, 1) - rays.select(1, 0).select(1, 0)).view({V, 1, 3});
-  const torch::Tensor down_column = (rays.select(1, 1).select(1, 0) - rays.select(1, 0).select(1, 0)).view({V, 1, 3});
+  const torch::Tensor& rays = input.rays_d_un;  // (V, H, W, 3), z-depth directions
+  const torch::Tensor first = rays.select(1, 0).select(1, 0).to(f32).view({V, 1, 3});
+  const torch::Tensor along_row = rays.select(1, 0).select(1, 1).to(f32).view({V, 1, 3}) - first;
+  const torch::Tensor down_column = rays.select(1, 1).select(1, 0).to(f32).view({V, 1, 3}) - first;
   const torch::Tensor direction = first + u.to(f32).view({1, n, 1}) * along_row + v.to(f32).view({1, n, 1}) * down_column;
-  const torch::Tensor origin = input.rays_o.to(f32).select(1, 0).select(1, 0).view({V, 1, 3});
+  const torch::Tensor origin = input.rays_o.select(1, 0).select(1, 0).to(f32).view({V, 1, 3});
   g.means = (origin + depth * direction).reshape({V * n, 3}).to(maps.xyz.scalar_type());
   return g;
 }

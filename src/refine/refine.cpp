@@ -1,6 +1,5 @@
 #include "refine/refine.h"
 
-#include <algorithm>
 #include <cmath>
 
 #include <Eigen/LU>
@@ -461,10 +460,18 @@ nlohmann::json refinement_report(const RefineResult& r, const RefineOptions& opt
 }
 
 GaussianSet thinned_prediction(const GaussianSet& gaussians, const Prediction& prediction, int stride) {
-  stride = std::max(stride, 1);
   // The network's Gaussians are per pixel, in the order view, row, column; those past the frames
   // (model/frame_margin.h) follow them and are left out: refinement starts from what the
   // context views saw, and its densification grows the rest from the views it fits.
+  int64_t pixels = 0;
+  for (const PreparedView& v : prediction.input.views) pixels += int64_t(v.rgb.width) * v.rgb.height;
+  if (gaussians.size() != pixels && gaussians.size() != pixels + prediction.beyond_frame.size())
+    fail("refine: {} Gaussians do not match the prediction's {} pixels", gaussians.size(), pixels);
+  GaussianSet g = gaussians;
+  if (stride <= 1) {
+    for (torch::Tensor* t : {&g.means, &g.scales, &g.quats, &g.opacities, &g.colors}) *t = t->narrow(0, 0, pixels);
+    return g;
+  }
   std::vector<int64_t> rows;
   int64_t first = 0;
   for (const PreparedView& v : prediction.input.views) {
@@ -472,11 +479,7 @@ GaussianSet thinned_prediction(const GaussianSet& gaussians, const Prediction& p
       for (int x = 0; x < v.rgb.width; x += stride) rows.push_back(first + int64_t(y) * v.rgb.width + x);
     first += int64_t(v.rgb.width) * v.rgb.height;
   }
-  if (gaussians.size() != first && gaussians.size() != first + prediction.beyond_frame.size())
-    fail("refine: {} Gaussians do not match the prediction's {} pixels", gaussians.size(), first);
-  if (stride == 1 && gaussians.size() == first) return gaussians;
   const torch::Tensor index = torch::tensor(rows, torch::kInt64).to(gaussians.means.device());
-  GaussianSet g = gaussians;
   for (torch::Tensor* t : {&g.means, &g.scales, &g.quats, &g.opacities, &g.colors}) *t = t->index_select(0, index);
   g.scales = g.scales * stride;
   return g;

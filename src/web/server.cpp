@@ -769,13 +769,15 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   stage("reconstructing the scene as captured (object kept)", 0.2);
   const Prediction p = predictor->predict(*scene, input);
   stages.merge(p.stages);
-  // Kept for the edits' masks: their marked view's depth drawn from it.
-  GaussianSet kept = p.gaussians();  // the network's dtype (bf16 on a GPU): the rasterizer draws float32
+  // One set (the per-pixel rows and those past the frames joined once), written and kept for the
+  // edits' masks: their marked view's depth drawn from it.
+  const GaussianSet predicted = p.gaussians();
+  GaussianSet kept = predicted;  // the network's dtype (bf16 on a GPU): the rasterizer draws float32
   for (torch::Tensor* t : {&kept.means, &kept.quats, &kept.scales, &kept.opacities, &kept.colors})
     *t = t->to(render_device(predictor->device()), torch::kFloat32);
   reconstruction = std::move(kept);
   stage("writing the Gaussians", 0.9);
-  json result = write_splats_of(p.gaussians(), dir, id, stages, behind);
+  json result = write_splats_of(predicted, dir, id, stages, behind);
   result["reference_view"] = p.input.views.front().name;
   // The edits scale their depth to points triangulated from the photos, as this prediction did:
   // every photo's features are detected behind the answer, while the page is painted on, so that
