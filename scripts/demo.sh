@@ -76,8 +76,9 @@ step "6/6 metrics on the object-free test views: the model, refined, and two 2D 
 # Each row says what made it: the model and the geometry its depth was aligned to.
 made_by() {  # made_by METRICS.JSON
   python3 -c 'import json,sys; p=json.load(open(sys.argv[1]))["prediction"]
-g=p.get("geometry", {}).get("source")
-print(("%s, depth aligned to %s" % (p["checkpoint"], g) if g not in (None, "off", "none") else "%s, its own depth" % p["checkpoint"]) if "checkpoint" in p else "splats of %s" % p["ply"] if "ply" in p else "2D baseline")' "$1"
+g=p.get("geometry", {}).get("source"); d=p.get("geometry", {}).get("detail", 0)
+aligned="%s, depth aligned to %s%s" % (p.get("checkpoint"), g, ", detail %g" % d if d else "")
+print((aligned if g not in (None, "off", "none") else "%s, its own depth" % p["checkpoint"]) if "checkpoint" in p else "splats of %s" % p["ply"] if "ply" in p else "2D baseline")' "$1"
 }
 for method in model model-raw refined telea mean-fill; do
   args=(--method "$method")

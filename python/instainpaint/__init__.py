@@ -210,7 +210,8 @@ class Predictor:
     def predict(self, scene: Scene, *, context: Sequence[str] = (), views: int = 4,
                 reference: Union[PathLike, Any, None] = None, reference_view: str = "", height: int = 256,
                 masks: Optional[Mapping[str, Any]] = None, keep_object: bool = False,
-                align_depth: str = "photos", frame_margin: float = 0.125) -> Gaussians:
+                align_depth: str = "photos", depth_detail: float = 1.5,
+                frame_margin: float = 0.125) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -222,6 +223,8 @@ class Predictor:
         align_depth: each context view's depth scaled to the scene's points (`--align-depth`):
         "photos" (depth maps, else points triangulated from the photos), "any" (COLMAP's points
         before the photos'), "depth-maps" or "none" (the network's depth as it is).
+        depth_detail: how closely the aligned depth follows the points beyond one scale per view
+        (`--depth-detail`): the local correction's width in point spacings; 0 for the scale alone.
         frame_margin: each context view's Gaussians continued past the edges of its picture by this
         fraction of its height (`--frame-margin`), so that nearby views show no background at
         their edges; 0 for none (the paper's).
@@ -229,7 +232,8 @@ class Predictor:
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
         return Gaussians(self._p._predict(scene, list(context), views, reference, reference_view, height,
-                                          keep_object, dict(masks or {}), align_depth, frame_margin))
+                                          keep_object, dict(masks or {}), align_depth, float(depth_detail),
+                                          frame_margin))
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

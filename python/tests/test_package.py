@@ -114,6 +114,12 @@ def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
     assert any(abs(v["scale"] - 1) > 0.5 for v in g.geometry["views"]), g.geometry  # the statue is seen too near
     np.testing.assert_array_equal(g.colors, raw.colors)
     assert not np.allclose(g.means, raw.means)
+    # Beyond one scale per view the depth follows the points near each pixel (depth_detail).
+    assert g.geometry["detail"] == 1.5 and all(v["detail_mean"] > 0 for v in g.geometry["views"]), g.geometry
+    scale_only = predictor.predict(statue, height=HEIGHT, depth_detail=0)
+    assert scale_only.geometry["detail"] == 0 and all(v["detail_mean"] == 0 for v in scale_only.geometry["views"])
+    assert [v["scale"] for v in scale_only.geometry["views"]] == [v["scale"] for v in g.geometry["views"]]
+    assert not np.allclose(g.means, scale_only.means)
 
 
 def test_bad_arguments_raise_clear_errors(tmp_path, statue, predictor):

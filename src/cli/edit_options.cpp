@@ -48,11 +48,11 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
                   "(Navier-Stokes) or patch (patches of the photo copied inward)")
       ->check(CLI::IsMember({"telea", "ns", "patch"}))
       ->capture_default_str();
-  add_align_depth_option(cmd, args.align_depth);
+  add_align_depth_option(cmd, args.align_depth, args.depth_detail);
   add_frame_margin_option(cmd, args.frame_margin);
 }
 
-void add_align_depth_option(CLI::App* cmd, std::string& align_depth) {
+void add_align_depth_option(CLI::App* cmd, std::string& align_depth, double& depth_detail) {
   cmd->add_option("--align-depth", align_depth,
                   "Scale each context view's predicted depth to the scene's own 3D points: depth-maps (a synthetic "
                   "scene's depth/), photos (those, else points triangulated from the context views' photos and "
@@ -60,6 +60,12 @@ void add_align_depth_option(CLI::App* cmd, std::string& align_depth) {
                   "the photos'), none (the network's depth as it is, the paper's). One-mask propagation reads photos as "
                   "depth-maps (the statue's masks lost precision with the photos' points)")
       ->check(CLI::IsMember({"none", "depth-maps", "photos", "any"}))
+      ->capture_default_str();
+  cmd->add_option("--depth-detail", depth_detail,
+                  "With --align-depth: how closely each view's depth follows the points beyond one scale per view, "
+                  "as the width of its local correction in point spacings (the network often draws a table at the "
+                  "floor's depth); 0 = one scale per view")
+      ->check(CLI::Range(0.0, 64.0))
       ->capture_default_str();
 }
 
@@ -76,6 +82,7 @@ void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
   options.inpainter = parse_inpainter(args.inpainter);
   options.align_depth = parse_depth_points(args.align_depth);
+  options.depth_detail.detail = args.depth_detail;
   options.frame_margin.fraction = args.frame_margin;
 }
 

@@ -22,16 +22,17 @@ struct EditArgs {
   std::string reference_view;       // --reference-view
   std::string inpainter = "telea";  // --reference-inpainter
   std::string align_depth = "photos";  // --align-depth
+  double depth_detail = DepthDetailOptions().detail;  // --depth-detail
   double frame_margin = FrameMarginOptions().fraction;  // --frame-margin
 };
 
 // --view, --mask, --mode, --depth, --depth-scale, --extent, --dilate.
 void add_edit_options(CLI::App* cmd, EditArgs& args);
-// --reference-view, --reference-inpainter, --align-depth, --frame-margin (commands that build the
-// network's input).
+// --reference-view, --reference-inpainter, --align-depth, --depth-detail, --frame-margin (commands
+// that build the network's input).
 void add_reference_options(CLI::App* cmd, EditArgs& args);
-// --align-depth (add_reference_options adds it too).
-void add_align_depth_option(CLI::App* cmd, std::string& align_depth);  // --align-depth
+// --align-depth and --depth-detail (add_reference_options adds them too).
+void add_align_depth_option(CLI::App* cmd, std::string& align_depth, double& depth_detail);
 void add_frame_margin_option(CLI::App* cmd, double& fraction);         // --frame-margin
 
 // The request the options describe for this scene, or nullopt without --view/--mask.

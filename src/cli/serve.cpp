@@ -29,6 +29,7 @@ struct ServeArgs {
   bool no_token = false;
   std::string checkpoint;
   std::string align_depth = "photos";
+  double depth_detail = DepthDetailOptions().detail;
   double frame_margin = FrameMarginOptions().fraction;
   RuntimeOptions runtime;
 };
@@ -52,6 +53,7 @@ void run(const ServeArgs& a) {
   o.views = a.views;
   o.align_depth = parse_depth_points(a.align_depth);
   o.frame_margin.fraction = a.frame_margin;
+  o.depth_detail.detail = a.depth_detail;
   o.token = a.token;
   o.no_token = a.no_token;
   o.reconstruct_at_start = true;
@@ -114,7 +116,7 @@ void add_serve_command(CLI::App& app) {
       ->excludes("--token");
   cmd->add_option("--checkpoint", args->checkpoint, "Model weights (default: the model built into instainpaint)")
       ->check(CLI::ExistingFile);
-  add_align_depth_option(cmd, args->align_depth);
+  add_align_depth_option(cmd, args->align_depth, args->depth_detail);
   add_frame_margin_option(cmd, args->frame_margin);
   add_runtime_options(cmd, args->runtime);
   cmd->footer(

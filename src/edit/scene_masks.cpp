@@ -77,6 +77,7 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
   // The photos' points scale the depth where a capture has nothing better, but not for lifting
   // the mark: on the statue its masks lost precision (mean 0.562 -> 0.536, recall 1.0 both).
   o.align_depth = options.align_depth == DepthPoints::photos ? DepthPoints::depth_maps : options.align_depth;
+  o.depth_detail = options.depth_detail;
   o.frame_margin.fraction = 0;  // only the marked view's depth map is read
   const Prediction p = predictor.predict(scene, o);
   Stopwatch watch;

@@ -64,6 +64,7 @@ struct EvalOptions {
   bool keep_object = false;     // a reconstruction: no masks, the reference's own photo
   DepthPoints align_depth = DepthPoints::photos;  // SceneInputOptions::align_depth
   FrameMarginOptions frame_margin;                // SceneInputOptions::frame_margin
+  DepthDetailOptions depth_detail;                // SceneInputOptions::depth_detail
   // Applied to the network's Gaussians before rendering (e.g. refinement, which lives above
   // eval): given the scene, the prediction and its input options; fills `report`.
   std::function<GaussianSet(const Scene&, const Prediction&, const SceneInputOptions&, GaussianSet, nlohmann::json& report)>

@@ -77,7 +77,8 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
         points.valid() ? points.get() : gather_scene_points(scene, options.align_depth, p.input.context);
     p.geometry = gathered.origin.description;
     p.geometry_kind = gathered.origin.kind;
-    if (!gathered.points.empty()) p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points);
+    p.depth_detail = options.depth_detail.detail;
+    if (!gathered.points.empty()) p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points, options.depth_detail);
     p.stages.lap("align depth to the scene's points");
   }
   p.beyond_frame = gaussians_beyond_frame(p.maps, p.input.input, options.frame_margin);
@@ -94,8 +95,8 @@ GaussianSet Prediction::gaussians() const {
 nlohmann::json Prediction::describe_geometry() const {
   nlohmann::json views = nlohmann::json::array();
   for (const DepthAlignment& a : depth_alignment)
-    views.push_back({{"view", a.view}, {"scale", a.scale}, {"points", a.points}});
-  return {{"source", geometry}, {"views", views}, {"frame_margin", frame_margin}};
+    views.push_back({{"view", a.view}, {"scale", a.scale}, {"points", a.points}, {"detail_mean", a.detail_mean}});
+  return {{"source", geometry}, {"detail", depth_detail}, {"views", views}, {"frame_margin", frame_margin}};
 }
 
 }  // namespace ii

@@ -32,6 +32,7 @@ struct Prediction {
   std::vector<DepthAlignment> depth_alignment;
   std::string geometry = "off";  // the points' source, "none" when the scene has none, or "off"
   PointsSource geometry_kind = PointsSource::None;  // which it was (None when off)
+  double depth_detail = 0;  // DepthDetailOptions::detail when aligned (0: one scale per view)
 
   // With SceneInputOptions::frame_margin: each view's Gaussians past the edges of its picture
   // (model/frame_margin.h), an empty set without.

@@ -27,6 +27,21 @@ enum class DepthPoints { none, depth_maps, photos, any };
 const char* depth_points_name(DepthPoints points);  // "none", "depth-maps", "photos", "any"
 DepthPoints parse_depth_points(const std::string& name);  // an Error naming the choices
 
+// Predictor::predict, with align_depth: how closely each view's depth follows the scene's points
+// beyond one scale per view (model/depth_alignment.h).
+struct DepthDetailOptions {
+  // The correction's width in point spacings (the mean distance between the points the view sees
+  // outside its mask; 0 = one scale per view).
+  double detail = 1.5;
+  double prior = 0.3;      // the points' weight that pulls the correction back to the view's scale
+  double max_ratio = 3.0;  // the most one point corrects, either way
+  double front = 1.2;      // a point this much farther than the nearest beside it counts as hidden
+  // Inside a view's mask the correction is this many times wider: the hole's depth follows its
+  // wider surroundings rather than the edge of the object that stood there (held-out rooms at
+  // 256², 2 spacings: 23.92 dB masked with the same width, 25.46 with 3x; docs/benchmarks.md).
+  double region_factor = 4;
+};
+
 struct SceneInputOptions {
   std::vector<std::string> context;  // view names, reference first; empty = automatic
   int num_views = 4;                 // when choosing automatically
@@ -52,6 +67,7 @@ struct SceneInputOptions {
   // model's depth is 1.3-5x too near), or with `any` its COLMAP points before the photos', or
   // none (the network's output as it is, the paper's).
   DepthPoints align_depth = DepthPoints::photos;
+  DepthDetailOptions depth_detail;
   // Predictor::predict: each view's Gaussians continued past the edges of its picture
   // (model/frame_margin.h); fraction 0 = none (the paper's).
   FrameMarginOptions frame_margin;

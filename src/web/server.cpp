@@ -644,6 +644,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.view_cache = &views;
   input.align_depth = options.align_depth;
   input.frame_margin = options.frame_margin;
+  input.depth_detail = options.depth_detail;
   OneMask request;
   request.view = view.name;
   request.region = edit.region;
@@ -766,6 +767,7 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   input.view_cache = &views;
   input.align_depth = options.align_depth;
   input.frame_margin = options.frame_margin;
+  input.depth_detail = options.depth_detail;
   stage("reconstructing the scene as captured (object kept)", 0.2);
   const Prediction p = predictor->predict(*scene, input);
   stages.merge(p.stages);

@@ -298,6 +298,7 @@ TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
                                       "align depth to the scene's points", "Gaussians past the frames",
                                       "gaussians to the renderer"}));
   EXPECT_EQ(m["prediction"]["geometry"]["source"], "none");  // the test scene has no depth maps or points
+  EXPECT_EQ(m["prediction"]["geometry"]["detail"], DepthDetailOptions().detail);
   ASSERT_EQ(m["prediction"]["own_views"]["views"].size(), 4u);
   EXPECT_TRUE(m["prediction"]["own_views"]["mean_psnr_outside_mask"].is_number());
   const json& t = m["timings"];

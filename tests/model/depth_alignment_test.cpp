@@ -1,7 +1,9 @@
 // The network's depth scaled to a scene's own points: a view whose predicted depth is twice the
 // truth comes back onto the points (depth, positions and sizes alike); too few points, or
-// points that fall in the view's mask, change nothing; and a scene's points come from its
-// depth maps, else from its photos.
+// points that fall in the view's mask, change nothing; with detail a box the network drew at the
+// floor's depth comes onto its points where one scale cannot, hidden points do not pull it, and
+// far from every point the scale alone holds; and a scene's points come from its depth maps, else
+// from its photos.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -86,6 +88,126 @@ TEST(DepthAlignment, TooFewPointsOrPointsInTheMaskChangeNothing) {
   const std::vector<DepthAlignment> a = align_depth_to_points(masked.maps, masked.input, plane_points(100));
   EXPECT_EQ(a[0].scale, 1.0);
   EXPECT_EQ(a[0].points, 0);
+}
+
+// A view of the plane z = 0 with a box standing on it (the middle third of the picture, at
+// `box` times the plane's depth there): its true depth, and points on that surface at every
+// `stride`-th pixel (`hidden`: also a point of the plane behind the box beside each box point,
+// as another view would see it).
+struct BoxView {
+  OneView view;
+  torch::Tensor truth;  // (H, W)
+  torch::Tensor in_box;  // (H, W) bool
+  std::vector<Eigen::Vector3d> points;
+};
+
+BoxView box_view(double predicted_factor, double box, int stride, bool hidden) {
+  BoxView b;
+  b.view = one_view(predicted_factor);  // the network: the plane alone, predicted_factor too far
+  const Camera camera = b.view.input.views[0].camera;
+  const Rays rays = compute_rays(camera);
+  b.truth = b.view.truth.clone();
+  b.in_box = torch::zeros({kH, kW}, torch::kBool);
+  for (int y = kH / 3; y < 2 * kH / 3; ++y)
+    for (int x = kW / 3; x < 2 * kW / 3; ++x) {
+      b.truth[y][x] = b.truth[y][x].item<float>() * static_cast<float>(box);
+      b.in_box[y][x] = true;
+    }
+  auto point_at = [&](int y, int x, double depth) {
+    const size_t i = 3 * (static_cast<size_t>(y) * kW + x);
+    return Eigen::Vector3d(rays.origin[i] + depth * rays.dir_unnorm[i], rays.origin[i + 1] + depth * rays.dir_unnorm[i + 1],
+                           rays.origin[i + 2] + depth * rays.dir_unnorm[i + 2]);
+  };
+  for (int y = stride / 2; y < kH; y += stride)
+    for (int x = stride / 2; x < kW; x += stride) {
+      b.points.push_back(point_at(y, x, b.truth[y][x].item<double>()));
+      if (hidden && b.in_box[y][x].item<bool>())  // the plane behind the box, one pixel aside
+        b.points.push_back(point_at(y, x + 1, b.view.truth[y][x + 1].item<double>()));
+    }
+  return b;
+}
+
+double box_error(const BoxView& b) {  // mean |log(depth / truth)| on the box
+  const torch::Tensor d = b.view.maps.depth.view({kH, kW});
+  return (d / b.truth).log().abs().masked_select(b.in_box).mean().item<double>();
+}
+
+TEST(DepthAlignment, WithDetailABoxDrawnAtTheFloorsDepthComesOntoItsPoints) {
+  BoxView scale_only = box_view(2.0, 0.5, 2, false);
+  DepthDetailOptions none;
+  none.detail = 0;
+  align_depth_to_points(scale_only.view.maps, scale_only.view.input, scale_only.points, none);
+  EXPECT_GT(box_error(scale_only), 0.4) << "one scale leaves the box at the plane's depth";
+
+  BoxView detailed = box_view(2.0, 0.5, 2, false);
+  DepthDetailOptions detail;
+  detail.detail = 1;
+  const std::vector<DepthAlignment> a = align_depth_to_points(detailed.view.maps, detailed.view.input, detailed.points, detail);
+  EXPECT_LT(box_error(detailed), 0.15);
+  EXPECT_GT(a[0].detail_mean, 0.05);
+  // Positions and sizes follow the depth: each Gaussian stays on its ray at the new depth.
+  const Camera camera = detailed.view.input.views[0].camera;
+  const int y = kH / 2, x = kW / 2;
+  const Eigen::Vector3d p(detailed.view.maps.xyz[0][0][0][y][x].item<double>(), detailed.view.maps.xyz[0][0][1][y][x].item<double>(),
+                          detailed.view.maps.xyz[0][0][2][y][x].item<double>());
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  const double z = (w2c.block<3, 3>(0, 0) * p + w2c.block<3, 1>(0, 3)).z();
+  EXPECT_NEAR(z, detailed.view.maps.depth[0][0][0][y][x].item<double>(), 1e-4);
+  const double factor = detailed.view.maps.depth[0][0][0][y][x].item<double>() / (2.0 * detailed.view.truth[y][x].item<double>());
+  EXPECT_NEAR(detailed.view.maps.scale[0][0][0][y][x].item<double>(), 0.01 * factor, 1e-6);
+}
+
+TEST(DepthAlignment, HiddenPointsBehindTheBoxDoNotPullIt) {
+  DepthDetailOptions detail;
+  detail.detail = 1;
+  BoxView clean = box_view(2.0, 0.5, 2, false), hidden = box_view(2.0, 0.5, 2, true);
+  align_depth_to_points(clean.view.maps, clean.view.input, clean.points, detail);
+  align_depth_to_points(hidden.view.maps, hidden.view.input, hidden.points, detail);
+  EXPECT_LT(box_error(hidden), box_error(clean) + 0.02);
+  detail.front = 1e9;  // every point counts: the plane's behind the box drag it back
+  BoxView unfiltered = box_view(2.0, 0.5, 2, true);
+  align_depth_to_points(unfiltered.view.maps, unfiltered.view.input, unfiltered.points, detail);
+  EXPECT_GT(box_error(unfiltered), box_error(clean) + 0.1);
+}
+
+TEST(DepthAlignment, FarFromEveryPointTheScaleAloneHolds) {
+  // Points on the left quarter only, the box among them; the right edge is many spacings away.
+  BoxView b = box_view(2.0, 0.5, 1, false);
+  std::vector<Eigen::Vector3d> left;
+  const Camera camera = b.view.input.views[0].camera;
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  for (const Eigen::Vector3d& p : b.points) {
+    const Eigen::Vector3d c = w2c.block<3, 3>(0, 0) * p + w2c.block<3, 1>(0, 3);
+    if (camera.K.fx * c.x() / c.z() + camera.K.cx < kW / 4.0) left.push_back(p);
+  }
+  ASSERT_GE(left.size(), 50u);
+  DepthDetailOptions detail;
+  detail.detail = 0.5;
+  const std::vector<DepthAlignment> a = align_depth_to_points(b.view.maps, b.view.input, left, detail);
+  EXPECT_NEAR(a[0].scale, 0.5, 1e-3);
+  const torch::Tensor right = b.view.maps.depth.view({kH, kW}).narrow(1, kW - 2, 2) / b.view.truth.narrow(1, kW - 2, 2);
+  EXPECT_LT((right - 1).abs().max().item<double>(), 1e-3) << "the right edge keeps the view's scale";
+}
+
+TEST(DepthAlignment, InsideTheMaskTheCorrectionIsWider) {
+  // The mask over the box's left half: its points are not used, and inside it the correction
+  // spreads region_factor times wider; far from the mask nothing changes.
+  auto aligned = [](double region_factor) {
+    BoxView b = box_view(2.0, 0.5, 2, false);
+    Image mask(kW, kH, 1, 0.f);
+    for (int y = kH / 3; y < 2 * kH / 3; ++y)
+      for (int x = kW / 3; x < kW / 2; ++x) mask.at(y, x) = 1.f;
+    b.view.input.views[0].mask = mask;
+    DepthDetailOptions detail;
+    detail.detail = 1;
+    detail.region_factor = region_factor;
+    align_depth_to_points(b.view.maps, b.view.input, b.points, detail);
+    return b.view.maps.depth.view({kH, kW}).clone();
+  };
+  const torch::Tensor same = aligned(1), wider = aligned(3);
+  const int y = kH / 2, x = kW / 3 + 1;  // inside the mask
+  EXPECT_GT(std::abs(wider[y][x].item<double>() / same[y][x].item<double>() - 1), 0.02);
+  EXPECT_TRUE(torch::allclose(wider.narrow(1, kW - 4, 4), same.narrow(1, kW - 4, 4))) << "far from the mask";
 }
 
 TEST(DepthAlignment, ASyntheticScenesPointsComeFromItsDepthMaps) {

@@ -66,7 +66,9 @@ TEST(Predictor, ScalesTheDepthToThePhotosPointsByDefault) {
   SceneInputOptions opts = two_views();
   opts.align_depth = SceneInputOptions().align_depth;
   ASSERT_EQ(opts.align_depth, DepthPoints::photos);
-  const Prediction aligned = predictor.predict(scene, opts);
+  SceneInputOptions scale_only = opts;
+  scale_only.depth_detail.detail = 0;
+  const Prediction aligned = predictor.predict(scene, scale_only);
   EXPECT_EQ(aligned.geometry.rfind("points triangulated from 2 views' photos (", 0), 0u) << aligned.geometry;
   EXPECT_EQ(aligned.geometry_kind, PointsSource::Photos);
   ASSERT_EQ(aligned.depth_alignment.size(), 2u);
@@ -78,6 +80,18 @@ TEST(Predictor, ScalesTheDepthToThePhotosPointsByDefault) {
     EXPECT_TRUE(torch::allclose(aligned.maps.scale[0][v], raw.maps.scale[0][v] * s, 1e-4, 1e-7));
   }
   EXPECT_TRUE(torch::equal(aligned.maps.rgb, raw.maps.rgb));
+  // The default goes on beyond the scales: each pixel's factor follows the points near it, and
+  // the sizes follow the depth.
+  const Prediction detailed = predictor.predict(scene, opts);
+  EXPECT_EQ(detailed.depth_detail, DepthDetailOptions().detail);
+  for (int64_t v = 0; v < 2; ++v) {
+    const DepthAlignment& a = detailed.depth_alignment[static_cast<size_t>(v)];
+    EXPECT_EQ(a.scale, aligned.depth_alignment[static_cast<size_t>(v)].scale);
+    EXPECT_GT(a.detail_mean, 0.01);
+    const torch::Tensor factor = detailed.maps.depth[0][v] / raw.maps.depth[0][v];
+    EXPECT_GT((factor / a.scale - 1).abs().max().item<double>(), 0.05);
+    EXPECT_TRUE(torch::allclose(detailed.maps.scale[0][v], raw.maps.scale[0][v] * factor, 1e-4, 1e-7));
+  }
 }
 
 TEST(Predictor, ImagesAndMasksInMemoryEqualTheirFiles) {
