@@ -36,7 +36,8 @@ std::vector<PointSample> point_samples(const float* depth, const Image& use, con
     const int x1 = std::min(x0 + 1, w - 1), y1 = std::min(y0 + 1, h - 1);
     const double ax = fx - x0, ay = fy - y0;
     auto at = [&](int yy, int xx) { return static_cast<double>(depth[static_cast<size_t>(yy) * w + xx]); };
-    const double predicted = (1 - ay) * ((1 - ax) * at(y0, x0) + ax * at(y0, x1)) + ay * ((1 - ax) * at(y1, x0) + ax * at(y1, x1));
+    const double predicted =
+        (1 - ay) * ((1 - ax) * at(y0, x0) + ax * at(y0, x1)) + ay * ((1 - ax) * at(y1, x0) + ax * at(y1, x1));
     if (predicted > 0 && std::isfinite(predicted)) out.push_back({x, y, c.z(), predicted});
   }
   return out;
@@ -107,7 +108,8 @@ torch::Tensor detail_correction(const std::vector<PointSample>& samples, double 
   };
   const torch::Tensor grid = (blur(sum) / (blur(weight) + options.prior)).to(torch::kFloat32);
   // Cell centres at (i + 0.5) * cell: align_corners = false maps the grid over the picture.
-  return torch::upsample_bilinear2d(grid, {gh * cell, gw * cell}, false).view({gh * cell, gw * cell}).narrow(0, 0, h).narrow(1, 0, w);
+  const torch::Tensor full = torch::upsample_bilinear2d(grid, {gh * cell, gw * cell}, false)[0][0];
+  return full.narrow(0, 0, h).narrow(1, 0, w);
 }
 
 // The mask (H, W) with its edge ramped over a 32nd of the height each way, so that the region's
@@ -183,7 +185,8 @@ std::vector<DepthAlignment> align_depth_to_points(GaussianMaps& maps, const Scen
   for (size_t v = 0; v < input.views.size(); ++v) {
     const int64_t vi = static_cast<int64_t>(v);
     const Camera camera = input.normalization.apply(input.views[v].camera);
-    const ViewAlignment a = align_view(maps.depth[0][vi][0], input.views[v], camera, normalized, options, min_points);
+    const ViewAlignment a =
+        align_view(maps.depth[0][vi][0], input.views[v], camera, normalized, options, min_points);
     out.push_back(a.report);
     if (a.report.scale == 1.0) continue;
     const Eigen::Vector3d o = camera.center();

@@ -78,7 +78,8 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
     p.geometry = gathered.origin.description;
     p.geometry_kind = gathered.origin.kind;
     p.depth_detail = options.depth_detail.detail;
-    if (!gathered.points.empty()) p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points, options.depth_detail);
+    if (!gathered.points.empty())
+      p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points, options.depth_detail);
     p.stages.lap("align depth to the scene's points");
   }
   p.beyond_frame = gaussians_beyond_frame(p.maps, p.input.input, options.frame_margin);

@@ -115,7 +115,8 @@ BoxView box_view(double predicted_factor, double box, int stride, bool hidden) {
     }
   auto point_at = [&](int y, int x, double depth) {
     const size_t i = 3 * (static_cast<size_t>(y) * kW + x);
-    return Eigen::Vector3d(rays.origin[i] + depth * rays.dir_unnorm[i], rays.origin[i + 1] + depth * rays.dir_unnorm[i + 1],
+    return Eigen::Vector3d(rays.origin[i] + depth * rays.dir_unnorm[i],
+                           rays.origin[i + 1] + depth * rays.dir_unnorm[i + 1],
                            rays.origin[i + 2] + depth * rays.dir_unnorm[i + 2]);
   };
   for (int y = stride / 2; y < kH; y += stride)
@@ -142,18 +143,20 @@ TEST(DepthAlignment, WithDetailABoxDrawnAtTheFloorsDepthComesOntoItsPoints) {
   BoxView detailed = box_view(2.0, 0.5, 2, false);
   DepthDetailOptions detail;
   detail.detail = 1;
-  const std::vector<DepthAlignment> a = align_depth_to_points(detailed.view.maps, detailed.view.input, detailed.points, detail);
+  const std::vector<DepthAlignment> a =
+      align_depth_to_points(detailed.view.maps, detailed.view.input, detailed.points, detail);
   EXPECT_LT(box_error(detailed), 0.15);
   EXPECT_GT(a[0].detail_mean, 0.05);
   // Positions and sizes follow the depth: each Gaussian stays on its ray at the new depth.
   const Camera camera = detailed.view.input.views[0].camera;
   const int y = kH / 2, x = kW / 2;
-  const Eigen::Vector3d p(detailed.view.maps.xyz[0][0][0][y][x].item<double>(), detailed.view.maps.xyz[0][0][1][y][x].item<double>(),
-                          detailed.view.maps.xyz[0][0][2][y][x].item<double>());
+  const torch::Tensor xyz = detailed.view.maps.xyz[0][0];
+  const Eigen::Vector3d p(xyz[0][y][x].item<double>(), xyz[1][y][x].item<double>(), xyz[2][y][x].item<double>());
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
   const double z = (w2c.block<3, 3>(0, 0) * p + w2c.block<3, 1>(0, 3)).z();
   EXPECT_NEAR(z, detailed.view.maps.depth[0][0][0][y][x].item<double>(), 1e-4);
-  const double factor = detailed.view.maps.depth[0][0][0][y][x].item<double>() / (2.0 * detailed.view.truth[y][x].item<double>());
+  const double factor =
+      detailed.view.maps.depth[0][0][0][y][x].item<double>() / (2.0 * detailed.view.truth[y][x].item<double>());
   EXPECT_NEAR(detailed.view.maps.scale[0][0][0][y][x].item<double>(), 0.01 * factor, 1e-6);
 }
 
@@ -185,7 +188,8 @@ TEST(DepthAlignment, FarFromEveryPointTheScaleAloneHolds) {
   detail.detail = 0.5;
   const std::vector<DepthAlignment> a = align_depth_to_points(b.view.maps, b.view.input, left, detail);
   EXPECT_NEAR(a[0].scale, 0.5, 1e-3);
-  const torch::Tensor right = b.view.maps.depth.view({kH, kW}).narrow(1, kW - 2, 2) / b.view.truth.narrow(1, kW - 2, 2);
+  const torch::Tensor right =
+      b.view.maps.depth.view({kH, kW}).narrow(1, kW - 2, 2) / b.view.truth.narrow(1, kW - 2, 2);
   EXPECT_LT((right - 1).abs().max().item<double>(), 1e-3) << "the right edge keeps the view's scale";
 }
 
