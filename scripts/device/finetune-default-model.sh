@@ -50,9 +50,12 @@ source scripts/device/deps.sh
 device_deps_from_debs
 device_build_program_and_rooms "$OUT" "$WORK" "$ROOMS" 256
 SCENES="$WORK/train"
-REAL=".device/scenes/fern,.device/shared/data/statue"
-for scene in .device/realtrain/*/; do [ -d "$scene" ] && REAL+=",${scene%/}"; done
-for _ in $(seq "$REAL_REPEAT"); do SCENES+=",$REAL"; done
+# Each real scene that was carried (a call that carries the GPU check's packages too leaves the fern out).
+REAL=""
+for scene in .device/scenes/fern .device/shared/data/statue .device/realtrain/*/; do
+  [ -d "$scene" ] && REAL+="${REAL:+,}${scene%/}"
+done
+[ -n "$REAL" ] && for _ in $(seq "$REAL_REPEAT"); do SCENES+=",$REAL"; done
 echo "training scenes: $SCENES"
 
 # The phase's model goes to $OUT while it trains: a call cut short still brings one back.
