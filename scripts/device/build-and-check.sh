@@ -10,8 +10,7 @@
 #      the official code's way of computing in the same run;
 #   5. times `eval` end to end on a synthetic room with 40 test views at 904 x 512 (issue 45's
 #      regression: 0.59-0.75 s of computation on 2026-11-25, 2.2 s on 11-26): the command's
-#      phases (scripts/command-phases.py) and its stage table, against issue 45's targets; once
-#      more with CUDA_MODULE_LOADING=EAGER (where issue 54's first network call loses its time);
+#      phases (scripts/command-phases.py) and its stage table, against issue 45's targets;
 #   6. times `infer` on the statue at 512 high, its stage table;
 #   7. times an edit in `serve` from the Run request to the new splats' last byte (the page's
 #      requests without a browser: scripts/measure-serve-edit.py), statue at 256 and 512 high,
@@ -96,19 +95,15 @@ if [[ " $STEPS " == *" eval "* ]]; then
   "$BIN" train --scenes "$ROOM" --stage inpaint --preset release --width 64 --height 64 --inputs 4 --targets 2 \
     --batch 1 --steps 1 --val-every 0 --perceptual none --device cuda --out /tmp/ii-release > /tmp/ii-train.log 2>&1 ||
     { cat /tmp/ii-train.log; exit 1; }
-  # Twice with the release-size model (the second run is the figure: files cached), once more
-  # without the network's warm-up beside the input's preparation (issue 54: the first call in a
-  # process; INSTAINPAINT_GPU_WARM_UP=0), once with CUDA's kernels loaded when the context is
-  # made (PyTorch's default is LAZY), then the default model; each run's whole wall time as the
-  # user waits for it, and its stage table.
-  for run in release release release-no-warm-up release-eager default; do
+  # Twice with the release-size model (the second run is the figure: files cached), then the
+  # default model; each run's whole wall time as the user waits for it, and its stage table.
+  # (Session 30 measured the first network call's extra ~190 ms on an H200: CUDA_MODULE_LOADING=EAGER
+  # moved 0.8 s into the context and 1.4 s more into the first call; a one-view warm-up beside the
+  # input's preparation took 290 ms itself and saved nothing; docs/benchmarks.md.)
+  for run in release release default; do
     args=(--checkpoint /tmp/ii-release/model.safetensors)
     [ "$run" = default ] && args=()
-    loading=LAZY
-    [ "$run" = release-eager ] && loading=EAGER
-    warm_up=1
-    [ "$run" = release-no-warm-up ] && warm_up=0
-    INSTAINPAINT_GPU_WARM_UP=$warm_up CUDA_MODULE_LOADING=$loading python3 scripts/command-phases.py -- "$BIN" eval --device cuda --scene "$SCENE" --reference "$SCENE/reference.png" \
+    python3 scripts/command-phases.py -- "$BIN" eval --device cuda --scene "$SCENE" --reference "$SCENE/reference.png" \
       --context "$CONTEXT" --height 512 --no-report "${args[@]}" --out "/tmp/ii-eval-$run" > "/tmp/ii-eval-$run.log" 2>&1 ||
       { tail -20 "/tmp/ii-eval-$run.log"; exit 1; }
     python3 scripts/stage-table.py "/tmp/ii-eval-$run/metrics.json" \

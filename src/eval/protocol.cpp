@@ -770,8 +770,7 @@ json metric_definitions() {
 // The method's and the protocol's computation: every stage but reading, decoding and writing
 // files and loading networks; the figure `eval` prints and the device check compares.
 double compute_ms(const StageTimes& stages) {
-  static const std::set<std::string> compute = {"upload", "network", "wait for the network's warm-up",
-                                                "gaussians to the renderer",
+  static const std::set<std::string> compute = {"upload", "network", "gaussians to the renderer",
                                                 "upload test views", "render", "image metrics", "lpips",
                                                 "inception features", "fid/kid", "download renders"};
   double ms = 0;

@@ -1,13 +1,8 @@
 #include "model/predictor.h"
 
-#include <cstdlib>
 #include <future>
 
-#include <spdlog/spdlog.h>
-
-#include "common/stopwatch.h"
 #include "data/masks.h"
-#include "data/view_selection.h"
 
 #include "model/checkpoint.h"
 #include "model/default_model.h"
@@ -58,69 +53,11 @@ ScenePoints gather_scene_points(const Scene& scene, DepthPoints which, const std
   return out;
 }
 
-// The working size of the context's first view, before any photo is read: its camera's size.
-std::optional<std::pair<int64_t, int64_t>> first_view_working_size(const Scene& scene,
-                                                                   const SceneInputOptions& options) {
-  try {
-    std::optional<int> reference;
-    if (!options.reference_view.empty()) reference = input_view_index(scene, options.reference_view);
-    const std::vector<int> context = options.context.empty()
-                                         ? select_context_views(scene, options.num_views, reference)
-                                         : context_views_by_name(scene, options.context);
-    const Intrinsics& K = scene.views.at(static_cast<size_t>(context.front())).camera.K;
-    const WorkingSize size = working_size(K.width, K.height, options.preprocess);
-    return std::make_pair(static_cast<int64_t>(size.height), static_cast<int64_t>(size.width));
-  } catch (const std::exception&) {
-    return std::nullopt;  // the preparation reports what is wrong
-  }
-}
-
-// One view of zeros through the network at the working size: on a GPU the first forward pass
-// in a process pays for what every later one reuses (CUDA loads each kernel at its first launch,
-// cuBLAS and cuDNN make their handles and plans; eval: 418 ms against 225 ms warm). It runs on
-// the thread that will run the real pass, as the libraries' handles are per thread.
-void warm_up_network(const Network& network, int64_t height, int64_t width, Precision precision,
-                     const torch::Device& device) {
-  const auto on = torch::TensorOptions().device(device);
-  ModelInput input;
-  input.images = torch::zeros({1, network.config().image_channels, height, width}, on);
-  input.plucker = torch::zeros({1, 6, height, width}, on);
-  input.rays_o = torch::zeros({1, height, width, 3}, on);
-  input.rays_d_un = torch::ones({1, height, width, 3}, on);
-  run_network(network, input, precision);
-  synchronize(device);
-}
-
-bool gpu_warm_up_enabled() {
-  const char* v = std::getenv("INSTAINPAINT_GPU_WARM_UP");  // "0": off (measurements of the first call)
-  return !(v && std::string(v) == "0");
-}
-
 }  // namespace
-
-// On a GPU, the first prediction's input is prepared on another thread while this one warms
-// the network up (warm_up_network); later predictions run as they are.
-SceneInput Predictor::prepare_input(const Scene& scene, const SceneInputOptions& options, StageTimes& stages) const {
-  const auto size = first_view_working_size(scene, options);
-  if (device_.is_cpu() || warmed_up_.exchange(true) || !size || !gpu_warm_up_enabled())
-    return prepare_scene_input(scene, options, &stages);
-  std::future<SceneInput> prepared =
-      std::async(std::launch::async, [&] { return prepare_scene_input(scene, options, &stages); });
-  Stopwatch warm_up;
-  try {
-    warm_up_network(network_, size->first, size->second, precision_, device_);
-  } catch (const std::exception& e) {
-    spdlog::warn("the network's warm-up failed ({}); the prediction goes on without", e.what());
-  }
-  stages.add("network warm-up (beside preparing the input)", warm_up.ms(), /*behind=*/true);
-  SceneInput input = prepared.get();
-  stages.lap("wait for the network's warm-up");  // from the preparation's last stage: what it did not hide
-  return input;
-}
 
 Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& options) const {
   Prediction p;
-  p.input = prepare_input(scene, options, p.stages);
+  p.input = prepare_scene_input(scene, options, &p.stages);
   check_model_fits_input(config(), p.input.input, model_name_);
   p.stages.restart_lap();
   // The scene's points are the CPU's work (files, features): on a GPU run they are gathered
@@ -138,6 +75,7 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
   if (options.align_depth != DepthPoints::none) {
     const ScenePoints gathered =
         points.valid() ? points.get() : gather_scene_points(scene, options.align_depth, p.input.context);
+    p.stages.lap(points.valid() ? "the scene's points (waited)" : "the scene's points");
     p.geometry = gathered.origin.description;
     p.geometry_kind = gathered.origin.kind;
     p.depth_detail = options.depth_detail.detail;

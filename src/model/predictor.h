@@ -8,7 +8,6 @@
 //   input.reference_image = inpainted;                            // in memory, or a file
 //   const Prediction p = predictor.predict(scene, input);
 //   render(p.gaussians(), camera);                                 // in the pose-normalised frame
-#include <atomic>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -70,14 +69,11 @@ class Predictor {
   const StageTimes& load_stages() const { return load_stages_; }
 
  private:
-  SceneInput prepare_input(const Scene& scene, const SceneInputOptions& options, StageTimes& stages) const;
-
   std::string model_name_, format_;
   torch::Device device_;
   Precision precision_;
   StageTimes load_stages_;
   Network network_;
-  mutable std::atomic<bool> warmed_up_{false};  // the GPU's first prediction warms the network up
 };
 
 }  // namespace ii

@@ -2,8 +2,6 @@
 // masks in memory.
 #include <gtest/gtest.h>
 
-#include <cstdlib>
-
 #include "data/scene.h"
 #include "model/default_model.h"
 #include "model/inference.h"
@@ -53,29 +51,6 @@ TEST(Predictor, GivesWhatTheStepsItReplacesGive) {
   EXPECT_EQ(p.gaussians().size(), 2 * 64 * 80 + 2 * (96 * 80 - 80 * 64));
   // Loaded once, called again: the same answer.
   expect_same_maps(predictor.predict(scene, two_views()).maps, p.maps);
-}
-
-// On a GPU the first prediction warms the network up on its own thread while another prepares
-// the input: the answer is that of a predictor without the warm-up, and later predictions have none.
-TEST(Predictor, OnAGpuTheFirstPredictionsWarmUpChangesNothing) {
-  II_REQUIRE_CUDA();
-  II_REQUIRE_SHARED(dir, "data/statue");
-  II_REQUIRE_DEFAULT_MODEL();
-  const std::string warm_up = "network warm-up (beside preparing the input)";
-  const Scene scene = load_scene(dir);
-  const Predictor warmed("", torch::kCUDA, Precision::Float32);
-  const Prediction first = warmed.predict(scene, two_views());
-  EXPECT_GT(first.stages.ms(warm_up), 0);
-  EXPECT_EQ(warmed.predict(scene, two_views()).stages.ms(warm_up), 0);
-
-  setenv("INSTAINPAINT_GPU_WARM_UP", "0", 1);
-  const Predictor cold("", torch::kCUDA, Precision::Float32);
-  const Prediction unwarmed = cold.predict(scene, two_views());
-  unsetenv("INSTAINPAINT_GPU_WARM_UP");
-  EXPECT_EQ(unwarmed.stages.ms(warm_up), 0);
-  for (const auto& [a, b] : {std::pair{first.maps.xyz, unwarmed.maps.xyz}, {first.maps.rgb, unwarmed.maps.rgb},
-                             {first.maps.opacity, unwarmed.maps.opacity}, {first.maps.scale, unwarmed.maps.scale}})
-    EXPECT_TRUE(torch::allclose(a, b, 1e-5, 1e-5));
 }
 
 // By default a capture without depth maps or points gets its depth scaled to points
