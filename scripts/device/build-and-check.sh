@@ -24,7 +24,9 @@
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
 #   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared", ".device/wheels"],
 #       timeout_s=600)
-# STEPS="training ..." adds a training-throughput probe; STEPS="bench eval" skips the tests on a later call (the
+# STEPS="cpu ..." times the network on the host's CPU (AMX, issue 54 item 4; carry ".device/official" too,
+# made by OFFICIAL=<mirror> scripts/device/prepare.sh); STEPS="training ..." adds a
+# training-throughput probe; STEPS="bench eval" skips the tests on a later call (the
 # build folder is kept while the machine stays warm); TESTS=REGEX runs only the tests whose names match.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -64,6 +66,23 @@ BIN=$BUILD/instainpaint
 
 step "libraries the binary loads from this machine's own system (expected: glibc, libstdc++, libgcc)"
 ldd "$BIN" | grep -v -E "$DEPS|site-packages|linux-vdso|ld-linux" || true
+
+# Issue 54, item 4 wants a CPU with AMX, which this project's own machines lack: the GPU
+# machine's host processor may have it. Its ISA as the binary detects it, the network on 2 of its
+# cores (the project's figures are 2-core), LibTorch's own bf16 matrix product there, and the
+# official code on the same cores when prepare.sh carried it (.device/official).
+if [[ " $STEPS " == *" cpu "* ]]; then
+  step "the host's CPU: its ISA and the network on 2 of its cores (issue 54, item 4: AMX)"
+  lscpu | grep -E "Model name|^CPU\(s\)" || true
+  echo "flags: $(grep -o -w -E 'amx_bf16|amx_tile|amx_int8|avx512_bf16|avx512f|avx2' /proc/cpuinfo | sort -u | paste -sd' ')"
+  "$BIN" bench --device cpu --threads 2 --presets release --sizes 256 --precision bf16 --baseline none
+  python3 -c "import torch, time; torch.set_num_threads(2); a = torch.randn(4096, 4096, dtype=torch.bfloat16)
+a @ a; t = time.perf_counter(); [a @ a for _ in range(5)]; s = (time.perf_counter() - t) / 5
+print('LibTorch bf16 matmul 4096^3 on 2 threads: %.0f GFLOP/s' % (2 * 4096**3 / s / 1e9))" || true
+  if [ -d .device/official/instainpaint ]; then
+    PYTHON=python3 bash scripts/measure-official-cpu.sh .device/official --threads 2 --repeat 2 --precision bf16 || true
+  fi
+fi
 
 if [[ " $STEPS " == *" training "* ]]; then
   step "training throughput: medium preset, 256 x 256, bf16 (sizes scripts/device/train-default-model.sh)"

@@ -8,6 +8,8 @@
 #                     read (only the checkout travels, and ../shared does not)
 #   .device/scenes/   the real scenes a default model trains on (scripts/device/train-default-model.sh)
 #   .device/wheels/   nanobind's wheel, the version pyproject.toml pins (the Python module, STEPS=python)
+#   .device/official/ with OFFICIAL=<mirror of dhmbb2/InstaInpaint>: its network code, for the
+#                     host CPU's comparison (STEPS=cpu)
 # Then, on the GPU machine: bash scripts/device/build-and-check.sh (see its header).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -51,6 +53,15 @@ cp -r "$SHARED/data/realtrain/dtu_scan24" "$SHARED/data/realtrain/dtu_scan37" "$
 for scene in "$SHARED"/data/realtrain/strecha_*; do
   python3 scripts/strecha-to-nerfstudio.py "$scene" "$DEST/realtrain/$(basename "$scene")" --copy-images
 done
+
+# The official network's code for the host CPU's comparison (build-and-check.sh STEPS=cpu), from a
+# mirror of github.com/dhmbb2/InstaInpaint when OFFICIAL names one (a bare git directory or a work tree).
+rm -rf "$DEST/official"
+if [ -n "${OFFICIAL:-}" ]; then
+  mkdir -p "$DEST/official"
+  if [ -d "$OFFICIAL/instainpaint" ]; then cp -r "$OFFICIAL/instainpaint" "$DEST/official/"
+  else git --git-dir="$OFFICIAL" archive HEAD instainpaint | tar -x -C "$DEST/official"; fi
+fi
 
 rm -rf "$DEST/wheels"
 python3 -m pip download --quiet --disable-pip-version-check --no-deps --only-binary=:all: --dest "$DEST/wheels" \
