@@ -4,7 +4,7 @@
 # 256 x 256 (where the statue is judged and `mini` never trained). Starting from the embedded
 # model, a short call can only add to it; a 10 M `medium` model from scratch needed far more
 # than one call (session 12, docs/benchmarks.md). Data as the model card's: synthetic rooms
-# (seed 1001), the validation rooms (seed 777001), the real fern and statue (fox is left
+# (seed 1001), the validation rooms (seed 777001), the real fern and statue when carried (fox is left
 # out to fit the 64 MiB a call carries), and the real captures of .device/realtrain when carried
 # (DTU scans 24 and 37, the four Strecha scenes: exact cameras; session 25 found that the Strecha
 # ones move SPIn-NeRF scene 1 and the fern on the CPU); the real captures' depth is supervised at

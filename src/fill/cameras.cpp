@@ -127,8 +127,11 @@ GaussianSet region_weight_set(const GaussianSet& scene, const torch::Tensor& in_
 }
 
 ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& region,
-                                   const std::vector<NamedCamera>& given, const FillCameraOptions& options) {
+                                   const std::vector<NamedCamera>& given, const FillCameraOptions& options,
+                                   StageTimes* stages) {
   torch::NoGradGuard no_grad;
+  StageTimes unrecorded;
+  StageTimes& times = stages ? *stages : unrecorded;
   const torch::Tensor in_region = region_flags(region, scene.means.device());
   const Sphere sphere = region_sphere(scene, in_region);
   // Those the region's centre is in front of and inside, nearest first; the 16 nearest are rendered.
@@ -145,11 +148,15 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
   });
   if (candidates.size() > 16) candidates.resize(16);
   const GaussianSet weights = region_weight_set(scene, in_region), region_set = select_rows(scene, in_region);
+  times.lap("choose cameras: the region's set");
   // The small renders are read near the region alone (the share, and what the hole test asks
   // of the sights): each draws only the splats that reach it there.
   auto share = [&](const Camera& camera, std::vector<Sight>* keep) {
     const GaussianSet near = options.cull ? select_rows(weights, near_region(weights, region_set, camera)) : weights;
-    return region_share(near, camera, keep);
+    times.lap("choose cameras: culling");
+    const double s = region_share(near, camera, keep);
+    times.lap("choose cameras: scoring renders");
+    return s;
   };
   std::vector<double> score(given.size(), 0.0);
   std::vector<Camera> cameras;
@@ -196,8 +203,10 @@ Eigen::Vector3d guess_up(const SplatCloud& cloud, const RegionMask& region) {
 }
 
 ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMask& region,
-                                       const FillCameraOptions& options) {
+                                       const FillCameraOptions& options, StageTimes* stages) {
   torch::NoGradGuard no_grad;
+  StageTimes unrecorded;
+  StageTimes& times = stages ? *stages : unrecorded;
   const torch::Tensor in_region = region_flags(region, scene.means.device());
   const Sphere sphere = region_sphere(scene, in_region);
   Eigen::Vector3d up = options.up.norm() > 0 ? options.up.normalized() : Eigen::Vector3d::UnitY();
@@ -209,6 +218,7 @@ ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMas
                                    .to(scene.means.device(), torch::kFloat32);
   const torch::Tensor near = (scene.means - centre).norm(2, 1) <= reach;
   const GaussianSet weights = region_weight_set(select_rows(scene, near), in_region.index({near}));
+  times.lap("choose cameras: the region's set");
   const int height = options.height, width = std::max(8, height * 4 / 3 / 8 * 8);
   const Intrinsics K = Intrinsics::from_fov(width, height, 2 * std::atan(std::tan(25 * M_PI / 180) * width / height),
                                             50 * M_PI / 180);
@@ -225,6 +235,7 @@ ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMas
         c.c2w = look_at(sphere.centre + distance * sphere.radius * dir, sphere.centre, up);
         cameras.push_back(c);
         score.push_back(region_share(weights, small(c), &sights) * (distance == 4.0 ? 1.0 : 0.999));
+        times.lap("choose cameras: scoring renders");
       }
   const std::vector<size_t> chosen = pick_views(score, cameras, sphere.centre, options.views, 12, 60);
   if (chosen.empty())

@@ -9,6 +9,7 @@
 #include "camera/trajectory.h"
 #include "fill/region.h"
 #include "common/torch.h"
+#include "common/stage_times.h"
 #include "gaussians/gaussians.h"
 #include "render/projection.h"
 
@@ -60,9 +61,11 @@ GaussianSet region_weight_set(const GaussianSet& scene, const torch::Tensor& in_
 
 // Of `given` (at any size), the views that see most of the region (its share of the pixels of a
 // small render where the rest of the scene may hide it), the reference first; an Error when
-// none sees it.
+// none sees it. `stages` (optional) gets the time of the small renders ("choose cameras: scoring
+// renders", with "...: culling" apart) and of the region's set.
 ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& region,
-                                   const std::vector<NamedCamera>& given, const FillCameraOptions& options);
+                                   const std::vector<NamedCamera>& given, const FillCameraOptions& options,
+                                   StageTimes* stages = nullptr);
 
 // Cameras on rings around the region's centre (every 30 degrees of azimuth, 10, 30 and 50
 // degrees above the horizon, at 4 and 7 times the region's radius, 50-degree field of view),
@@ -72,7 +75,7 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
 // else the axis along which the scene is thinnest, pointing away from the bulk of splats below
 // the region (objects rest on floors).
 ChosenCameras choose_automatic_cameras(const GaussianSet& scene, const RegionMask& region,
-                                       const FillCameraOptions& options);
+                                       const FillCameraOptions& options, StageTimes* stages = nullptr);
 
 // The scene's up for automatic cameras (see above), a unit vector.
 Eigen::Vector3d guess_up(const SplatCloud& cloud, const RegionMask& region);

@@ -643,8 +643,9 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   // The stroke's view is the reference unless another is named: the user drew on it.
   if (camera_options.reference.empty() && options.stroke) camera_options.reference = options.stroke_view;
   if (options.cameras.empty() && camera_options.up.norm() == 0) camera_options.up = guess_up(cloud, region);
-  result.cameras = options.cameras.empty() ? choose_automatic_cameras(sets.scene, region, camera_options)
-                                           : choose_given_cameras(sets.scene, region, options.cameras, camera_options);
+  result.cameras = options.cameras.empty()
+                       ? choose_automatic_cameras(sets.scene, region, camera_options, &stages)
+                       : choose_given_cameras(sets.scene, region, options.cameras, camera_options, &stages);
   stages.lap("choose cameras");
 
   std::vector<Observer> extra;
