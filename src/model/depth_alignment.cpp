@@ -100,7 +100,8 @@ torch::Tensor detail_correction(const std::vector<PointSample>& samples, double 
   const double grid_sigma = sigma / cell;
   const int radius = static_cast<int>(std::ceil(3 * grid_sigma));
   cv::Mat kernel(2 * radius + 1, 1, CV_64F);
-  for (int k = -radius; k <= radius; ++k) kernel.at<double>(k + radius) = std::exp(-0.5 * k * k / (grid_sigma * grid_sigma));
+  for (int k = -radius; k <= radius; ++k)
+    kernel.at<double>(k + radius) = std::exp(-0.5 * k * k / (grid_sigma * grid_sigma));
   // Separable, zeros beyond the picture (OpenCV's: the grid is a pixel a cell where points are
   // dense, and LibTorch's conv2d took 45-260 ms a view there at 904 x 512).
   auto blur = [&](const cv::Mat& m) {
