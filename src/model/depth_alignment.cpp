@@ -80,19 +80,33 @@ std::vector<PointSample> front_points(const std::vector<PointSample>& samples, d
   return out;
 }
 
+// The points a view sees: those not hidden (front_points), and their mean spacing in pixels over
+// the `used_pixels` they fall on.
+struct VisiblePoints {
+  std::vector<PointSample> front;
+  double spacing = 1;
+};
+
+VisiblePoints visible_points(const std::vector<PointSample>& samples, int64_t used_pixels, double front, int w,
+                             int h) {
+  VisiblePoints v;
+  v.spacing = std::sqrt(static_cast<double>(std::max<int64_t>(used_pixels, 1)) / samples.size());
+  v.front = front_points(samples, v.spacing, front, w, h);
+  return v;
+}
+
 // The log-depth correction each pixel of a w x h view needs beyond its scale `scale`: the visible
 // points' remaining log ratios averaged with Gaussian weights `detail` point spacings wide, pulled
 // back to 0 by `prior` points' weight where few are near (a normalised convolution, on a grid a
 // quarter of that width, bilinear between its cells).
-torch::Tensor detail_correction(const std::vector<PointSample>& samples, double scale, int w, int h,
-                                int64_t used_pixels, const DepthDetailOptions& options) {
-  const double spacing = std::sqrt(static_cast<double>(std::max<int64_t>(used_pixels, 1)) / samples.size());
-  const double sigma = std::max(1.0, options.detail * spacing);
+torch::Tensor detail_correction(const VisiblePoints& visible, double scale, int w, int h,
+                                const DepthDetailOptions& options) {
+  const double sigma = std::max(1.0, options.detail * visible.spacing);
   const int cell = std::max(1, static_cast<int>(sigma / 4));
   const int gw = (w + cell - 1) / cell, gh = (h + cell - 1) / cell;
   cv::Mat sum = cv::Mat::zeros(gh, gw, CV_64F), weight = cv::Mat::zeros(gh, gw, CV_64F);
   const double limit = std::log(options.max_ratio), log_scale = std::log(scale);
-  for (const PointSample& s : front_points(samples, spacing, options.front, w, h)) {
+  for (const PointSample& s : visible.front) {
     const int gy = s.y / cell, gx = s.x / cell;
     sum.at<double>(gy, gx) += std::clamp(std::log(s.z / s.predicted) - log_scale, -limit, limit);
     weight.at<double>(gy, gx) += 1;
@@ -163,13 +177,15 @@ ViewAlignment align_view(const torch::Tensor& predicted_depth, const PreparedVie
   if (options.detail > 0) {
     int64_t used = 0;
     for (float u : outside.pixels) used += u > 0.5f;
-    torch::Tensor log_correction = detail_correction(samples, scale, camera.K.width, camera.K.height, used, options);
+    const int w = camera.K.width, h = camera.K.height;
+    const VisiblePoints visible = visible_points(samples, used, options.front, w, h);
+    torch::Tensor log_correction = detail_correction(visible, scale, w, h, options);
     if (view.mask && options.region_factor != 1) {
       DepthDetailOptions wide = options;
       wide.detail *= options.region_factor;
       const torch::Tensor region = soft_mask(*view.mask);
       log_correction = log_correction * (1 - region) +
-                       detail_correction(samples, scale, camera.K.width, camera.K.height, used, wide) * region;
+                       detail_correction(visible, scale, w, h, wide) * region;
     }
     out.report.detail_mean = log_correction.abs().mean().item<double>();
     out.factor = log_correction.exp() * scale;
