@@ -43,8 +43,10 @@ def test_attributes_are_arrays_over_the_librarys_memory(statue, predictor):
     photo = statue.camera(statue.views[0])
     width = photo.width * HEIGHT // photo.height // 8 * 8
     margin = round(HEIGHT / 8)  # Gaussians past each frame's edges, an eighth of its height
-    assert n == 4 * (width + 2 * margin) * (HEIGHT + 2 * margin)
-    assert len(predictor.predict(statue, height=HEIGHT, frame_margin=0)) == 4 * HEIGHT * width  # one per pixel
+    cover = g.geometry["region_cover"]  # flat splats over the reference's region, one per pixel of it
+    assert cover["opacity"] == 0.3 and cover["gaussians"] > 0, cover
+    assert n == 4 * (width + 2 * margin) * (HEIGHT + 2 * margin) + cover["gaussians"]
+    assert len(predictor.predict(statue, height=HEIGHT, frame_margin=0, region_cover=0)) == 4 * HEIGHT * width
     for name, shape in [("means", (n, 3)), ("quats", (n, 4)), ("scales", (n, 3)), ("opacities", (n,)),
                         ("colors", (n, 3))]:
         a = getattr(g, name)

@@ -50,6 +50,7 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
       ->capture_default_str();
   add_align_depth_option(cmd, args.align_depth, args.depth_detail);
   add_frame_margin_option(cmd, args.frame_margin);
+  add_region_cover_option(cmd, args.region_cover);
 }
 
 void add_align_depth_option(CLI::App* cmd, std::string& align_depth, double& depth_detail) {
@@ -78,12 +79,22 @@ void add_frame_margin_option(CLI::App* cmd, double& fraction) {
       ->capture_default_str();
 }
 
+void add_region_cover_option(CLI::App* cmd, double& opacity) {
+  cmd->add_option("--region-cover", opacity,
+                  "Cover the reference's region with flat splats of this opacity on its depth, beside the network's "
+                  "Gaussians, so that views from elsewhere show no background between them where the object "
+                  "stood; 0 = none (the paper's)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+}
+
 void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
   options.inpainter = parse_inpainter(args.inpainter);
   options.align_depth = parse_depth_points(args.align_depth);
   options.depth_detail.detail = args.depth_detail;
   options.frame_margin.fraction = args.frame_margin;
+  options.region_cover.opacity = args.region_cover;
 }
 
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene) {

@@ -31,6 +31,7 @@ struct ServeArgs {
   std::string align_depth = "photos";
   double depth_detail = DepthDetailOptions().detail;
   double frame_margin = FrameMarginOptions().fraction;
+  double region_cover = RegionCoverOptions().opacity;
   RuntimeOptions runtime;
 };
 
@@ -53,6 +54,7 @@ void run(const ServeArgs& a) {
   o.views = a.views;
   o.align_depth = parse_depth_points(a.align_depth);
   o.frame_margin.fraction = a.frame_margin;
+  o.region_cover.opacity = a.region_cover;
   o.depth_detail.detail = a.depth_detail;
   o.token = a.token;
   o.no_token = a.no_token;
@@ -118,6 +120,7 @@ void add_serve_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   add_align_depth_option(cmd, args->align_depth, args->depth_detail);
   add_frame_margin_option(cmd, args->frame_margin);
+  add_region_cover_option(cmd, args->region_cover);
   add_runtime_options(cmd, args->runtime);
   cmd->footer(
       "Examples:\n"

@@ -32,6 +32,7 @@
 #include "edit/scene_masks.h"
 #include "eval/metrics.h"
 #include "model/frame_margin.h"
+#include "model/region_cover.h"
 #include "model/network.h"
 #include "model/predictor.h"
 
@@ -64,6 +65,7 @@ struct EvalOptions {
   bool keep_object = false;     // a reconstruction: no masks, the reference's own photo
   DepthPoints align_depth = DepthPoints::photos;  // SceneInputOptions::align_depth
   FrameMarginOptions frame_margin;                // SceneInputOptions::frame_margin
+  RegionCoverOptions region_cover;                // SceneInputOptions::region_cover
   DepthDetailOptions depth_detail;                // SceneInputOptions::depth_detail
   // Applied to the network's Gaussians before rendering (e.g. refinement, which lives above
   // eval): given the scene, the prediction and its input options; fills `report`.

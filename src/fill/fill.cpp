@@ -14,6 +14,7 @@
 #include "fill/surface.h"
 #include "gaussians/gaussians.h"
 #include "model/device.h"
+#include "model/surface_splats.h"
 #include "render/projection.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
@@ -361,6 +362,7 @@ Prediction predict_holes(const std::vector<CameraViews>& views, const ChosenCame
   input.view_cache = &cache;
   input.align_depth = DepthPoints::none;  // renders in memory: no depth maps, no photos to triangulate
   input.frame_margin.fraction = 0;        // the region's Gaussians are taken from the maps alone
+  input.region_cover.opacity = 0;
   for (size_t i = 0; i < views.size(); ++i) {
     const NamedCamera& c = cameras.cameras[i];
     View view;

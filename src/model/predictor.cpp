@@ -86,19 +86,26 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
   p.beyond_frame = gaussians_beyond_frame(p.maps, p.input.input, options.frame_margin);
   p.frame_margin = describe_frame_margin(options.frame_margin, p.maps.depth.size(3), p.beyond_frame.size());
   if (p.beyond_frame.size() > 0) p.stages.lap("Gaussians past the frames");
+  p.region_cover = region_cover_gaussians(p.input.views.front(), p.input.input.view_cameras.front(),
+                                          p.maps.depth[0][0][0], options.region_cover, p.maps.xyz);
+  p.region_cover_record = describe_region_cover(options.region_cover, p.region_cover.size());
+  if (p.region_cover.size() > 0) p.stages.lap("the region's cover");
   return p;
 }
 
 GaussianSet Prediction::gaussians() const {
-  const GaussianSet per_pixel = gaussians_from_maps(maps);
-  return beyond_frame.size() > 0 ? joined(per_pixel, beyond_frame) : per_pixel;
+  GaussianSet all = gaussians_from_maps(maps);
+  for (const GaussianSet* more : {&beyond_frame, &region_cover})
+    if (more->size() > 0) all = joined(all, *more);
+  return all;
 }
 
 nlohmann::json Prediction::describe_geometry() const {
   nlohmann::json views = nlohmann::json::array();
   for (const DepthAlignment& a : depth_alignment)
     views.push_back({{"view", a.view}, {"scale", a.scale}, {"points", a.points}, {"detail_mean", a.detail_mean}});
-  return {{"source", geometry}, {"detail", depth_detail}, {"views", views}, {"frame_margin", frame_margin}};
+  return {{"source", geometry}, {"detail", depth_detail}, {"views", views}, {"frame_margin", frame_margin},
+          {"region_cover", region_cover_record}};
 }
 
 }  // namespace ii

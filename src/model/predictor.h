@@ -19,6 +19,7 @@
 #include "model/network.h"
 #include "model/depth_alignment.h"
 #include "model/frame_margin.h"
+#include "model/region_cover.h"
 #include "model/scene_input.h"
 
 namespace ii {
@@ -39,11 +40,16 @@ struct Prediction {
   GaussianSet beyond_frame;
   nlohmann::json frame_margin;  // what run.json and metrics.json record of it
 
+  // With SceneInputOptions::region_cover: flat splats over the reference's region
+  // (model/region_cover.h), an empty set without.
+  GaussianSet region_cover;
+  nlohmann::json region_cover_record;  // what run.json and metrics.json record of it
+
   // What run.json and metrics.json record of the depth alignment.
   nlohmann::json describe_geometry() const;
 
   // One Gaussian per input pixel, rows in the official order (views of `maps`), then those past
-  // the frames.
+  // the frames, then the region's cover.
   GaussianSet gaussians() const;
 };
 

@@ -15,6 +15,7 @@
 #include "gaussians/gaussians.h"
 #include "model/frame_margin.h"
 #include "model/model_input.h"
+#include "model/region_cover.h"
 
 namespace ii {
 
@@ -71,6 +72,9 @@ struct SceneInputOptions {
   // Predictor::predict: each view's Gaussians continued past the edges of its picture
   // (model/frame_margin.h); fraction 0 = none (the paper's).
   FrameMarginOptions frame_margin;
+  // Predictor::predict: the reference's region covered by flat splats besides the network's
+  // Gaussians (model/region_cover.h); opacity 0 = none (the paper's).
+  RegionCoverOptions region_cover;
 };
 
 struct SceneInput {

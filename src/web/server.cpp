@@ -644,6 +644,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.view_cache = &views;
   input.align_depth = options.align_depth;
   input.frame_margin = options.frame_margin;
+  input.region_cover = options.region_cover;
   input.depth_detail = options.depth_detail;
   OneMask request;
   request.view = view.name;

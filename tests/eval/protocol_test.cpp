@@ -283,20 +283,23 @@ TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
   EXPECT_EQ(m["prediction"]["checkpoint"], checkpoint.string());
   EXPECT_EQ(m["prediction"]["context"], json::array({"03", "02", "04", "05"}));
   EXPECT_EQ(m["prediction"]["reference"], "telea");
-  // One Gaussian a pixel, then those past the frames (an eighth of the height past each edge).
+  // One Gaussian a pixel, then those past the frames (an eighth of the height past each edge),
+  // then the reference's region covered, a splat a pixel of it.
   const int margin = static_cast<int>(std::lround(test::kSceneHeight / 8.0));
   const int past = (test::kSceneWidth + 2 * margin) * (test::kSceneHeight + 2 * margin) - test::kSceneWidth * test::kSceneHeight;
-  EXPECT_EQ(m["prediction"]["gaussians"], 4 * (test::kSceneWidth * test::kSceneHeight + past));
+  const int64_t region = m["prediction"]["geometry"]["region_cover"]["gaussians"];
+  EXPECT_GT(region, 0);
+  EXPECT_EQ(m["prediction"]["gaussians"], 4 * (test::kSceneWidth * test::kSceneHeight + past) + region);
   EXPECT_EQ(m["prediction"]["geometry"]["frame_margin"]["pixels"], margin);
   // The prediction's stages come first; computation is the work between the files.
   const std::vector<std::string> names = stage_names(m);
-  ASSERT_GE(names.size(), 13u);
-  EXPECT_EQ(std::vector<std::string>(names.begin(), names.begin() + 13),
+  ASSERT_GE(names.size(), 14u);
+  EXPECT_EQ(std::vector<std::string>(names.begin(), names.begin() + 14),
             std::vector<std::string>({"read scene", "load model: read checkpoint", "load model: network from checkpoint",
                                       "load model: weights to cpu", "prepare context views",
                                       "inpaint reference (telea)", "network input", "upload", "network",
                                       "the scene's points", "align depth to the scene's points", "Gaussians past the frames",
-                                      "gaussians to the renderer"}));
+                                      "the region's cover", "gaussians to the renderer"}));
   EXPECT_EQ(m["prediction"]["geometry"]["source"], "none");  // the test scene has no depth maps or points
   EXPECT_EQ(m["prediction"]["geometry"]["detail"], DepthDetailOptions().detail);
   ASSERT_EQ(m["prediction"]["own_views"]["views"].size(), 4u);
