@@ -211,7 +211,8 @@ class Predictor:
                 reference: Union[PathLike, Any, None] = None, reference_view: str = "", height: int = 256,
                 masks: Optional[Mapping[str, Any]] = None, keep_object: bool = False,
                 align_depth: str = "photos", depth_detail: float = 1.5,
-                frame_margin: float = 0.125, region_cover: float = 0.3) -> Gaussians:
+                frame_margin: float = 0.125, region_cover: float = 0.3,
+                fade_floaters: float = 0.3) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -231,12 +232,14 @@ class Predictor:
         region_cover: the reference's region covered by flat splats of this opacity on its depth
         (`--region-cover`), so that views from elsewhere show no background where the object
         stood; 0 for none (the paper's).
+        fade_floaters: the opacity kept by Gaussians on a depth edge of their view that lie in front
+        of another context view's depth (`--fade-floaters`); 1 for none faded (the paper's).
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
         return Gaussians(self._p._predict(scene, list(context), views, reference, reference_view, height,
                                           keep_object, dict(masks or {}), align_depth, float(depth_detail),
-                                          float(frame_margin), float(region_cover)))
+                                          float(frame_margin), float(region_cover), float(fade_floaters)))
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

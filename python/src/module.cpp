@@ -444,13 +444,14 @@ NB_MODULE(_core, m) {
            [](const Predictor& p, const Scene& scene, const std::vector<std::string>& context, int views,
               const nb::object& reference, const std::string& reference_view, int height, bool keep_object,
               const std::map<std::string, AnyArray>& masks, const std::string& align_depth, double depth_detail,
-              double frame_margin, double region_cover) {
+              double frame_margin, double region_cover, double fade_floaters) {
              auto input = std::make_shared<SceneInputOptions>(
                  input_options(context, views, reference, reference_view, height, keep_object, masks));
              input->align_depth = parse_depth_points(align_depth);
              input->depth_detail.detail = depth_detail;
              input->frame_margin.fraction = frame_margin;
              input->region_cover.opacity = region_cover;
+             input->floaters.fade = fade_floaters;
              PyGaussians g;
              {
                nb::gil_scoped_release release;
@@ -463,7 +464,7 @@ NB_MODULE(_core, m) {
              return g;
            },
            "scene"_a, "context"_a, "views"_a, "reference"_a.none(), "reference_view"_a, "height"_a, "keep_object"_a,
-           "masks"_a, "align_depth"_a, "depth_detail"_a, "frame_margin"_a, "region_cover"_a);
+           "masks"_a, "align_depth"_a, "depth_detail"_a, "frame_margin"_a, "region_cover"_a, "fade_floaters"_a);
 
   m.def("_masks_from_one",
         [](const Scene& scene, const std::string& view, const nb::object& region, const Predictor* predictor,

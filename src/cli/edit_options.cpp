@@ -49,6 +49,7 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
       ->check(CLI::IsMember({"telea", "ns", "patch"}))
       ->capture_default_str();
   add_align_depth_option(cmd, args.align_depth, args.depth_detail);
+  add_fade_floaters_option(cmd, args.fade_floaters);
   add_frame_margin_option(cmd, args.frame_margin);
   add_region_cover_option(cmd, args.region_cover);
 }
@@ -88,6 +89,15 @@ void add_region_cover_option(CLI::App* cmd, double& opacity) {
       ->capture_default_str();
 }
 
+void add_fade_floaters_option(CLI::App* cmd, double& fade) {
+  cmd->add_option("--fade-floaters", fade,
+                  "Gaussians on a depth edge of their view (a blend of the near and the far surface) that lie in "
+                  "front of another context view's depth there keep this fraction of their opacity, so that they "
+                  "do not smear across other views; 1 = none faded (the paper's)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+}
+
 void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
   options.inpainter = parse_inpainter(args.inpainter);
@@ -95,6 +105,7 @@ void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.depth_detail.detail = args.depth_detail;
   options.frame_margin.fraction = args.frame_margin;
   options.region_cover.opacity = args.region_cover;
+  options.floaters.fade = args.fade_floaters;
 }
 
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene) {

@@ -25,17 +25,19 @@ struct EditArgs {
   double depth_detail = DepthDetailOptions().detail;  // --depth-detail
   double frame_margin = FrameMarginOptions().fraction;  // --frame-margin
   double region_cover = RegionCoverOptions().opacity;   // --region-cover
+  double fade_floaters = FloaterOptions().fade;         // --fade-floaters
 };
 
 // --view, --mask, --mode, --depth, --depth-scale, --extent, --dilate.
 void add_edit_options(CLI::App* cmd, EditArgs& args);
-// --reference-view, --reference-inpainter, --align-depth, --depth-detail, --frame-margin,
-// --region-cover (commands that build the network's input).
+// --reference-view, --reference-inpainter, --align-depth, --depth-detail, --fade-floaters,
+// --frame-margin, --region-cover (commands that build the network's input).
 void add_reference_options(CLI::App* cmd, EditArgs& args);
 // --align-depth and --depth-detail (add_reference_options adds them too).
 void add_align_depth_option(CLI::App* cmd, std::string& align_depth, double& depth_detail);
 void add_frame_margin_option(CLI::App* cmd, double& fraction);         // --frame-margin
 void add_region_cover_option(CLI::App* cmd, double& opacity);          // --region-cover
+void add_fade_floaters_option(CLI::App* cmd, double& fade);            // --fade-floaters
 
 // The request the options describe for this scene, or nullopt without --view/--mask.
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene);

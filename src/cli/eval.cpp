@@ -66,6 +66,7 @@ void run(const EvalArgs& a) {
   o.align_depth = parse_depth_points(a.edit.align_depth);
   o.frame_margin.fraction = a.edit.frame_margin;
   o.region_cover.opacity = a.edit.region_cover;
+  o.floaters.fade = a.edit.fade_floaters;
   o.depth_detail.detail = a.edit.depth_detail;
   o.inpainter = parse_inpainter(a.edit.inpainter);
   if (a.keep_object && (!a.reference.empty() || !a.edit.view.empty()))

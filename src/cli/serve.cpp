@@ -32,6 +32,7 @@ struct ServeArgs {
   double depth_detail = DepthDetailOptions().detail;
   double frame_margin = FrameMarginOptions().fraction;
   double region_cover = RegionCoverOptions().opacity;
+  double fade_floaters = FloaterOptions().fade;
   RuntimeOptions runtime;
 };
 
@@ -55,6 +56,7 @@ void run(const ServeArgs& a) {
   o.align_depth = parse_depth_points(a.align_depth);
   o.frame_margin.fraction = a.frame_margin;
   o.region_cover.opacity = a.region_cover;
+  o.floaters.fade = a.fade_floaters;
   o.depth_detail.detail = a.depth_detail;
   o.token = a.token;
   o.no_token = a.no_token;
@@ -121,6 +123,7 @@ void add_serve_command(CLI::App& app) {
   add_align_depth_option(cmd, args->align_depth, args->depth_detail);
   add_frame_margin_option(cmd, args->frame_margin);
   add_region_cover_option(cmd, args->region_cover);
+  add_fade_floaters_option(cmd, args->fade_floaters);
   add_runtime_options(cmd, args->runtime);
   cmd->footer(
       "Examples:\n"

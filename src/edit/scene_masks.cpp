@@ -79,6 +79,7 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
   o.align_depth = options.align_depth == DepthPoints::photos ? DepthPoints::depth_maps : options.align_depth;
   o.depth_detail = options.depth_detail;
   o.frame_margin.fraction = 0;  // only the marked view's depth map is read
+  o.floaters.fade = 1;          // (nor its opacities)
   const Prediction p = predictor.predict(scene, o);
   Stopwatch watch;
   const Image depth = depth_at_image_size(p.maps.depth[0][0][0], p.input.normalization.scale, marked, o.preprocess);

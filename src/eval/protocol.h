@@ -31,6 +31,7 @@
 #include "data/scene.h"
 #include "edit/scene_masks.h"
 #include "eval/metrics.h"
+#include "model/floaters.h"
 #include "model/frame_margin.h"
 #include "model/region_cover.h"
 #include "model/network.h"
@@ -66,6 +67,7 @@ struct EvalOptions {
   DepthPoints align_depth = DepthPoints::photos;  // SceneInputOptions::align_depth
   FrameMarginOptions frame_margin;                // SceneInputOptions::frame_margin
   RegionCoverOptions region_cover;                // SceneInputOptions::region_cover
+  FloaterOptions floaters;                        // SceneInputOptions::floaters
   DepthDetailOptions depth_detail;                // SceneInputOptions::depth_detail
   // Applied to the network's Gaussians before rendering (e.g. refinement, which lives above
   // eval): given the scene, the prediction and its input options; fills `report`.

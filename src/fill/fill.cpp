@@ -363,6 +363,7 @@ Prediction predict_holes(const std::vector<CameraViews>& views, const ChosenCame
   input.align_depth = DepthPoints::none;  // renders in memory: no depth maps, no photos to triangulate
   input.frame_margin.fraction = 0;        // the region's Gaussians are taken from the maps alone
   input.region_cover.opacity = 0;
+  input.floaters.fade = 1;
   for (size_t i = 0; i < views.size(); ++i) {
     const NamedCamera& c = cameras.cameras[i];
     View view;

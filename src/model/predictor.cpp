@@ -83,6 +83,9 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
       p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points, options.depth_detail);
     p.stages.lap("align depth to the scene's points");
   }
+  const int64_t faded = fade_floaters(p.maps, p.input.views, p.input.input.view_cameras, options.floaters);
+  p.floaters = describe_floaters(options.floaters, faded);
+  if (options.floaters.fade < 1) p.stages.lap("fade floaters");
   p.beyond_frame = gaussians_beyond_frame(p.maps, p.input.input, options.frame_margin);
   p.frame_margin = describe_frame_margin(options.frame_margin, p.maps.depth.size(3), p.beyond_frame.size());
   if (p.beyond_frame.size() > 0) p.stages.lap("Gaussians past the frames");
@@ -104,8 +107,9 @@ nlohmann::json Prediction::describe_geometry() const {
   nlohmann::json views = nlohmann::json::array();
   for (const DepthAlignment& a : depth_alignment)
     views.push_back({{"view", a.view}, {"scale", a.scale}, {"points", a.points}, {"detail_mean", a.detail_mean}});
-  return {{"source", geometry}, {"detail", depth_detail}, {"views", views}, {"frame_margin", frame_margin},
-          {"region_cover", region_cover_record}};
+  return {{"source", geometry},          {"detail", depth_detail},
+          {"views", views},              {"floaters", floaters},
+          {"frame_margin", frame_margin}, {"region_cover", region_cover_record}};
 }
 
 }  // namespace ii

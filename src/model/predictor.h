@@ -18,6 +18,7 @@
 #include "model/config.h"
 #include "model/network.h"
 #include "model/depth_alignment.h"
+#include "model/floaters.h"
 #include "model/frame_margin.h"
 #include "model/region_cover.h"
 #include "model/scene_input.h"
@@ -34,6 +35,9 @@ struct Prediction {
   std::string geometry = "off";  // the points' source, "none" when the scene has none, or "off"
   PointsSource geometry_kind = PointsSource::None;  // which it was (None when off)
   double depth_detail = 0;  // DepthDetailOptions::detail when aligned (0: one scale per view)
+
+  // With SceneInputOptions::floaters: what run.json and metrics.json record of them.
+  nlohmann::json floaters;
 
   // With SceneInputOptions::frame_margin: each view's Gaussians past the edges of its picture
   // (model/frame_margin.h), an empty set without.

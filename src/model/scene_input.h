@@ -13,6 +13,7 @@
 #include "data/preprocess.h"
 #include "data/scene.h"
 #include "gaussians/gaussians.h"
+#include "model/floaters.h"
 #include "model/frame_margin.h"
 #include "model/model_input.h"
 #include "model/region_cover.h"
@@ -69,6 +70,9 @@ struct SceneInputOptions {
   // none (the network's output as it is, the paper's).
   DepthPoints align_depth = DepthPoints::photos;
   DepthDetailOptions depth_detail;
+  // Predictor::predict: Gaussians on a view's depth edges that another view sees through keep a
+  // fraction of their opacity (model/floaters.h); fade 1 = none (the paper's).
+  FloaterOptions floaters;
   // Predictor::predict: each view's Gaussians continued past the edges of its picture
   // (model/frame_margin.h); fraction 0 = none (the paper's).
   FrameMarginOptions frame_margin;

@@ -645,6 +645,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.align_depth = options.align_depth;
   input.frame_margin = options.frame_margin;
   input.region_cover = options.region_cover;
+  input.floaters = options.floaters;
   input.depth_detail = options.depth_detail;
   OneMask request;
   request.view = view.name;
@@ -769,6 +770,7 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   input.align_depth = options.align_depth;
   input.frame_margin = options.frame_margin;
   input.depth_detail = options.depth_detail;
+  input.floaters = options.floaters;
   stage("reconstructing the scene as captured (object kept)", 0.2);
   const Prediction p = predictor->predict(*scene, input);
   stages.merge(p.stages);

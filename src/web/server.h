@@ -60,6 +60,7 @@ struct ServeOptions {
   DepthPoints align_depth = DepthPoints::photos;  // SceneInputOptions::align_depth of every prediction
   FrameMarginOptions frame_margin;                // SceneInputOptions::frame_margin of every prediction
   RegionCoverOptions region_cover;                // SceneInputOptions::region_cover of every edit
+  FloaterOptions floaters;                        // SceneInputOptions::floaters of every prediction
   DepthDetailOptions depth_detail;                // SceneInputOptions::depth_detail of every prediction
   size_t max_upload_bytes = 32u << 20;
   // Every request must carry this token; empty: a random one is made (WebServer::token()).

@@ -21,6 +21,7 @@ SceneInputOptions two_views() {
   opts.context = {"IMG_2720", "IMG_2707"};
   opts.preprocess.height = 64;
   opts.align_depth = DepthPoints::none;  // the network's output as it is
+  opts.floaters.fade = 1;                // (its opacities too)
   return opts;
 }
 
