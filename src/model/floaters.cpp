@@ -50,6 +50,9 @@ int64_t fade_floaters(GaussianMaps& maps, const std::vector<PreparedView>& views
   for (int64_t v = 0; v < count; ++v) {
     depth.push_back(maps.depth[0][v][0].to(torch::kFloat32));
     const auto& mask = views[static_cast<size_t>(v)].mask;
+    if (mask && (mask->width != w || mask->height != h))
+      fail("floaters: view {}'s mask is {}x{}, its depth {}x{}", views[static_cast<size_t>(v)].name, mask->width,
+           mask->height, w, h);
     usable.push_back(mask ? torch::from_blob(const_cast<float*>(mask->pixels.data()), {h, w}, torch::kFloat32)
                                 .le(0.5f)
                                 .to(device)
@@ -59,7 +62,8 @@ int64_t fade_floaters(GaussianMaps& maps, const std::vector<PreparedView>& views
   for (int64_t v = 0; v < count; ++v) {
     // Only the pixels on its depth edges are candidates (a tenth to a fifth of them): the others
     // are not projected at all.
-    const torch::Tensor edge = depth_edges(depth[static_cast<size_t>(v)], options.edge).reshape({-1}).nonzero().squeeze(1);
+    const torch::Tensor on_edge = depth_edges(depth[static_cast<size_t>(v)], options.edge);
+    const torch::Tensor edge = on_edge.reshape({-1}).nonzero().squeeze(1);
     if (edge.numel() == 0) continue;
     const torch::Tensor points = maps.xyz[0][v].to(torch::kFloat32).reshape({3, -1}).index_select(1, edge).t();
     torch::Tensor seen_through = torch::zeros({edge.numel()}, torch::TensorOptions(torch::kBool).device(device));
@@ -67,10 +71,11 @@ int64_t fade_floaters(GaussianMaps& maps, const std::vector<PreparedView>& views
       if (u != v)
         seen_through.logical_or_(in_front_of(points, cameras[static_cast<size_t>(u)], depth[static_cast<size_t>(u)],
                                              usable[static_cast<size_t>(u)], options.tolerance));
-    const torch::Tensor floaters = edge.masked_select(seen_through);
-    faded += floaters.numel();
-    torch::Tensor opacity = maps.opacity[0][v][0].view({-1});
-    opacity.index_copy_(0, floaters, opacity.index_select(0, floaters) * options.fade);
+    const torch::Tensor floaters =
+        torch::zeros({h * w}, on_edge.options()).index_fill_(0, edge.masked_select(seen_through), true).view({h, w});
+    faded += floaters.sum().item<int64_t>();
+    torch::Tensor opacity = maps.opacity[0][v][0];  // a view of the maps, whatever its strides
+    opacity.copy_(torch::where(floaters, opacity * options.fade, opacity));
   }
   return faded;
 }

@@ -82,6 +82,10 @@ TEST(Floaters, NothingFadedWhereTheOtherViewsMaskHidesItsDepthOrWithAFadeOfOne) 
   wrong.cameras.pop_back();
   EXPECT_EQ(test::error_message([&] { fade_floaters(wrong.maps, wrong.views, wrong.cameras, {}); }),
             "floaters: 2 views and 1 cameras for 2 views of maps");
+  Wall small_mask = wall();
+  small_mask.views[1].mask = Image(kW - 1, kH, 1);
+  EXPECT_EQ(test::error_message([&] { fade_floaters(small_mask.maps, small_mask.views, small_mask.cameras, {}); }),
+            "floaters: view view_1's mask is 15x12, its depth 16x12");
 }
 
 TEST(Floaters, APredictionRecordsThem) {
