@@ -2,8 +2,8 @@
 // Gaussians that another view sees through. One Gaussian per pixel puts a pixel on a depth edge
 // between the near and the far surface (its depth a blend of both: a "flying pixel"); from another
 // camera it hangs in front of what that camera sees, and four views' such pixels smear an object
-// across the room (the demo's room, 128 rows: 13-15 % of each view's Gaussians lay more than 10 %
-// in front of its true surface as seen by the other context views). Each view's Gaussians on a
+// across the room (the demo's room, 128 rows: seen from the other context views, 14-27 % of each
+// view's Gaussians lay more than 10 % in front of the true surface there). Each view's Gaussians on a
 // depth edge of its own depth map that land in front of another view's depth there (outside that
 // view's mask, where its depth is the network's guess) keep a fraction of their opacity.
 #include <cstdint>
