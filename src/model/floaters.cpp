@@ -1,6 +1,7 @@
 #include "model/floaters.h"
 
 #include "common/error.h"
+#include "tensor/camera_projection.h"
 
 namespace ii {
 
@@ -18,22 +19,10 @@ torch::Tensor depth_edges(const torch::Tensor& depth, double edge) {
 // pixels, more than `tolerance` in front of `depth` (H, W) there.
 torch::Tensor in_front_of(const torch::Tensor& points, const Camera& camera, const torch::Tensor& depth,
                           const torch::Tensor& usable, double tolerance) {
-  const int64_t h = depth.size(0), w = depth.size(1);
-  const Eigen::Matrix4d w2c = camera.w2c_opencv();
-  const torch::Tensor m = torch::tensor({w2c(0, 0), w2c(0, 1), w2c(0, 2), w2c(0, 3), w2c(1, 0), w2c(1, 1), w2c(1, 2),
-                                         w2c(1, 3), w2c(2, 0), w2c(2, 1), w2c(2, 2), w2c(2, 3)},
-                                        torch::kFloat64)
-                              .view({3, 4})
-                              .to(points.device(), points.scalar_type());
-  const torch::Tensor c = points.matmul(m.narrow(1, 0, 3).t()) + m.select(1, 3);
-  const torch::Tensor z = c.select(1, 2);
-  const torch::Tensor x = (camera.K.fx * c.select(1, 0) / z + camera.K.cx).floor();
-  const torch::Tensor y = (camera.K.fy * c.select(1, 1) / z + camera.K.cy).floor();
-  const torch::Tensor inside = (z > 0).logical_and(x >= 0).logical_and(y >= 0).logical_and(x < w).logical_and(y < h);
-  const torch::Tensor pixel = (y.clamp(0, h - 1) * w + x.clamp(0, w - 1)).to(torch::kLong);
-  const torch::Tensor there = depth.reshape({-1}).index_select(0, pixel);
-  return inside.logical_and(usable.reshape({-1}).index_select(0, pixel))
-      .logical_and(z < there * (1 - tolerance));
+  const PixelHit hit = project(camera, points);
+  const torch::Tensor there = depth.reshape({-1}).index_select(0, hit.index);
+  return hit.inside.logical_and(usable.reshape({-1}).index_select(0, hit.index))
+      .logical_and(hit.z < there * (1 - tolerance));
 }
 
 }  // namespace
