@@ -73,11 +73,13 @@ ffmpeg -loglevel error -y "${inputs[@]}" \
   --frames 60 --width $((2 * SIZE)) --height $((2 * SIZE)) --out "$OUT/orbit" > /dev/null
 
 step "6/6 metrics on the object-free test views: the model, refined, and two 2D baselines"
-# Each row says what made it: the model and the geometry its depth was aligned to.
+# Each row says what made it: the model, the geometry its depth was aligned to, the measured surface.
 made_by() {  # made_by METRICS.JSON
   python3 -c 'import json,sys; p=json.load(open(sys.argv[1]))["prediction"]
 g=p.get("geometry", {}).get("source"); d=p.get("geometry", {}).get("detail", 0)
-aligned="%s, depth aligned to %s%s" % (p.get("checkpoint"), g, ", detail %g" % d if d else "")
+m=p.get("geometry", {}).get("measured_surface", {}).get("views", [])
+aligned="%s, depth aligned to %s%s%s" % (p.get("checkpoint"), g, ", detail %g" % d if d else "",
+  ", %d views on their measured surface" % len(m) if m else "")
 print((aligned if g not in (None, "off", "none") else "%s, its own depth" % p["checkpoint"]) if "checkpoint" in p else "splats of %s" % p["ply"] if "ply" in p else "2D baseline")' "$1"
 }
 for method in model model-raw refined telea mean-fill; do

@@ -30,6 +30,10 @@ from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple, Unio
 from . import _core
 from ._core import Camera, Error, Scene, set_log_level, set_threads
 
+# Predictor.predict's defaults: the library's own (GeometryOptions), as the commands use them.
+(_ALIGN_DEPTH, _DEPTH_DETAIL, _FRAME_MARGIN, _REGION_COVER, _FADE_FLOATERS,
+ _MEASURED_SURFACE) = _core._geometry_defaults
+
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
     "masks_from_one", "set_log_level", "set_threads",
@@ -210,9 +214,10 @@ class Predictor:
     def predict(self, scene: Scene, *, context: Sequence[str] = (), views: int = 4,
                 reference: Union[PathLike, Any, None] = None, reference_view: str = "", height: int = 256,
                 masks: Optional[Mapping[str, Any]] = None, keep_object: bool = False,
-                align_depth: str = "photos", depth_detail: float = 1.5,
-                frame_margin: float = 0.125, region_cover: float = 0.3,
-                fade_floaters: float = 0.3) -> Gaussians:
+                align_depth: str = _ALIGN_DEPTH, depth_detail: float = _DEPTH_DETAIL,
+                frame_margin: float = _FRAME_MARGIN, region_cover: float = _REGION_COVER,
+                fade_floaters: float = _FADE_FLOATERS,
+                measured_surface: float = _MEASURED_SURFACE) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -234,12 +239,16 @@ class Predictor:
         stood; 0 for none (the paper's).
         fade_floaters: the opacity kept by Gaussians on a depth edge of their view that lie in front
         of another context view's depth (`--fade-floaters`); 1 for none faded (the paper's).
+        measured_surface: where a context view has its own depth map (a depth camera's, a synthetic
+        scene's), its Gaussians outside its mask lie on that surface as flat splats at least this
+        opaque (`--measured-surface`); 0 for none.
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
         return Gaussians(self._p._predict(scene, list(context), views, reference, reference_view, height,
                                           keep_object, dict(masks or {}), align_depth, float(depth_detail),
-                                          float(frame_margin), float(region_cover), float(fade_floaters)))
+                                          float(frame_margin), float(region_cover), float(fade_floaters),
+                                          float(measured_surface)))
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

@@ -192,6 +192,12 @@ NB_MODULE(_core, m) {
         "How much the library prints to standard output: trace, debug, info (default), warning, error, "
         "critical or off.");
 
+  // predict()'s defaults are the commands' (GeometryOptions), read here rather than written twice.
+  const GeometryOptions geometry;
+  m.attr("_geometry_defaults") = nb::make_tuple(depth_points_name(geometry.align_depth), geometry.depth_detail.detail,
+                                                geometry.frame_margin.fraction, geometry.region_cover.opacity,
+                                                geometry.floaters.fade, geometry.measured_surface.opacity);
+
   m.def("set_threads",
         [](int threads) {
           if (threads < 0) fail("set_threads: {} is not a thread count (0: $OMP_NUM_THREADS, else every core)", threads);
@@ -444,14 +450,15 @@ NB_MODULE(_core, m) {
            [](const Predictor& p, const Scene& scene, const std::vector<std::string>& context, int views,
               const nb::object& reference, const std::string& reference_view, int height, bool keep_object,
               const std::map<std::string, AnyArray>& masks, const std::string& align_depth, double depth_detail,
-              double frame_margin, double region_cover, double fade_floaters) {
+              double frame_margin, double region_cover, double fade_floaters, double measured_surface) {
              auto input = std::make_shared<SceneInputOptions>(
                  input_options(context, views, reference, reference_view, height, keep_object, masks));
-             input->align_depth = parse_depth_points(align_depth);
-             input->depth_detail.detail = depth_detail;
-             input->frame_margin.fraction = frame_margin;
-             input->region_cover.opacity = region_cover;
-             input->floaters.fade = fade_floaters;
+             input->geometry.align_depth = parse_depth_points(align_depth);
+             input->geometry.depth_detail.detail = depth_detail;
+             input->geometry.frame_margin.fraction = frame_margin;
+             input->geometry.region_cover.opacity = region_cover;
+             input->geometry.floaters.fade = fade_floaters;
+             input->geometry.measured_surface.opacity = measured_surface;
              PyGaussians g;
              {
                nb::gil_scoped_release release;
@@ -464,7 +471,8 @@ NB_MODULE(_core, m) {
              return g;
            },
            "scene"_a, "context"_a, "views"_a, "reference"_a.none(), "reference_view"_a, "height"_a, "keep_object"_a,
-           "masks"_a, "align_depth"_a, "depth_detail"_a, "frame_margin"_a, "region_cover"_a, "fade_floaters"_a);
+           "masks"_a, "align_depth"_a, "depth_detail"_a, "frame_margin"_a, "region_cover"_a, "fade_floaters"_a,
+           "measured_surface"_a);
 
   m.def("_masks_from_one",
         [](const Scene& scene, const std::string& view, const nb::object& region, const Predictor* predictor,

@@ -1,6 +1,7 @@
 """The Python package against the library's own behaviour: the CLI's bytes, zero-copy arrays,
 clear errors, no leaks, progress, the GIL released."""
 import gc
+import inspect
 import json
 import os
 import pathlib
@@ -105,11 +106,20 @@ def test_render_of_a_saved_and_reloaded_prediction(tmp_path, statue, predictor):
     np.testing.assert_allclose(ii.load_gaussians(tmp_path / "n.ply").means, g.means, atol=1e-6)
 
 
+def test_predict_defaults_are_the_commands():
+    defaults = {k: p.default for k, p in inspect.signature(ii.Predictor.predict).parameters.items()}
+    assert (defaults["align_depth"], defaults["depth_detail"], defaults["frame_margin"], defaults["region_cover"],
+            defaults["fade_floaters"], defaults["measured_surface"]) == ("photos", 1.5, 0.125, 0.3, 0.3, 0.95)
+
+
 def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
     raw = predictor.predict(statue, height=HEIGHT, align_depth="none")
     g = predictor.predict(statue, height=HEIGHT)
     assert raw.geometry["source"] == "off" and raw.geometry["views"] == []
     assert raw.geometry["frame_margin"]["fraction"] == 0.125
+    # The statue has no depth maps: no measured surface (and none at all without alignment).
+    assert raw.geometry["measured_surface"] == {}
+    assert g.geometry["measured_surface"]["views"] == [] and g.geometry["measured_surface"]["opacity"] == 0.95
     assert g.geometry["source"].startswith("points triangulated from 4 views' photos ("), g.geometry
     assert [v["view"] for v in g.geometry["views"]] == g.context
     assert all(v["points"] >= 20 and v["scale"] > 0 for v in g.geometry["views"]), g.geometry

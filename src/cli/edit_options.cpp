@@ -48,22 +48,20 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
                   "(Navier-Stokes) or patch (patches of the photo copied inward)")
       ->check(CLI::IsMember({"telea", "ns", "patch"}))
       ->capture_default_str();
-  add_align_depth_option(cmd, args.align_depth, args.depth_detail);
-  add_fade_floaters_option(cmd, args.fade_floaters);
-  add_frame_margin_option(cmd, args.frame_margin);
-  add_region_cover_option(cmd, args.region_cover);
+  add_geometry_options(cmd, args.geometry);
 }
 
-void add_align_depth_option(CLI::App* cmd, std::string& align_depth, double& depth_detail) {
-  cmd->add_option("--align-depth", align_depth,
-                  "Scale each context view's predicted depth to the scene's own 3D points: depth-maps (a synthetic "
-                  "scene's depth/), photos (those, else points triangulated from the context views' photos and "
-                  "their neighbours with the scene's cameras), any (depth maps, else COLMAP's sparse points, else "
-                  "the photos'), none (the network's depth as it is, the paper's). One-mask propagation reads photos as "
-                  "depth-maps (the statue's masks lost precision with the photos' points)")
+void add_align_depth_option(CLI::App* cmd, GeometryOptions& geometry) {
+  cmd->add_option_function<std::string>(
+         "--align-depth", [&geometry](const std::string& name) { geometry.align_depth = parse_depth_points(name); },
+         "Scale each context view's predicted depth to the scene's own 3D points: depth-maps (a synthetic "
+         "scene's depth/), photos (those, else points triangulated from the context views' photos and "
+         "their neighbours with the scene's cameras), any (depth maps, else COLMAP's sparse points, else "
+         "the photos'), none (the network's depth as it is, the paper's). One-mask propagation reads photos as "
+         "depth-maps (the statue's masks lost precision with the photos' points)")
       ->check(CLI::IsMember({"none", "depth-maps", "photos", "any"}))
-      ->capture_default_str();
-  cmd->add_option("--depth-detail", depth_detail,
+      ->default_str(depth_points_name(geometry.align_depth));
+  cmd->add_option("--depth-detail", geometry.depth_detail.detail,
                   "With --align-depth: how closely each view's depth follows the points beyond one scale per view, "
                   "as the width of its local correction in point spacings (the network often draws a table at the "
                   "floor's depth); 0 = one scale per view")
@@ -71,17 +69,28 @@ void add_align_depth_option(CLI::App* cmd, std::string& align_depth, double& dep
       ->capture_default_str();
 }
 
-void add_frame_margin_option(CLI::App* cmd, double& fraction) {
-  cmd->add_option("--frame-margin", fraction,
+void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
+  add_align_depth_option(cmd, geometry);
+  cmd->add_option("--measured-surface", geometry.measured_surface.opacity,
+                  "Where a context view has its own depth map (<scene>/depth/<view>.npy: a depth camera's, a "
+                  "synthetic scene's), put its Gaussians outside its mask on that depth as flat splats along the "
+                  "measured surface, at least this opaque; 0 = none (the network's Gaussians, aligned as "
+                  "--align-depth says; --align-depth none turns this off too)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--fade-floaters", geometry.floaters.fade,
+                  "Gaussians on a depth edge of their view (a blend of the near and the far surface) that lie in "
+                  "front of another context view's depth there keep this fraction of their opacity, so that they "
+                  "do not smear across other views; 1 = none faded (the paper's)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--frame-margin", geometry.frame_margin.fraction,
                   "Continue each context view's Gaussians past the edges of its picture by this fraction of its "
                   "height (its border pixels repeated outward along their rays), so that views a little beside the "
                   "context cameras show the scene's edge instead of the background; 0 = none (the paper's)")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
-}
-
-void add_region_cover_option(CLI::App* cmd, double& opacity) {
-  cmd->add_option("--region-cover", opacity,
+  cmd->add_option("--region-cover", geometry.region_cover.opacity,
                   "Cover the reference's region with flat splats of this opacity on its depth, beside the network's "
                   "Gaussians, so that views from elsewhere show no background between them where the object "
                   "stood; 0 = none (the paper's)")
@@ -89,23 +98,10 @@ void add_region_cover_option(CLI::App* cmd, double& opacity) {
       ->capture_default_str();
 }
 
-void add_fade_floaters_option(CLI::App* cmd, double& fade) {
-  cmd->add_option("--fade-floaters", fade,
-                  "Gaussians on a depth edge of their view (a blend of the near and the far surface) that lie in "
-                  "front of another context view's depth there keep this fraction of their opacity, so that they "
-                  "do not smear across other views; 1 = none faded (the paper's)")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-}
-
 void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
   options.inpainter = parse_inpainter(args.inpainter);
-  options.align_depth = parse_depth_points(args.align_depth);
-  options.depth_detail.detail = args.depth_detail;
-  options.frame_margin.fraction = args.frame_margin;
-  options.region_cover.opacity = args.region_cover;
-  options.floaters.fade = args.fade_floaters;
+  options.geometry = args.geometry;
 }
 
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene) {

@@ -21,23 +21,20 @@ struct EditArgs {
   int dilate = -1;  // -1 = automatic
   std::string reference_view;       // --reference-view
   std::string inpainter = "telea";  // --reference-inpainter
-  std::string align_depth = "photos";  // --align-depth
-  double depth_detail = DepthDetailOptions().detail;  // --depth-detail
-  double frame_margin = FrameMarginOptions().fraction;  // --frame-margin
-  double region_cover = RegionCoverOptions().opacity;   // --region-cover
-  double fade_floaters = FloaterOptions().fade;         // --fade-floaters
+  GeometryOptions geometry;  // add_geometry_options
 };
 
 // --view, --mask, --mode, --depth, --depth-scale, --extent, --dilate.
 void add_edit_options(CLI::App* cmd, EditArgs& args);
-// --reference-view, --reference-inpainter, --align-depth, --depth-detail, --fade-floaters,
-// --frame-margin, --region-cover (commands that build the network's input).
+// --reference-view, --reference-inpainter and add_geometry_options (commands that build the
+// network's input).
 void add_reference_options(CLI::App* cmd, EditArgs& args);
-// --align-depth and --depth-detail (add_reference_options adds them too).
-void add_align_depth_option(CLI::App* cmd, std::string& align_depth, double& depth_detail);
-void add_frame_margin_option(CLI::App* cmd, double& fraction);         // --frame-margin
-void add_region_cover_option(CLI::App* cmd, double& opacity);          // --region-cover
-void add_fade_floaters_option(CLI::App* cmd, double& fade);            // --fade-floaters
+// What is done with the network's output, into `geometry` as the options are parsed:
+// --align-depth, --depth-detail, --measured-surface, --fade-floaters, --frame-margin,
+// --region-cover.
+void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry);
+// --align-depth and --depth-detail alone (add_geometry_options adds them too).
+void add_align_depth_option(CLI::App* cmd, GeometryOptions& geometry);
 
 // The request the options describe for this scene, or nullopt without --view/--mask.
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene);

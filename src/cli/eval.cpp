@@ -63,11 +63,7 @@ void run(const EvalArgs& a) {
   o.reference = optional_path(a.reference);
   o.context = a.context;
   o.reference_view = a.edit.reference_view;
-  o.align_depth = parse_depth_points(a.edit.align_depth);
-  o.frame_margin.fraction = a.edit.frame_margin;
-  o.region_cover.opacity = a.edit.region_cover;
-  o.floaters.fade = a.edit.fade_floaters;
-  o.depth_detail.detail = a.edit.depth_detail;
+  o.geometry = a.edit.geometry;
   o.inpainter = parse_inpainter(a.edit.inpainter);
   if (a.keep_object && (!a.reference.empty() || !a.edit.view.empty()))
     fail("--keep-object evaluates a reconstruction: drop --reference, --view and --mask");

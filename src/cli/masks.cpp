@@ -40,8 +40,7 @@ void run(const MasksArgs& a) {
   SceneInputOptions input;
   input.num_views = a.views;
   input.preprocess.height = a.height;
-  input.align_depth = parse_depth_points(a.edit.align_depth);
-  input.depth_detail.detail = a.edit.depth_detail;
+  input.geometry = a.edit.geometry;
   const SceneMasks masks = masks_from_one(scene, request, predictor.source(), input);
 
   // Masks as the --masks option reads them; against the scene's own masks when it has them.
@@ -107,7 +106,7 @@ void add_masks_command(CLI::App& app) {
   cmd->add_option("--views", args->views, "Context views of that reconstruction")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
-  add_align_depth_option(cmd, args->edit.align_depth, args->edit.depth_detail);
+  add_align_depth_option(cmd, args->edit.geometry);
   cmd->add_option("--height", args->height, "Working height of that reconstruction")
       ->capture_default_str()
       ->check(CLI::Range(8, 4096));

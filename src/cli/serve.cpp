@@ -28,11 +28,7 @@ struct ServeArgs {
   std::string token;
   bool no_token = false;
   std::string checkpoint;
-  std::string align_depth = "photos";
-  double depth_detail = DepthDetailOptions().detail;
-  double frame_margin = FrameMarginOptions().fraction;
-  double region_cover = RegionCoverOptions().opacity;
-  double fade_floaters = FloaterOptions().fade;
+  GeometryOptions geometry;
   RuntimeOptions runtime;
 };
 
@@ -53,11 +49,7 @@ void run(const ServeArgs& a) {
   o.port = a.port;
   o.height = a.height;
   o.views = a.views;
-  o.align_depth = parse_depth_points(a.align_depth);
-  o.frame_margin.fraction = a.frame_margin;
-  o.region_cover.opacity = a.region_cover;
-  o.floaters.fade = a.fade_floaters;
-  o.depth_detail.detail = a.depth_detail;
+  o.geometry = a.geometry;
   o.token = a.token;
   o.no_token = a.no_token;
   o.reconstruct_at_start = true;
@@ -120,10 +112,7 @@ void add_serve_command(CLI::App& app) {
       ->excludes("--token");
   cmd->add_option("--checkpoint", args->checkpoint, "Model weights (default: the model built into instainpaint)")
       ->check(CLI::ExistingFile);
-  add_align_depth_option(cmd, args->align_depth, args->depth_detail);
-  add_frame_margin_option(cmd, args->frame_margin);
-  add_region_cover_option(cmd, args->region_cover);
-  add_fade_floaters_option(cmd, args->fade_floaters);
+  add_geometry_options(cmd, args->geometry);
   add_runtime_options(cmd, args->runtime);
   cmd->footer(
       "Examples:\n"

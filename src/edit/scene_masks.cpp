@@ -76,10 +76,12 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
   o.view_cache = options.view_cache;
   // The photos' points scale the depth where a capture has nothing better, but not for lifting
   // the mark: on the statue its masks lost precision (mean 0.562 -> 0.536, recall 1.0 both).
-  o.align_depth = options.align_depth == DepthPoints::photos ? DepthPoints::depth_maps : options.align_depth;
-  o.depth_detail = options.depth_detail;
-  o.frame_margin.fraction = 0;  // only the marked view's depth map is read
-  o.floaters.fade = 1;          // (nor its opacities)
+  o.geometry.align_depth =
+      options.geometry.align_depth == DepthPoints::photos ? DepthPoints::depth_maps : options.geometry.align_depth;
+  o.geometry.depth_detail = options.geometry.depth_detail;
+  o.geometry.frame_margin.fraction = 0;  // only the marked view's depth map is read
+  o.geometry.floaters.fade = 1;          // (nor its opacities)
+  o.geometry.region_cover.opacity = 0;
   const Prediction p = predictor.predict(scene, o);
   Stopwatch watch;
   const Image depth = depth_at_image_size(p.maps.depth[0][0][0], p.input.normalization.scale, marked, o.preprocess);

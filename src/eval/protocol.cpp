@@ -152,11 +152,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   opts.inpainter = o.inpainter;
   opts.reference_view = o.reference_view;
   opts.keep_object = o.keep_object;
-  opts.align_depth = o.align_depth;
-  opts.frame_margin = o.frame_margin;
-  opts.region_cover = o.region_cover;
-  opts.floaters = o.floaters;
-  opts.depth_detail = o.depth_detail;
+  opts.geometry = o.geometry;
   if (o.edit) {
     spdlog::info("masks for every view from the region on {}", o.edit->view);
     const SceneMasks masks =

@@ -31,9 +31,6 @@
 #include "data/scene.h"
 #include "edit/scene_masks.h"
 #include "eval/metrics.h"
-#include "model/floaters.h"
-#include "model/frame_margin.h"
-#include "model/region_cover.h"
 #include "model/network.h"
 #include "model/predictor.h"
 
@@ -64,11 +61,7 @@ struct EvalOptions {
   std::string reference_view;   // automatic context around this reference (default: the edit's view)
   std::optional<OneMask> edit;  // one marked view instead of the scene's masks
   bool keep_object = false;     // a reconstruction: no masks, the reference's own photo
-  DepthPoints align_depth = DepthPoints::photos;  // SceneInputOptions::align_depth
-  FrameMarginOptions frame_margin;                // SceneInputOptions::frame_margin
-  RegionCoverOptions region_cover;                // SceneInputOptions::region_cover
-  FloaterOptions floaters;                        // SceneInputOptions::floaters
-  DepthDetailOptions depth_detail;                // SceneInputOptions::depth_detail
+  GeometryOptions geometry;     // SceneInputOptions::geometry
   // Applied to the network's Gaussians before rendering (e.g. refinement, which lives above
   // eval): given the scene, the prediction and its input options; fills `report`.
   std::function<GaussianSet(const Scene&, const Prediction&, const SceneInputOptions&, GaussianSet, nlohmann::json& report)>

@@ -360,10 +360,9 @@ Prediction predict_holes(const std::vector<CameraViews>& views, const ChosenCame
   input.num_views = static_cast<int>(views.size());
   input.inpainter = options.inpainter;
   input.view_cache = &cache;
-  input.align_depth = DepthPoints::none;  // renders in memory: no depth maps, no photos to triangulate
-  input.frame_margin.fraction = 0;        // the region's Gaussians are taken from the maps alone
-  input.region_cover.opacity = 0;
-  input.floaters.fade = 1;
+  // Renders in memory: no depth maps, no photos to triangulate; the region's Gaussians are taken
+  // from the maps alone, so the steps after the network would not reach it.
+  input.geometry = GeometryOptions::papers();
   for (size_t i = 0; i < views.size(); ++i) {
     const NamedCamera& c = cameras.cameras[i];
     View view;

@@ -53,6 +53,37 @@ ScenePoints gather_scene_points(const Scene& scene, DepthPoints which, const std
   return out;
 }
 
+// The steps GeometryOptions names, on the network's output in `p`, in order; each recorded.
+void after_the_network(Prediction& p, const Scene& scene, const SceneInputOptions& options,
+                       std::future<ScenePoints>& points) {
+  const GeometryOptions& geometry = options.geometry;
+  if (geometry.align_depth != DepthPoints::none) {
+    const ScenePoints gathered =
+        points.valid() ? points.get() : gather_scene_points(scene, geometry.align_depth, p.input.context);
+    p.stages.lap(points.valid() ? "the scene's points (waited)" : "the scene's points");
+    p.geometry = gathered.origin.description;
+    p.geometry_kind = gathered.origin.kind;
+    p.depth_detail = geometry.depth_detail.detail;
+    if (!gathered.points.empty())
+      p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points, geometry.depth_detail);
+    p.stages.lap("align depth to the scene's points");
+    p.measured_surface = describe_measured_surface(
+        geometry.measured_surface,
+        put_on_measured_surface(p.maps, scene, p.input, options.preprocess, geometry.measured_surface));
+    if (!p.measured_surface["views"].empty()) p.stages.lap("the measured surface");
+  }
+  const int64_t faded = fade_floaters(p.maps, p.input.views, p.input.input.view_cameras, geometry.floaters);
+  p.floaters = describe_floaters(geometry.floaters, faded);
+  if (geometry.floaters.fade < 1) p.stages.lap("fade floaters");
+  p.beyond_frame = gaussians_beyond_frame(p.maps, p.input.input, geometry.frame_margin);
+  p.frame_margin = describe_frame_margin(geometry.frame_margin, p.maps.depth.size(3), p.beyond_frame.size());
+  if (p.beyond_frame.size() > 0) p.stages.lap("Gaussians past the frames");
+  p.region_cover = region_cover_gaussians(p.input.views.front(), p.input.input.view_cameras.front(),
+                                          p.maps.depth[0][0][0], geometry.region_cover, p.maps.xyz);
+  p.region_cover_record = describe_region_cover(geometry.region_cover, p.region_cover.size());
+  if (p.region_cover.size() > 0) p.stages.lap("the region's cover");
+}
+
 }  // namespace
 
 Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& options) const {
@@ -63,8 +94,8 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
   // The scene's points are the CPU's work (files, features): on a GPU run they are gathered
   // while the network runs; on a CPU run after it, which then has every core.
   std::future<ScenePoints> points;
-  if (options.align_depth != DepthPoints::none && !device_.is_cpu())
-    points = std::async(std::launch::async, gather_scene_points, std::cref(scene), options.align_depth,
+  if (options.geometry.align_depth != DepthPoints::none && !device_.is_cpu())
+    points = std::async(std::launch::async, gather_scene_points, std::cref(scene), options.geometry.align_depth,
                         p.input.context);
   upload_network_inputs(p.input.input, device_);
   synchronize(device_);
@@ -72,27 +103,7 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
   p.maps = run_network(network_, p.input.input, precision_);
   synchronize(device_);
   p.stages.lap("network");
-  if (options.align_depth != DepthPoints::none) {
-    const ScenePoints gathered =
-        points.valid() ? points.get() : gather_scene_points(scene, options.align_depth, p.input.context);
-    p.stages.lap(points.valid() ? "the scene's points (waited)" : "the scene's points");
-    p.geometry = gathered.origin.description;
-    p.geometry_kind = gathered.origin.kind;
-    p.depth_detail = options.depth_detail.detail;
-    if (!gathered.points.empty())
-      p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points, options.depth_detail);
-    p.stages.lap("align depth to the scene's points");
-  }
-  const int64_t faded = fade_floaters(p.maps, p.input.views, p.input.input.view_cameras, options.floaters);
-  p.floaters = describe_floaters(options.floaters, faded);
-  if (options.floaters.fade < 1) p.stages.lap("fade floaters");
-  p.beyond_frame = gaussians_beyond_frame(p.maps, p.input.input, options.frame_margin);
-  p.frame_margin = describe_frame_margin(options.frame_margin, p.maps.depth.size(3), p.beyond_frame.size());
-  if (p.beyond_frame.size() > 0) p.stages.lap("Gaussians past the frames");
-  p.region_cover = region_cover_gaussians(p.input.views.front(), p.input.input.view_cameras.front(),
-                                          p.maps.depth[0][0][0], options.region_cover, p.maps.xyz);
-  p.region_cover_record = describe_region_cover(options.region_cover, p.region_cover.size());
-  if (p.region_cover.size() > 0) p.stages.lap("the region's cover");
+  after_the_network(p, scene, options, points);
   return p;
 }
 
@@ -109,7 +120,8 @@ nlohmann::json Prediction::describe_geometry() const {
     views.push_back({{"view", a.view}, {"scale", a.scale}, {"points", a.points}, {"detail_mean", a.detail_mean}});
   return {{"source", geometry},          {"detail", depth_detail},
           {"views", views},              {"floaters", floaters},
-          {"frame_margin", frame_margin}, {"region_cover", region_cover_record}};
+          {"frame_margin", frame_margin}, {"region_cover", region_cover_record},
+          {"measured_surface", measured_surface}};
 }
 
 }  // namespace ii

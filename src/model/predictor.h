@@ -19,6 +19,7 @@
 #include "model/network.h"
 #include "model/depth_alignment.h"
 #include "model/floaters.h"
+#include "model/measured_surface.h"
 #include "model/frame_margin.h"
 #include "model/region_cover.h"
 #include "model/scene_input.h"
@@ -30,21 +31,24 @@ struct Prediction {
   GaussianMaps maps;  // (1, V, C, H, W) on the predictor's device, in the pose-normalised frame
   // Where predict's time went: prepare_scene_input's stages, then "upload" and "network".
   StageTimes stages;
-  // With SceneInputOptions::align_depth: each context view's depth scaled to the scene's points.
+  // With GeometryOptions::align_depth: each context view's depth scaled to the scene's points.
   std::vector<DepthAlignment> depth_alignment;
   std::string geometry = "off";  // the points' source, "none" when the scene has none, or "off"
   PointsSource geometry_kind = PointsSource::None;  // which it was (None when off)
   double depth_detail = 0;  // DepthDetailOptions::detail when aligned (0: one scale per view)
 
-  // With SceneInputOptions::floaters: what run.json and metrics.json record of them.
+  // With GeometryOptions::measured_surface: what run.json and metrics.json record of it.
+  nlohmann::json measured_surface = nlohmann::json::object();
+
+  // With GeometryOptions::floaters: what run.json and metrics.json record of them.
   nlohmann::json floaters;
 
-  // With SceneInputOptions::frame_margin: each view's Gaussians past the edges of its picture
+  // With GeometryOptions::frame_margin: each view's Gaussians past the edges of its picture
   // (model/frame_margin.h), an empty set without.
   GaussianSet beyond_frame;
   nlohmann::json frame_margin;  // what run.json and metrics.json record of it
 
-  // With SceneInputOptions::region_cover: flat splats over the reference's region
+  // With GeometryOptions::region_cover: flat splats over the reference's region
   // (model/region_cover.h), an empty set without.
   GaussianSet region_cover;
   nlohmann::json region_cover_record;  // what run.json and metrics.json record of it

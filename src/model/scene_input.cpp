@@ -84,6 +84,16 @@ DepthPoints parse_depth_points(const std::string& name) {
   fail("--align-depth '{}': none, depth-maps, photos or any", name);
 }
 
+GeometryOptions GeometryOptions::papers() {
+  GeometryOptions none;
+  none.align_depth = DepthPoints::none;
+  none.floaters.fade = 1;
+  none.measured_surface.opacity = 0;
+  none.frame_margin.fraction = 0;
+  none.region_cover.opacity = 0;
+  return none;
+}
+
 SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options, StageTimes* stages) {
   StageTimes unrecorded;
   StageTimes& times = stages ? *stages : unrecorded;

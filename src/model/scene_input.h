@@ -15,6 +15,7 @@
 #include "gaussians/gaussians.h"
 #include "model/floaters.h"
 #include "model/frame_margin.h"
+#include "model/measured_surface.h"
 #include "model/model_input.h"
 #include "model/region_cover.h"
 
@@ -44,6 +45,35 @@ struct DepthDetailOptions {
   double region_factor = 4;
 };
 
+// What Predictor::predict does with the network's output before it makes Gaussians of it: each
+// step is recorded under "geometry" in run.json and metrics.json. One struct, so that the
+// commands, the server and the Python layer carry the steps whole: a new step is one field here.
+struct GeometryOptions {
+  // Each context view's depth scaled to the scene's own 3D points (model/depth_alignment.h):
+  // those of its depth maps (synthetic scenes), else points triangulated from the context views'
+  // photos (the default: on real captures the default model's depth is 1.3-5x too near), or
+  // with `any` its COLMAP points before the photos', or none (the network's output as it is,
+  // the paper's).
+  DepthPoints align_depth = DepthPoints::photos;
+  DepthDetailOptions depth_detail;
+  // With align_depth other than none: where a context view has its own depth map (a depth
+  // camera's, a synthetic scene's), its Gaussians outside its mask lie on that surface as flat,
+  // opaque splats (model/measured_surface.h); opacity 0 = none.
+  MeasuredSurfaceOptions measured_surface;
+  // Gaussians on a view's depth edges that another view sees through keep a fraction of their
+  // opacity (model/floaters.h); fade 1 = none (the paper's).
+  FloaterOptions floaters;
+  // Each view's Gaussians continued past the edges of its picture (model/frame_margin.h);
+  // fraction 0 = none (the paper's).
+  FrameMarginOptions frame_margin;
+  // The reference's region covered by flat splats besides the network's Gaussians
+  // (model/region_cover.h); opacity 0 = none (the paper's).
+  RegionCoverOptions region_cover;
+
+  // Every step off: the network's Gaussians as the paper's code makes them.
+  static GeometryOptions papers();
+};
+
 struct SceneInputOptions {
   std::vector<std::string> context;  // view names, reference first; empty = automatic
   int num_views = 4;                 // when choosing automatically
@@ -63,22 +93,8 @@ struct SceneInputOptions {
   bool keep_object = false;
   // Where the context views come from when set (a server's edits): views prepared before.
   PreparedViewCache* view_cache = nullptr;
-  // Predictor::predict: each context view's depth scaled to the scene's own 3D points
-  // (model/depth_alignment.h): those of its depth maps (synthetic scenes), else points
-  // triangulated from the context views' photos (the default: on real captures the default
-  // model's depth is 1.3-5x too near), or with `any` its COLMAP points before the photos', or
-  // none (the network's output as it is, the paper's).
-  DepthPoints align_depth = DepthPoints::photos;
-  DepthDetailOptions depth_detail;
-  // Predictor::predict: Gaussians on a view's depth edges that another view sees through keep a
-  // fraction of their opacity (model/floaters.h); fade 1 = none (the paper's).
-  FloaterOptions floaters;
-  // Predictor::predict: each view's Gaussians continued past the edges of its picture
-  // (model/frame_margin.h); fraction 0 = none (the paper's).
-  FrameMarginOptions frame_margin;
-  // Predictor::predict: the reference's region covered by flat splats besides the network's
-  // Gaussians (model/region_cover.h); opacity 0 = none (the paper's).
-  RegionCoverOptions region_cover;
+  // What Predictor::predict does with the network's Gaussians before it returns them.
+  GeometryOptions geometry;
 };
 
 struct SceneInput {

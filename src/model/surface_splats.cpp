@@ -11,7 +11,7 @@
 namespace ii {
 
 GaussianSet surface_gaussians(const Camera& camera, const torch::Tensor& depth, const torch::Tensor& take,
-                              const Image& colour, float opacity) {
+                              const Image& colour, float opacity, double width) {
   const int h = camera.K.height, w = camera.K.width;
   if (depth.dim() != 2 || depth.size(0) != h || depth.size(1) != w || take.sizes() != depth.sizes())
     fail("surface_gaussians: depth and take must be the camera's size ({}x{})", w, h);
@@ -59,7 +59,7 @@ GaussianSet surface_gaussians(const Camera& camera, const torch::Tensor& depth, 
       r.col(1) = b;
       r.col(2) = n;
       const Eigen::Quaterniond q(r);
-      const double su = 0.7 * du.norm(), sv = 0.7 * std::abs(dv.dot(b));
+      const double su = width * du.norm(), sv = width * std::abs(dv.dot(b));
       const double sn = 0.1 * std::min(su, std::max(sv, 1e-9));
       for (int c = 0; c < 3; ++c) means.push_back(static_cast<float>(p[c]));
       for (double s : {su, std::max(sv, 0.25 * su), sn}) scales.push_back(static_cast<float>(s));

@@ -17,7 +17,7 @@ namespace ii {
 // and 0.95: 0.1 dB more in SPIn-NeRF scene 1's region seen from elsewhere, fewer pixels left
 // uncovered there, the reference's own view a little softer.)
 GaussianSet surface_gaussians(const Camera& camera, const torch::Tensor& depth, const torch::Tensor& take,
-                              const Image& colour, float opacity = 0.99f);
+                              const Image& colour, float opacity = 0.99f, double width = 0.7);
 
 // A backing for surface_gaussians' splats: the same `take` pixels at half the camera's size, each
 // 2 x 2 block's farthest pixel (its depth, 1 % behind, and its colour). Where another camera looks

@@ -642,11 +642,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.preprocess.height = options.height;
   input.num_views = options.views;
   input.view_cache = &views;
-  input.align_depth = options.align_depth;
-  input.frame_margin = options.frame_margin;
-  input.region_cover = options.region_cover;
-  input.floaters = options.floaters;
-  input.depth_detail = options.depth_detail;
+  input.geometry = options.geometry;
   OneMask request;
   request.view = view.name;
   request.region = edit.region;
@@ -767,10 +763,7 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   input.num_views = options.views;
   input.keep_object = true;
   input.view_cache = &views;
-  input.align_depth = options.align_depth;
-  input.frame_margin = options.frame_margin;
-  input.depth_detail = options.depth_detail;
-  input.floaters = options.floaters;
+  input.geometry = options.geometry;  // the cover has no region to cover here
   stage("reconstructing the scene as captured (object kept)", 0.2);
   const Prediction p = predictor->predict(*scene, input);
   stages.merge(p.stages);

@@ -57,11 +57,7 @@ struct ServeOptions {
   int port = 8080;  // 0 = any free port
   int height = 256;  // working height of edits
   int views = 4;     // context views of edits
-  DepthPoints align_depth = DepthPoints::photos;  // SceneInputOptions::align_depth of every prediction
-  FrameMarginOptions frame_margin;                // SceneInputOptions::frame_margin of every prediction
-  RegionCoverOptions region_cover;                // SceneInputOptions::region_cover of every edit
-  FloaterOptions floaters;                        // SceneInputOptions::floaters of every prediction
-  DepthDetailOptions depth_detail;                // SceneInputOptions::depth_detail of every prediction
+  GeometryOptions geometry;  // SceneInputOptions::geometry of every prediction
   size_t max_upload_bytes = 32u << 20;
   // Every request must carry this token; empty: a random one is made (WebServer::token()).
   std::string token;

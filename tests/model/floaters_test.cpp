@@ -96,7 +96,7 @@ TEST(Floaters, APredictionRecordsThem) {
   SceneInputOptions options;
   options.preprocess.height = 64;
   const Prediction faded = predictor.predict(scene, options);
-  options.floaters.fade = 1;
+  options.geometry.floaters.fade = 1;
   const Prediction kept = predictor.predict(scene, options);
   const nlohmann::json recorded = faded.describe_geometry()["floaters"];
   EXPECT_EQ(recorded["fade"], 0.3);

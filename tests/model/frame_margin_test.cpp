@@ -110,7 +110,7 @@ TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
   options.keep_object = true;
   options.preprocess.height = 64;
   const Prediction with = predictor.predict(scene, options);
-  options.frame_margin.fraction = 0;
+  options.geometry.frame_margin.fraction = 0;
   const Prediction without = predictor.predict(scene, options);
   const int64_t pixels = 4 * 64 * 64, margin = 4 * (80 * 80 - 64 * 64);  // 8 pixels at 64 rows
   EXPECT_EQ(without.gaussians().size(), pixels);

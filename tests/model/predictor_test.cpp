@@ -20,8 +20,8 @@ SceneInputOptions two_views() {
   SceneInputOptions opts;
   opts.context = {"IMG_2720", "IMG_2707"};
   opts.preprocess.height = 64;
-  opts.align_depth = DepthPoints::none;  // the network's output as it is
-  opts.floaters.fade = 1;                // (its opacities too)
+  opts.geometry.align_depth = DepthPoints::none;  // the network's output as it is
+  opts.geometry.floaters.fade = 1;                // (its opacities too)
   return opts;
 }
 
@@ -58,6 +58,26 @@ TEST(Predictor, GivesWhatTheStepsItReplacesGive) {
   expect_same_maps(predictor.predict(scene, two_views()).maps, p.maps);
 }
 
+// GeometryOptions::papers(): every step after the network off, the Gaussians the official code
+// makes (one a pixel, nothing past the frames, no cover), and the record says so.
+TEST(Predictor, PapersGeometryLeavesTheNetworksGaussiansAlone) {
+  II_REQUIRE_SHARED(dir, "data/statue");
+  II_REQUIRE_DEFAULT_MODEL();
+  const Scene scene = load_scene(dir);
+  const Predictor predictor("", torch::kCPU, Precision::Float32);
+  SceneInputOptions opts = two_views();
+  opts.geometry = GeometryOptions::papers();
+  const Prediction p = predictor.predict(scene, opts);
+  EXPECT_EQ(p.gaussians().size(), 2 * 64 * 80);
+  const Network net = network_from_checkpoint(default_checkpoint(), "default");
+  expect_same_maps(p.maps, run_network(net, prepare_scene_input(scene, opts).input, Precision::Float32));
+  const nlohmann::json record = p.describe_geometry();
+  EXPECT_EQ(record["source"], "off");
+  EXPECT_EQ(record["floaters"]["faded"], 0);
+  EXPECT_EQ(record["frame_margin"]["gaussians"], 0);
+  EXPECT_EQ(record["region_cover"]["gaussians"], 0);
+}
+
 // By default a capture without depth maps or points gets its depth scaled to points
 // triangulated from its photos: each view's maps are the network's times that view's factor.
 TEST(Predictor, ScalesTheDepthToThePhotosPointsByDefault) {
@@ -69,10 +89,10 @@ TEST(Predictor, ScalesTheDepthToThePhotosPointsByDefault) {
   EXPECT_EQ(raw.geometry, "off");
   EXPECT_EQ(raw.geometry_kind, PointsSource::None);
   SceneInputOptions opts = two_views();
-  opts.align_depth = SceneInputOptions().align_depth;
-  ASSERT_EQ(opts.align_depth, DepthPoints::photos);
+  opts.geometry.align_depth = SceneInputOptions().geometry.align_depth;
+  ASSERT_EQ(opts.geometry.align_depth, DepthPoints::photos);
   SceneInputOptions scale_only = opts;
-  scale_only.depth_detail.detail = 0;
+  scale_only.geometry.depth_detail.detail = 0;
   const Prediction aligned = predictor.predict(scene, scale_only);
   EXPECT_EQ(aligned.geometry.rfind("points triangulated from 2 views' photos (", 0), 0u) << aligned.geometry;
   EXPECT_EQ(aligned.geometry_kind, PointsSource::Photos);

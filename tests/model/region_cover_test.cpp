@@ -82,9 +82,9 @@ TEST(RegionCover, APredictionJoinsItAfterThePixelsAndRecordsIt) {
   const Predictor predictor("", torch::kCPU, Precision::Float32);
   SceneInputOptions options;
   options.preprocess.height = 64;
-  options.frame_margin.fraction = 0;
+  options.geometry.frame_margin.fraction = 0;
   const Prediction with = predictor.predict(scene, options);
-  options.region_cover.opacity = 0;
+  options.geometry.region_cover.opacity = 0;
   const Prediction without = predictor.predict(scene, options);
   const int64_t pixels = 4 * 64 * 64;
   ASSERT_TRUE(with.input.views.front().mask.has_value());
@@ -101,7 +101,7 @@ TEST(RegionCover, APredictionJoinsItAfterThePixelsAndRecordsIt) {
   EXPECT_EQ(recorded["gaussians"], region);
   EXPECT_EQ(without.describe_geometry()["region_cover"]["gaussians"], 0);
   // A reconstruction of the scene as captured has no region to cover.
-  options.region_cover.opacity = 0.3;
+  options.geometry.region_cover.opacity = 0.3;
   options.keep_object = true;
   EXPECT_EQ(predictor.predict(scene, options).region_cover.size(), 0);
 }

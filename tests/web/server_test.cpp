@@ -453,7 +453,7 @@ TEST(Serve, ACapturesPhotosFeaturesAreDetectedBehindItsReconstruction) {
     const std::vector<std::string> names = stage_names(job);
     EXPECT_NE(std::find(names.begin(), names.end(), behind), names.end()) << job["stages"];
   }
-  o.align_depth = DepthPoints::none;
+  o.geometry.align_depth = DepthPoints::none;
   RunningServer s(o);
   const json job = s.finished_job();
   ASSERT_EQ(job["state"], "done") << job;

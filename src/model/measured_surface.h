@@ -1,0 +1,62 @@
+#pragma once
+// The surface a depth camera measured, used where a capture has it. A view with its own depth map
+// (`<scene>/depth/<view>.npy`: a depth camera's, a synthetic scene's) knows each pixel's depth
+// exactly, which the network and the alignment to points only approach. Outside the view's mask
+// its Gaussians are put at that depth and made flat splats along the measured surface
+// (model/surface_splats.h), opaque: the default model's Gaussians are needles along their rays
+// of opacity ~0.4, which from another camera draw `make demo`'s table as a brown smear on the
+// floor even at the exact depth; lying on the surface they draw the table, its pedestal and the
+// floor's planks. Inside the mask the object stood: the network's Gaussians stay.
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "data/preprocess.h"
+#include "data/scene.h"
+#include "gaussians/gaussians.h"
+
+namespace ii {
+
+struct SceneInput;
+
+// Measured on the held-out synthetic rooms (128 and 256 rows) and make demo's room
+// (docs/benchmarks.md, session 32): opacity 0.6 lost the demo 1.6 dB; widths 0.2-0.7 traded the
+// rooms against the demo; the margin traded the region against the views' own pictures.
+struct MeasuredSurfaceOptions {
+  // The splats' least opacity (0: none, the network's Gaussians as aligned to the points).
+  double opacity = 0.95;
+  // Their two axes, in distances to the neighbouring pixels' points: 0.25 barely overlaps, so
+  // that a splat in front does not cover half its neighbour (0.7 drew the rooms a pixel off).
+  double width = 0.25;
+  // Pixels this close to the mask keep the network's Gaussians: their soft edge blends into the
+  // region's content where sharp splats stand against it (none: the rooms' region 0.4 dB lower
+  // at 128 rows; 4 pixels: 0.4 dB higher, but the demo's views lost their own pictures' edges
+  // around the masks, 32.6 -> 23.9 dB; 1 pixel: no figure under the network's own).
+  int mask_margin = 1;
+  // Inside the other views' masks, the scene beside the object (their measured points outside the
+  // cone of the reference's mask grown by `cone_margin` pixels, or outside its picture) lies on its
+  // surface too, in the photo's colours: a propagated mask is wider than the object, and where
+  // every view but the reference masked the wall and floor the object hid, no view's Gaussians were
+  // opaque (white patches in make demo's novel views). A 2-pixel cone lost the rooms' region 0.15 dB.
+  bool beside_object = true;
+  int cone_margin = 10;
+};
+
+struct MeasuredSurface {
+  std::vector<std::string> views;  // the context views that had a depth map
+  int64_t gaussians = 0;           // the Gaussians put on their surface outside the masks
+  int64_t beside_object = 0;       // ... inside them: the scene beside the object
+};
+
+// In place on `maps` (the network's output for `input`, prepared from `scene` with `preprocess`;
+// pose-normalised frame): each context view with a depth map at its photo's size gets its
+// outside-the-mask pixels' positions, depth, sizes, rotations and opacities from the measured
+// surface; colours stay the network's.
+MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const Scene& scene, const SceneInput& input,
+                                        const PreprocessOptions& preprocess, const MeasuredSurfaceOptions& options);
+
+// What run.json and metrics.json record of it.
+nlohmann::json describe_measured_surface(const MeasuredSurfaceOptions& options, const MeasuredSurface& done);
+
+}  // namespace ii
