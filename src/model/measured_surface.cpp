@@ -106,10 +106,11 @@ MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const Scene& scene, 
     if (surface.size() > 0)
       write_splats(maps, vi, take.flatten().nonzero().squeeze(1), surface, depth.index({take}), false);
     done.gaussians += surface.size();
-    // Inside another view's mask: what cannot be the object is the scene it hid, seen beside it;
-    // the network saw it masked, so the photo's colours.
+    // Inside another view's mask (and its margin): what cannot be the object is the scene beside
+    // it; the network saw it masked, so the photo's colours. (The margin too: between these splats
+    // and those outside, its soft Gaussians drew white outlines in make demo's novel views.)
     if (v == 0 || !object || !view.mask) continue;
-    const torch::Tensor masked = valid.logical_and(grown_mask(view, 0));
+    const torch::Tensor masked = valid.logical_and(take.logical_not());  // the mask and its margin
     const GaussianSet hidden = surface_gaussians(camera, depth, masked, view.rgb, opacity, options.width);
     if (hidden.size() == 0) continue;
     const torch::Tensor rows = not_the_object(*object, hidden.means).nonzero().squeeze(1);

@@ -29,16 +29,18 @@ struct MeasuredSurfaceOptions {
   // Their two axes, in distances to the neighbouring pixels' points: 0.25 barely overlaps, so
   // that a splat in front does not cover half its neighbour (0.7 drew the rooms a pixel off).
   double width = 0.25;
-  // Pixels this close to the mask keep the network's Gaussians: their soft edge blends into the
-  // region's content where sharp splats stand against it (none: the rooms' region 0.4 dB lower
-  // at 128 rows; 4 pixels: 0.4 dB higher, but the demo's views lost their own pictures' edges
-  // around the masks, 32.6 -> 23.9 dB; 1 pixel: no figure under the network's own).
+  // Pixels this close to the mask keep the network's Gaussians (unless beside the object, below):
+  // their soft edge blends into the region's content where sharp splats stand against it (none:
+  // the rooms' region 0.4 dB lower at 128 rows; 4 pixels: 0.4 dB higher, but the demo's views lost
+  // their own pictures' edges around the masks, 32.6 -> 23.9 dB; 1 pixel: no figure under the
+  // network's own).
   int mask_margin = 1;
-  // Inside the other views' masks, the scene beside the object (their measured points outside the
-  // cone of the reference's mask grown by `cone_margin` pixels, or outside its picture) lies on its
-  // surface too, in the photo's colours: a propagated mask is wider than the object, and where
-  // every view but the reference masked the wall and floor the object hid, no view's Gaussians were
-  // opaque (white patches in make demo's novel views). A 2-pixel cone lost the rooms' region 0.15 dB.
+  // Inside the other views' masks and margins, the scene beside the object (their measured points
+  // outside the cone of the reference's mask grown by `cone_margin` pixels, or outside its
+  // picture) lies on its surface too, in the photo's colours: a propagated mask is wider than the
+  // object, and where every view but the reference masked the wall and floor the object hid, no
+  // view's Gaussians were opaque (white patches in make demo's novel views). A 2-pixel cone lost
+  // the rooms' region 0.15 dB.
   bool beside_object = true;
   int cone_margin = 10;
 };
@@ -46,7 +48,7 @@ struct MeasuredSurfaceOptions {
 struct MeasuredSurface {
   std::vector<std::string> views;  // the context views that had a depth map
   int64_t gaussians = 0;           // the Gaussians put on their surface outside the masks
-  int64_t beside_object = 0;       // ... inside them: the scene beside the object
+  int64_t beside_object = 0;       // ... inside them (and their margins): the scene beside the object
 };
 
 // In place on `maps` (the network's output for `input`, prepared from `scene` with `preprocess`;
