@@ -1,5 +1,6 @@
 #include "model/measured_surface.h"
 
+#include <optional>
 #include <vector>
 
 #include "data/masks.h"
@@ -81,6 +82,27 @@ torch::Tensor not_the_object(const ObjectCone& cone, const torch::Tensor& points
   return hit.inside.logical_and(cone.inside.flatten().index({hit.index})).logical_not();
 }
 
+// The measured points of `masked` pixels (a view's mask and its margin) that cannot be the
+// object, written over view `vi`'s maps; the network saw them masked, so the photo's colours.
+// (The margin too: between these splats and those outside, its soft Gaussians drew white outlines
+// in make demo's novel views.) Returns how many.
+int64_t put_beside_object(GaussianMaps& maps, int64_t vi, const Camera& camera, const torch::Tensor& depth,
+                          const torch::Tensor& masked, const PreparedView& view, const ObjectCone& object,
+                          const MeasuredSurfaceOptions& options) {
+  const GaussianSet hidden =
+      surface_gaussians(camera, depth, masked, view.rgb, static_cast<float>(options.opacity), options.width);
+  if (hidden.size() == 0) return 0;
+  const torch::Tensor rows = not_the_object(object, hidden.means).nonzero().squeeze(1);
+  if (rows.numel() == 0) return 0;
+  GaussianSet beside;
+  for (auto member : {&GaussianSet::means, &GaussianSet::scales, &GaussianSet::quats, &GaussianSet::opacities,
+                      &GaussianSet::colors})
+    beside.*member = (hidden.*member).index({rows});
+  write_splats(maps, vi, masked.flatten().nonzero().squeeze(1).index({rows}), beside,
+               depth.index({masked}).index({rows}), true);
+  return beside.size();
+}
+
 }  // namespace
 
 MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const Scene& scene, const SceneInput& input,
@@ -106,22 +128,10 @@ MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const Scene& scene, 
     if (surface.size() > 0)
       write_splats(maps, vi, take.flatten().nonzero().squeeze(1), surface, depth.index({take}), false);
     done.gaussians += surface.size();
-    // Inside another view's mask (and its margin): what cannot be the object is the scene beside
-    // it; the network saw it masked, so the photo's colours. (The margin too: between these splats
-    // and those outside, its soft Gaussians drew white outlines in make demo's novel views.)
-    if (v == 0 || !object || !view.mask) continue;
-    const torch::Tensor masked = valid.logical_and(take.logical_not());  // the mask and its margin
-    const GaussianSet hidden = surface_gaussians(camera, depth, masked, view.rgb, opacity, options.width);
-    if (hidden.size() == 0) continue;
-    const torch::Tensor rows = not_the_object(*object, hidden.means).nonzero().squeeze(1);
-    if (rows.numel() == 0) continue;
-    GaussianSet beside;
-    for (auto member : {&GaussianSet::means, &GaussianSet::scales, &GaussianSet::quats, &GaussianSet::opacities,
-                        &GaussianSet::colors})
-      beside.*member = (hidden.*member).index({rows});
-    write_splats(maps, vi, masked.flatten().nonzero().squeeze(1).index({rows}), beside,
-                 depth.index({masked}).index({rows}), true);
-    done.beside_object += beside.size();
+    // Inside another view's mask (and its margin): the scene beside the object.
+    if (v > 0 && object && view.mask)
+      done.beside_object += put_beside_object(maps, vi, camera, depth, valid.logical_and(take.logical_not()), view,
+                                              *object, options);
   }
   return done;
 }
