@@ -241,7 +241,8 @@ class Predictor:
         of another context view's depth (`--fade-floaters`); 1 for none faded (the paper's).
         measured_surface: where a context view has its own depth map (a depth camera's, a synthetic
         scene's), its Gaussians outside its mask lie on that surface as flat splats at least this
-        opaque (`--measured-surface`); 0 for none.
+        opaque, and inside its mask what lies outside the reference's mask from the reference's
+        camera (`--measured-surface`); 0 for none.
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)

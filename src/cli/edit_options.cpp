@@ -74,8 +74,9 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
   cmd->add_option("--measured-surface", geometry.measured_surface.opacity,
                   "Where a context view has its own depth map (<scene>/depth/<view>.npy: a depth camera's, a "
                   "synthetic scene's), put its Gaussians outside its mask on that depth as flat splats along the "
-                  "measured surface, at least this opaque; 0 = none (the network's Gaussians, aligned as "
-                  "--align-depth says; --align-depth none turns this off too)")
+                  "measured surface, at least this opaque, and inside its mask what lies outside the reference's "
+                  "mask from the reference's camera (the scene beside the object); 0 = none (the network's "
+                  "Gaussians, aligned as --align-depth says; --align-depth none turns this off too)")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   cmd->add_option("--fade-floaters", geometry.floaters.fade,
