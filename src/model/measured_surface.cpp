@@ -8,6 +8,7 @@
 #include "model/scene_input.h"
 #include "model/surface_splats.h"
 #include "tensor/camera_projection.h"
+#include "tensor/image_tensor.h"
 
 namespace ii {
 
@@ -30,13 +31,10 @@ torch::Tensor working_depth_map(const Scene& scene, const SceneInput& input, con
          input.normalization.scale;
 }
 
-// The view's mask grown by `grow` pixels, (H, W) bool; all false without a mask.
-torch::Tensor grown_mask(const PreparedView& view, int64_t grow) {
+// The view's mask grown by `grow` pixels (a square), (H, W) bool; all false without a mask.
+torch::Tensor grown_mask(const PreparedView& view, int grow) {
   if (!view.mask) return torch::zeros({view.rgb.height, view.rgb.width}, torch::kBool);
-  torch::Tensor mask = torch::from_blob(const_cast<float*>(view.mask->pixels.data()),
-                                        {1, 1, view.mask->height, view.mask->width}, torch::kFloat32);
-  if (grow > 0) mask = torch::max_pool2d(mask, {2 * grow + 1, 2 * grow + 1}, {1, 1}, {grow, grow});
-  return mask[0][0].gt(0.5);
+  return image_to_tensor(dilate_mask(*view.mask, grow > 0 ? 1 : 0, 2 * grow + 1))[0][0].gt(0.5);
 }
 
 // Splats (rows in the order of `pixels`, flat indices of view `vi`) written over that view's maps:
@@ -70,7 +68,7 @@ struct ObjectCone {
   torch::Tensor inside;  // (H, W) bool: the reference's mask, grown
 };
 
-std::optional<ObjectCone> object_cone(const SceneInput& input, int64_t grow) {
+std::optional<ObjectCone> object_cone(const SceneInput& input, int grow) {
   const PreparedView& reference = input.views.front();
   if (!reference.mask) return std::nullopt;
   return ObjectCone{input.input.view_cameras.front(), grown_mask(reference, grow)};
