@@ -32,7 +32,7 @@ from ._core import Camera, Error, Scene, set_log_level, set_threads
 
 # Predictor.predict's defaults: the library's own (GeometryOptions), as the commands use them.
 (_ALIGN_DEPTH, _DEPTH_DETAIL, _FRAME_MARGIN, _REGION_COVER, _FADE_FLOATERS,
- _MEASURED_SURFACE) = _core._geometry_defaults
+ _MEASURED_SURFACE, _STEREO_DEPTH) = _core._geometry_defaults
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
@@ -217,7 +217,7 @@ class Predictor:
                 align_depth: str = _ALIGN_DEPTH, depth_detail: float = _DEPTH_DETAIL,
                 frame_margin: float = _FRAME_MARGIN, region_cover: float = _REGION_COVER,
                 fade_floaters: float = _FADE_FLOATERS,
-                measured_surface: float = _MEASURED_SURFACE) -> Gaussians:
+                measured_surface: float = _MEASURED_SURFACE, stereo_depth: bool = _STEREO_DEPTH) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -243,13 +243,16 @@ class Predictor:
         scene's), its Gaussians outside its mask lie on that surface as flat splats at least this
         opaque, and inside its mask what lies outside the reference's mask from the reference's
         camera (`--measured-surface`); 0 for none.
+        stereo_depth: where no context view has a depth map, each one's depth measured from the
+        context photos themselves (a plane sweep between them, `--stereo-depth`) serves as that
+        surface where the photos agree on it.
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
         return Gaussians(self._p._predict(scene, list(context), views, reference, reference_view, height,
                                           keep_object, dict(masks or {}), align_depth, float(depth_detail),
                                           float(frame_margin), float(region_cover), float(fade_floaters),
-                                          float(measured_surface)))
+                                          float(measured_surface), bool(stereo_depth)))
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

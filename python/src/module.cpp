@@ -196,7 +196,8 @@ NB_MODULE(_core, m) {
   const GeometryOptions geometry;
   m.attr("_geometry_defaults") = nb::make_tuple(depth_points_name(geometry.align_depth), geometry.depth_detail.detail,
                                                 geometry.frame_margin.fraction, geometry.region_cover.opacity,
-                                                geometry.floaters.fade, geometry.measured_surface.opacity);
+                                                geometry.floaters.fade, geometry.measured_surface.opacity,
+                                                geometry.measured_surface.from_photos);
 
   m.def("set_threads",
         [](int threads) {
@@ -450,7 +451,8 @@ NB_MODULE(_core, m) {
            [](const Predictor& p, const Scene& scene, const std::vector<std::string>& context, int views,
               const nb::object& reference, const std::string& reference_view, int height, bool keep_object,
               const std::map<std::string, AnyArray>& masks, const std::string& align_depth, double depth_detail,
-              double frame_margin, double region_cover, double fade_floaters, double measured_surface) {
+              double frame_margin, double region_cover, double fade_floaters, double measured_surface,
+              bool stereo_depth) {
              auto input = std::make_shared<SceneInputOptions>(
                  input_options(context, views, reference, reference_view, height, keep_object, masks));
              input->geometry.align_depth = parse_depth_points(align_depth);
@@ -459,6 +461,7 @@ NB_MODULE(_core, m) {
              input->geometry.region_cover.opacity = region_cover;
              input->geometry.floaters.fade = fade_floaters;
              input->geometry.measured_surface.opacity = measured_surface;
+             input->geometry.measured_surface.from_photos = stereo_depth;
              PyGaussians g;
              {
                nb::gil_scoped_release release;
@@ -472,7 +475,7 @@ NB_MODULE(_core, m) {
            },
            "scene"_a, "context"_a, "views"_a, "reference"_a.none(), "reference_view"_a, "height"_a, "keep_object"_a,
            "masks"_a, "align_depth"_a, "depth_detail"_a, "frame_margin"_a, "region_cover"_a, "fade_floaters"_a,
-           "measured_surface"_a);
+           "measured_surface"_a, "stereo_depth"_a);
 
   m.def("_masks_from_one",
         [](const Scene& scene, const std::string& view, const nb::object& region, const Predictor* predictor,

@@ -109,7 +109,8 @@ def test_render_of_a_saved_and_reloaded_prediction(tmp_path, statue, predictor):
 def test_predict_defaults_are_the_commands():
     defaults = {k: p.default for k, p in inspect.signature(ii.Predictor.predict).parameters.items()}
     assert (defaults["align_depth"], defaults["depth_detail"], defaults["frame_margin"], defaults["region_cover"],
-            defaults["fade_floaters"], defaults["measured_surface"]) == ("photos", 1.5, 0.125, 0.3, 0.3, 0.95)
+            defaults["fade_floaters"], defaults["measured_surface"], defaults["stereo_depth"]) == (
+        "photos", 1.5, 0.125, 0.3, 0.3, 0.95, True)
 
 
 def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
@@ -117,9 +118,13 @@ def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
     g = predictor.predict(statue, height=HEIGHT)
     assert raw.geometry["source"] == "off" and raw.geometry["views"] == []
     assert raw.geometry["frame_margin"]["fraction"] == 0.125
-    # The statue has no depth maps: no measured surface (and none at all without alignment).
+    # The statue has no depth maps: its photos measure the surface (none at all without alignment).
     assert raw.geometry["measured_surface"] == {}
-    assert g.geometry["measured_surface"]["views"] == [] and g.geometry["measured_surface"]["opacity"] == 0.95
+    surface = g.geometry["measured_surface"]
+    assert surface["source"] == "the photos (stereo)" and surface["views"] == g.context, surface
+    assert all(0.05 < known < 1 for known in surface["known"]) and surface["opacity"] == 0.95, surface
+    alone = predictor.predict(statue, height=HEIGHT, stereo_depth=False).geometry["measured_surface"]
+    assert alone["views"] == [] and alone["source"] == "", alone
     assert g.geometry["source"].startswith("points triangulated from 4 views' photos ("), g.geometry
     assert [v["view"] for v in g.geometry["views"]] == g.context
     assert all(v["points"] >= 20 and v["scale"] > 0 for v in g.geometry["views"]), g.geometry

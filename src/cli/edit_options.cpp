@@ -73,11 +73,37 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
   add_align_depth_option(cmd, geometry);
   cmd->add_option("--measured-surface", geometry.measured_surface.opacity,
                   "Where a context view has its own depth map (<scene>/depth/<view>.npy: a depth camera's, a "
-                  "synthetic scene's), put its Gaussians outside its mask on that depth as flat splats along the "
-                  "measured surface, at least this opaque, and inside its mask what lies outside the reference's "
+                  "synthetic scene's) or, without one, a depth its context photos measure (--stereo-depth), put its "
+                  "Gaussians outside its mask on that depth as flat splats along the measured surface, at least this "
+                  "opaque, and inside its mask what lies outside the reference's "
                   "mask from the reference's camera (the scene beside the object); 0 = none (the network's "
                   "Gaussians, aligned as --align-depth says; --align-depth none turns this off too)")
       ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--stereo-depth", geometry.measured_surface.from_photos,
+                  "Where no context view has a depth map, measure each one's depth from the context photos "
+                  "themselves (a plane sweep between them about the network's aligned depth) and use it as the "
+                  "measured surface where the photos are textured and agree (false: the network's Gaussians there)")
+      ->capture_default_str();
+  cmd->add_option("--stereo-planes", geometry.measured_surface.stereo.planes,
+                  "Depths the stereo sweep tries per pixel")
+      ->check(CLI::Range(3, 1024))
+      ->capture_default_str();
+  cmd->add_option("--stereo-spread", geometry.measured_surface.stereo.spread,
+                  "The stereo sweep tries depths from the network's / N to its x N")
+      ->check(CLI::Range(1.01, 100.0))
+      ->capture_default_str();
+  cmd->add_option("--stereo-rows", geometry.measured_surface.stereo.rows,
+                  "The stereo sweep matches the pictures at about this many rows")
+      ->check(CLI::Range(16, 4096))
+      ->capture_default_str();
+  cmd->add_option("--stereo-min-ncc", geometry.measured_surface.stereo.min_ncc,
+                  "A stereo depth whose best match correlates less (normalised cross-correlation) is unknown")
+      ->check(CLI::Range(-1.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--stereo-consistency", geometry.measured_surface.stereo.consistency,
+                  "Another view's stereo depth must agree within this relative difference")
+      ->check(CLI::Range(0.0, 10.0))
       ->capture_default_str();
   cmd->add_option("--fade-floaters", geometry.floaters.fade,
                   "Gaussians on a depth edge of their view (a blend of the near and the far surface) that lie in "

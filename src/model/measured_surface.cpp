@@ -103,22 +103,59 @@ int64_t put_beside_object(GaussianMaps& maps, int64_t vi, const Camera& camera, 
 
 }  // namespace
 
-MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const Scene& scene, const SceneInput& input,
-                                        const PreprocessOptions& preprocess, const MeasuredSurfaceOptions& options) {
+namespace {
+
+MeasuredDepth stereo_of_photos(const SceneInput& input, const GaussianMaps& maps, const StereoOptions& options) {
+  MeasuredDepth out;
+  if (input.views.size() < 2) return out;
+  std::vector<Image> photos;
+  std::vector<torch::Tensor> guides;
+  for (size_t v = 0; v < input.views.size(); ++v) {
+    photos.push_back(input.views[v].rgb);
+    guides.push_back(maps.depth[0][static_cast<int64_t>(v)][0]);
+  }
+  out.source = "the photos (stereo)";
+  out.depth = stereo_depth(photos, input.input.view_cameras, guides, options).depth;
+  return out;
+}
+
+}  // namespace
+
+MeasuredDepth measured_depth(const Scene& scene, const SceneInput& input, const PreprocessOptions& preprocess,
+                             const GaussianMaps& maps, const MeasuredSurfaceOptions& options) {
+  MeasuredDepth out;
+  if (options.opacity <= 0) return out;
+  bool any = false;
+  for (size_t v = 0; v < input.views.size(); ++v) {
+    out.depth.push_back(working_depth_map(scene, input, preprocess, v));
+    any = any || out.depth.back().defined();
+  }
+  if (any) {
+    out.source = "depth maps";
+    return out;
+  }
+  if (options.from_photos) return stereo_of_photos(input, maps, options.stereo);
+  return {};
+}
+
+MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const SceneInput& input, const MeasuredDepth& measured,
+                                        const MeasuredSurfaceOptions& options) {
   MeasuredSurface done;
-  if (options.opacity <= 0) return done;
+  if (options.opacity <= 0 || measured.depth.empty()) return done;
+  done.source = measured.source;
   torch::InferenceMode inference;  // the maps are the network's inference tensors
   const auto opacity = static_cast<float>(options.opacity);
   const std::optional<ObjectCone> object =
       options.beside_object ? object_cone(input, options.cone_margin) : std::nullopt;
-  for (size_t v = 0; v < input.views.size(); ++v) {
-    const torch::Tensor depth = working_depth_map(scene, input, preprocess, v);
+  for (size_t v = 0; v < input.views.size() && v < measured.depth.size(); ++v) {
+    const torch::Tensor& depth = measured.depth[v];
     if (!depth.defined() || depth.size(0) != maps.depth.size(3) || depth.size(1) != maps.depth.size(4)) continue;
     const PreparedView& view = input.views[v];
     const Camera& camera = input.input.view_cameras[v];
     const int64_t vi = static_cast<int64_t>(v);
     const torch::Tensor valid = depth.gt(0).logical_and(depth.isfinite());
     done.views.push_back(view.name);
+    done.known.push_back(valid.to(torch::kFloat32).mean().item<double>());
     // Outside the mask (grown): the surface in place of the network's Gaussians, its colours kept.
     const torch::Tensor take = valid.logical_and(grown_mask(view, options.mask_margin).logical_not());
     const GaussianSet surface = surface_gaussians(camera, depth, take, view.rgb, opacity, options.width);
@@ -136,6 +173,8 @@ MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const Scene& scene, 
 
 nlohmann::json describe_measured_surface(const MeasuredSurfaceOptions& options, const MeasuredSurface& done) {
   return {{"opacity", options.opacity},
+          {"source", done.source},
+          {"known", done.known},
           {"width", options.width},
           {"mask_margin", options.mask_margin},
           {"views", done.views},

@@ -1,7 +1,8 @@
 #pragma once
 // The surface a depth camera measured, used where a capture has it. A view with its own depth map
 // (`<scene>/depth/<view>.npy`: a depth camera's, a synthetic scene's) knows each pixel's depth
-// exactly, which the network and the alignment to points only approach. Outside the view's mask
+// exactly, which the network and the alignment to points only approach. Without depth maps, the
+// context photos measure it where they are textured and agree (model/stereo_depth.h). Outside the view's mask
 // its Gaussians are put at that depth and made flat splats along the measured surface
 // (model/surface_splats.h), opaque: the default model's Gaussians are needles along their rays
 // of opacity ~0.4, which from another camera draw `make demo`'s table as a brown smear on the
@@ -15,6 +16,7 @@
 #include "data/preprocess.h"
 #include "data/scene.h"
 #include "gaussians/gaussians.h"
+#include "model/stereo_depth.h"
 
 namespace ii {
 
@@ -43,20 +45,38 @@ struct MeasuredSurfaceOptions {
   // the rooms' region 0.15 dB.
   bool beside_object = true;
   int cone_margin = 10;
+  // Where no context view has a depth map: each view's depth measured from the context photos
+  // themselves (model/stereo_depth.h), used where it is known (SPIn-NeRF scene 1 +0.5 dB whole
+  // image with the official reference, +0.8 with the true photo; the statue +0.5, the fern +1.0;
+  // about 0.25 s on 2 cores at any working size).
+  bool from_photos = true;
+  StereoOptions stereo;
 };
 
 struct MeasuredSurface {
-  std::vector<std::string> views;  // the context views that had a depth map
+  std::string source;              // "depth maps", "the photos (stereo)" or "" (none)
+  std::vector<std::string> views;  // the context views that had a measured depth
+  std::vector<double> known;       // ... the fraction of each one's pixels it covered
   int64_t gaussians = 0;           // the Gaussians put on their surface outside the masks
   int64_t beside_object = 0;       // ... inside them (and their margins): the scene beside the object
 };
 
-// In place on `maps` (the network's output for `input`, prepared from `scene` with `preprocess`;
-// pose-normalised frame): each context view with a depth map at its photo's size gets its
-// outside-the-mask pixels' positions, depth, sizes, rotations and opacities from the measured
-// surface; colours stay the network's.
-MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const Scene& scene, const SceneInput& input,
-                                        const PreprocessOptions& preprocess, const MeasuredSurfaceOptions& options);
+// Each context view's measured depth (H, W) at the working size in the pose-normalised frame's
+// units, 0 where unknown: its depth map (`<scene>/depth/<view>.npy` at its photo's size), else
+// undefined; without any depth map and with options.from_photos, the photos' stereo depth, for
+// which `maps` (the network's, aligned) gives the range of depths to try.
+struct MeasuredDepth {
+  std::string source;
+  std::vector<torch::Tensor> depth;
+};
+MeasuredDepth measured_depth(const Scene& scene, const SceneInput& input, const PreprocessOptions& preprocess,
+                             const GaussianMaps& maps, const MeasuredSurfaceOptions& options);
+
+// In place on `maps` (the network's output for `input`; pose-normalised frame): each context view
+// with a measured depth gets its outside-the-mask pixels' positions, depth, sizes, rotations and
+// opacities from the measured surface where the depth is known; colours stay the network's.
+MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const SceneInput& input, const MeasuredDepth& measured,
+                                        const MeasuredSurfaceOptions& options);
 
 // What run.json and metrics.json record of it.
 nlohmann::json describe_measured_surface(const MeasuredSurfaceOptions& options, const MeasuredSurface& done);

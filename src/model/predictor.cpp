@@ -67,9 +67,11 @@ void after_the_network(Prediction& p, const Scene& scene, const SceneInputOption
     if (!gathered.points.empty())
       p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points, geometry.depth_detail);
     p.stages.lap("align depth to the scene's points");
+    const MeasuredDepth measured =
+        measured_depth(scene, p.input, options.preprocess, p.maps, geometry.measured_surface);
+    if (!measured.source.empty()) p.stages.lap("the measured depth (" + measured.source + ")");
     p.measured_surface = describe_measured_surface(
-        geometry.measured_surface,
-        put_on_measured_surface(p.maps, scene, p.input, options.preprocess, geometry.measured_surface));
+        geometry.measured_surface, put_on_measured_surface(p.maps, p.input, measured, geometry.measured_surface));
     if (!p.measured_surface["views"].empty()) p.stages.lap("the measured surface");
   }
   const int64_t faded = fade_floaters(p.maps, p.input.views, p.input.input.view_cameras, geometry.floaters);

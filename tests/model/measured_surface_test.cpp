@@ -162,9 +162,11 @@ TEST(MeasuredSurface, NothingWithoutDepthMapsOrWithoutAlignment) {
   options.geometry.align_depth = DepthPoints::none;  // the paper's depth: no measured surface either
   const Prediction raw = predictor.predict(scene, options);
   EXPECT_EQ(raw.describe_geometry()["measured_surface"], nlohmann::json::object());
-  // A scene without depth maps: nothing to put the Gaussians on.
+  // A scene without depth maps, and the photos' own depth not asked for: nothing to put the
+  // Gaussians on (with it: tests/model/stereo_depth_test.cpp).
   std::filesystem::remove_all(dir / "depth");
   options.geometry.align_depth = DepthPoints::depth_maps;
+  options.geometry.measured_surface.from_photos = false;
   const nlohmann::json record = predictor.predict(scene, options).describe_geometry()["measured_surface"];
   EXPECT_EQ(record["views"].size(), 0u);
   EXPECT_EQ(record["gaussians"], 0);

@@ -91,6 +91,7 @@ TEST(Predictor, ScalesTheDepthToThePhotosPointsByDefault) {
   SceneInputOptions opts = two_views();
   opts.geometry.align_depth = SceneInputOptions().geometry.align_depth;
   ASSERT_EQ(opts.geometry.align_depth, DepthPoints::photos);
+  opts.geometry.measured_surface.from_photos = false;  // the alignment alone (the photos' own depth: stereo_depth_test)
   SceneInputOptions scale_only = opts;
   scale_only.geometry.depth_detail.detail = 0;
   const Prediction aligned = predictor.predict(scene, scale_only);

@@ -1,0 +1,154 @@
+// Depth measured from the photos: four views of a textured floor (whose depth is exact) give each
+// view's depth from a guide 30 % off, to about a percent where the sweep says it knows it; a
+// picture without texture is unknown; bad inputs are refused in words; and a prediction on a
+// scene without depth maps puts its Gaussians on that surface when asked, recording it.
+#include <gtest/gtest.h>
+
+#include "data/masks.h"
+#include "data/scene.h"
+#include "model/default_model.h"
+#include "model/predictor.h"
+#include "model/stereo_depth.h"
+#include "model/surface_splats.h"
+#include "render/rasterizer.h"
+#include "synthetic_room.h"
+#include "tensor/image_tensor.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+struct Views {
+  std::vector<Image> photos;
+  std::vector<Camera> cameras;
+  std::vector<torch::Tensor> depths;  // exact
+};
+
+// A synthetic room's four views and its exact depth maps.
+Views room_views(const std::string& tag, int side, uint64_t seed) {
+  const Scene scene = load_scene(test::synthetic_room(tag, 4, side, seed));
+  Views room;
+  for (const View& view : scene.views) {
+    room.photos.push_back(load_view_image(view));
+    room.cameras.push_back(view.camera);
+    const Image depth = *load_view_depth(scene, view);
+    room.depths.push_back(
+        torch::from_blob(const_cast<float*>(depth.pixels.data()), {depth.height, depth.width}, torch::kFloat32)
+            .clone());
+  }
+  return room;
+}
+
+// A camera of `side` pixels square looking along the world's -z from (x, y, 0), unturned.
+Camera camera_at(int side, double x, double y) {
+  Camera camera;
+  camera.K = Intrinsics::from_fov(side, side, 1.0, 1.0);
+  camera.c2w(0, 3) = x;
+  camera.c2w(1, 3) = y;
+  return camera;
+}
+
+// Camera z of a slanted floor (2.5 units ahead at the height y = 0, nearer below) seen by a camera
+// from camera_at: the ray through each pixel centre meets z = -(2.5 - 0.5 y).
+torch::Tensor floor_depth(const Camera& camera) {
+  const Intrinsics& K = camera.K;
+  const torch::Tensor b = (torch::arange(K.height, torch::kFloat32) + 0.5f - K.cy) / K.fy;  // down per unit z
+  const double y = camera.c2w(1, 3);
+  return ((2.5 - 0.5 * y) / (1 - 0.5 * b)).view({K.height, 1}).expand({K.height, K.width}).contiguous();
+}
+
+// Four views of that floor painted with seeded noise (blobs of about two pixels), rendered from
+// flat splats that tile it as a wider camera at the origin sees it.
+Views textured_floor(int side) {
+  torch::manual_seed(35);
+  const Camera wide = [&] {
+    Camera c = camera_at(side, 0, 0);
+    c.K.width = c.K.height = 2 * side;
+    c.K.cx = c.K.cy = side;
+    return c;
+  }();
+  const torch::Tensor noise =
+      torch::upsample_bilinear2d(torch::rand({1, 3, side, side}), {2 * side, 2 * side}, false);
+  const GaussianSet floor = surface_gaussians(wide, floor_depth(wide), torch::ones({2 * side, 2 * side}, torch::kBool),
+                                              tensor_to_image(noise), 0.99f, 0.7);
+  Views views;
+  for (const auto& [x, y] : std::vector<std::pair<double, double>>{{0, 0}, {0.15, 0}, {0, 0.12}, {-0.12, -0.05}}) {
+    RenderCamera camera;
+    camera.camera = camera_at(side, x, y);
+    views.photos.push_back(image_from_hwc(render(floor, camera).rgb));
+    views.cameras.push_back(camera.camera);
+    views.depths.push_back(floor_depth(camera.camera));
+  }
+  return views;
+}
+
+// |log| of the measured depth's ratio to the truth where it is known.
+torch::Tensor log_error(const torch::Tensor& measured, const torch::Tensor& truth) {
+  const torch::Tensor known = measured.gt(0);
+  return (measured.index({known}) / truth.index({known})).log().abs();
+}
+
+TEST(StereoDepth, FindsATexturedFloorsDepthFromAGuideThirtyPercentOff) {
+  const Views floor = textured_floor(96);
+  std::vector<torch::Tensor> guides;
+  for (const torch::Tensor& depth : floor.depths) guides.push_back(depth * 1.3);
+  StereoOptions options;
+  options.rows = 96;
+  const StereoDepth measured = stereo_depth(floor.photos, floor.cameras, guides, options);
+  ASSERT_EQ(measured.depth.size(), 4u);
+  for (size_t v = 0; v < 4; ++v) {
+    EXPECT_GT(measured.known[v], 0.6) << "view " << v;
+    EXPECT_NEAR(measured.known[v], measured.depth[v].gt(0).to(torch::kFloat32).mean().item<double>(), 1e-6);
+    const torch::Tensor error = log_error(measured.depth[v], floor.depths[v]);
+    EXPECT_LT(error.median().item<double>(), 0.01) << "view " << v;
+    EXPECT_LT(torch::quantile(error, 0.9).item<double>(), 0.03) << "view " << v;
+  }
+}
+
+TEST(StereoDepth, AFlatPictureIsUnknown) {
+  Views room = room_views("stereo-flat", 64, 32);
+  for (Image& photo : room.photos) std::fill(photo.pixels.begin(), photo.pixels.end(), 0.5f);
+  const StereoDepth measured = stereo_depth(room.photos, room.cameras, room.depths);
+  for (double known : measured.known) EXPECT_EQ(known, 0.0);
+}
+
+TEST(StereoDepth, RefusesWhatItCannotMatch) {
+  const Views room = room_views("stereo-refuses", 32, 33);
+  const std::string needs = "stereo depth needs two or more photos with a camera and a guiding depth each";
+  EXPECT_EQ(test::error_message([&] { stereo_depth({room.photos[0]}, {room.cameras[0]}, {room.depths[0]}); }), needs);
+  EXPECT_EQ(test::error_message([&] { stereo_depth(room.photos, room.cameras, {room.depths[0]}); }), needs);
+  StereoOptions narrow;
+  narrow.spread = 1;
+  EXPECT_EQ(test::error_message([&] { stereo_depth(room.photos, room.cameras, room.depths, narrow); }),
+            "stereo depth needs a spread above 1");
+}
+
+#define II_REQUIRE_DEFAULT_MODEL() \
+  if (!has_default_model()) GTEST_SKIP() << "this build has no default model"
+
+TEST(StereoDepth, APredictionWithoutDepthMapsLiesOnTheSurfaceThePhotosMeasure) {
+  II_REQUIRE_DEFAULT_MODEL();
+  const std::filesystem::path dir = test::synthetic_room("stereo-predict", 4, 128, 34);
+  std::filesystem::remove_all(dir / "depth");  // a capture without a depth camera
+  const Scene scene = load_scene(dir);
+  const Predictor predictor("", torch::kCPU, Precision::Float32);
+  SceneInputOptions options;
+  options.preprocess.height = 128;
+  ASSERT_TRUE(options.geometry.measured_surface.from_photos);  // the default
+  const Prediction with = predictor.predict(scene, options);
+  const nlohmann::json record = with.describe_geometry()["measured_surface"];
+  EXPECT_EQ(record["source"], "the photos (stereo)");
+  ASSERT_EQ(record["views"].size(), 4u);
+  ASSERT_EQ(record["known"].size(), 4u);
+  // The rooms' marble is faintly textured: a few percent of each view is known.
+  for (const auto& known : record["known"]) EXPECT_GT(known.get<double>(), 0.01);
+  EXPECT_GT(record["gaussians"].get<int64_t>(), 500);
+  // Off: the network's Gaussians, nothing recorded as moved.
+  options.geometry.measured_surface.from_photos = false;
+  const nlohmann::json off = predictor.predict(scene, options).describe_geometry()["measured_surface"];
+  EXPECT_EQ(off["source"], "");
+  EXPECT_EQ(off["gaussians"], 0);
+}
+
+}  // namespace
+}  // namespace ii
