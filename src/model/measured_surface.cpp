@@ -101,10 +101,8 @@ int64_t put_beside_object(GaussianMaps& maps, int64_t vi, const Camera& camera, 
   return beside.size();
 }
 
-}  // namespace
-
-namespace {
-
+// Each context view's depth measured by a plane sweep between the context photos, about the
+// network's aligned depth.
 MeasuredDepth stereo_of_photos(const SceneInput& input, const GaussianMaps& maps, const StereoOptions& options) {
   MeasuredDepth out;
   if (input.views.size() < 2) return out;

@@ -13,12 +13,12 @@ namespace ii {
 
 namespace {
 
-
 // Sums of (B, C, H, W) over `window` neighbours along `dim` (3: rows' neighbours, 2: columns'),
 // zero beyond the border: differences of a running sum, two operations whatever the window.
 torch::Tensor window_sums(const torch::Tensor& x, int window, int64_t dim) {
   const int64_t half = window / 2;
-  std::vector<int64_t> pad = dim == 3 ? std::vector<int64_t>{half + 1, half} : std::vector<int64_t>{0, 0, half + 1, half};
+  const std::vector<int64_t> pad =
+      dim == 3 ? std::vector<int64_t>{half + 1, half} : std::vector<int64_t>{0, 0, half + 1, half};
   const torch::Tensor running = torch::constant_pad_nd(x, pad, 0).cumsum(dim);
   const int64_t n = x.size(dim);
   return running.narrow(dim, window, n) - running.narrow(dim, 0, n);
@@ -50,9 +50,10 @@ torch::Tensor pixel_directions(const Camera& camera) {
   return torch::stack({grid[1].flatten(), grid[0].flatten(), torch::ones({K.width * K.height})}, 1);
 }
 
+// A picture as the sweep compares it: grey levels and their window statistics.
 struct Matching {
-  torch::Tensor grey;     // (1, 1, h, w)
-  torch::Tensor mean;     // its window means
+  torch::Tensor grey;       // (1, 1, h, w)
+  torch::Tensor mean;       // its window means
   torch::Tensor deviation;  // its window standard deviations
 };
 
@@ -175,7 +176,8 @@ StereoDepth stereo_depth(const std::vector<Image>& photos, const std::vector<Cam
   if (!(options.spread > 1)) throw Error("stereo depth needs a spread above 1");
   torch::NoGradGuard no_grad;
   // Matched at about options.rows rows: the sweep costs the same at every working size.
-  const int scale = std::max(1, static_cast<int>(std::lround(cameras.front().K.height / std::max(1.0, 1.0 * options.rows))));
+  const double rows = std::max(1, options.rows);
+  const int scale = std::max(1, static_cast<int>(std::lround(cameras.front().K.height / rows)));
   std::vector<Camera> small;
   std::vector<Matching> pictures;
   std::vector<torch::Tensor> small_guides;
