@@ -113,7 +113,7 @@ MeasuredDepth stereo_of_photos(const SceneInput& input, const GaussianMaps& maps
     guides.push_back(maps.depth[0][static_cast<int64_t>(v)][0]);
   }
   out.source = "the photos (stereo)";
-  out.depth = stereo_depth(photos, input.input.view_cameras, guides, options).depth;
+  out.depth = stereo_depth(photos, input.input.view_cameras, guides, options);
   return out;
 }
 

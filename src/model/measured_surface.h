@@ -63,8 +63,8 @@ struct MeasuredSurface {
 
 // Each context view's measured depth (H, W) at the working size in the pose-normalised frame's
 // units, 0 where unknown: its depth map (`<scene>/depth/<view>.npy` at its photo's size), else
-// undefined; without any depth map and with options.from_photos, the photos' stereo depth, for
-// which `maps` (the network's, aligned) gives the range of depths to try.
+// undefined; without any depth map and with options.from_photos, the photos' stereo depth, searched
+// about `maps`' depth (the network's, aligned).
 struct MeasuredDepth {
   std::string source;
   std::vector<torch::Tensor> depth;

@@ -169,7 +169,7 @@ torch::Tensor brought_up(const torch::Tensor& depth, int64_t height, int64_t wid
 
 }  // namespace
 
-StereoDepth stereo_depth(const std::vector<Image>& photos, const std::vector<Camera>& cameras,
+std::vector<torch::Tensor> stereo_depth(const std::vector<Image>& photos, const std::vector<Camera>& cameras,
                          const std::vector<torch::Tensor>& guides, const StereoOptions& options) {
   if (photos.size() != cameras.size() || guides.size() != cameras.size() || photos.size() < 2)
     throw Error("stereo depth needs two or more photos with a camera and a guiding depth each");
@@ -198,11 +198,10 @@ StereoDepth stereo_depth(const std::vector<Image>& photos, const std::vector<Cam
   std::vector<torch::Tensor> swept;
   for (size_t v = 0; v < photos.size(); ++v)
     swept.push_back(sweep(pictures, small, v, small_guides[v], log_factors, options));
-  StereoDepth out;
+  std::vector<torch::Tensor> out;
   for (size_t v = 0; v < photos.size(); ++v) {
     const torch::Tensor kept = agreed(swept, small, v, options.consistency);
-    out.depth.push_back(brought_up(kept, cameras[v].K.height, cameras[v].K.width, options.consistency));
-    out.known.push_back(out.depth.back().gt(0).to(torch::kFloat32).mean().item<double>());
+    out.push_back(brought_up(kept, cameras[v].K.height, cameras[v].K.width, options.consistency));
   }
   return out;
 }

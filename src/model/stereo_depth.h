@@ -32,14 +32,10 @@ struct StereoOptions {
   double consistency = 0.04;
 };
 
-struct StereoDepth {
-  std::vector<torch::Tensor> depth;  // per view (H, W) float32 camera z at the pictures' size; 0 = unknown
-  std::vector<double> known;         // per view, the fraction of its pixels with a depth
-};
-
 // `photos` (3 channels, each its camera's size) and `cameras` of two or more views; `guides` a
 // depth (H, W; camera z, the cameras' units) per view about which to search, e.g. a network's.
-StereoDepth stereo_depth(const std::vector<Image>& photos, const std::vector<Camera>& cameras,
+// Returns each view's depth (H, W) float32, camera z at its picture's size; 0 = unknown.
+std::vector<torch::Tensor> stereo_depth(const std::vector<Image>& photos, const std::vector<Camera>& cameras,
                          const std::vector<torch::Tensor>& guides, const StereoOptions& options = {});
 
 }  // namespace ii
