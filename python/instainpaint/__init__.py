@@ -32,7 +32,7 @@ from ._core import Camera, Error, Scene, set_log_level, set_threads
 
 # Predictor.predict's defaults: the library's own (GeometryOptions), as the commands use them.
 (_ALIGN_DEPTH, _DEPTH_DETAIL, _FRAME_MARGIN, _REGION_COVER, _FADE_FLOATERS,
- _MEASURED_SURFACE, _STEREO_DEPTH) = _core._geometry_defaults
+ _MEASURED_SURFACE, _STEREO_DEPTH, _FRAME_MARGIN_DROP_SEEN) = _core._geometry_defaults
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
@@ -217,7 +217,8 @@ class Predictor:
                 align_depth: str = _ALIGN_DEPTH, depth_detail: float = _DEPTH_DETAIL,
                 frame_margin: float = _FRAME_MARGIN, region_cover: float = _REGION_COVER,
                 fade_floaters: float = _FADE_FLOATERS,
-                measured_surface: float = _MEASURED_SURFACE, stereo_depth: bool = _STEREO_DEPTH) -> Gaussians:
+                measured_surface: float = _MEASURED_SURFACE, stereo_depth: bool = _STEREO_DEPTH,
+                frame_margin_drop_seen: bool = _FRAME_MARGIN_DROP_SEEN) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -246,13 +247,16 @@ class Predictor:
         stereo_depth: where no context view has a depth map, each one's depth measured from the
         context photos themselves (a plane sweep between them, `--stereo-depth`) serves as that
         surface where the photos agree on it.
+        frame_margin_drop_seen: the frame margin's Gaussians that another context view sees through
+        (in front of the depth it saw there) dropped (`--frame-margin-drop-seen`); False keeps them.
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
         return Gaussians(self._p._predict(scene, list(context), views, reference, reference_view, height,
                                           keep_object, dict(masks or {}), align_depth, float(depth_detail),
                                           float(frame_margin), float(region_cover), float(fade_floaters),
-                                          float(measured_surface), bool(stereo_depth)))
+                                          float(measured_surface), bool(stereo_depth),
+                                          bool(frame_margin_drop_seen)))
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

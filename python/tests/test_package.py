@@ -46,7 +46,8 @@ def test_attributes_are_arrays_over_the_librarys_memory(statue, predictor):
     margin = round(HEIGHT / 8)  # Gaussians past each frame's edges, an eighth of its height
     cover = g.geometry["region_cover"]  # flat splats over the reference's region, one per pixel of it
     assert cover["opacity"] == 0.3 and cover["gaussians"] > 0, cover
-    assert n == 4 * (width + 2 * margin) * (HEIGHT + 2 * margin) + cover["gaussians"]
+    dropped = g.geometry["frame_margin"]["dropped"]  # the margin's Gaussians another view sees through
+    assert n == 4 * (width + 2 * margin) * (HEIGHT + 2 * margin) - dropped + cover["gaussians"]
     assert len(predictor.predict(statue, height=HEIGHT, frame_margin=0, region_cover=0)) == 4 * HEIGHT * width
     for name, shape in [("means", (n, 3)), ("quats", (n, 4)), ("scales", (n, 3)), ("opacities", (n,)),
                         ("colors", (n, 3))]:
@@ -109,8 +110,8 @@ def test_render_of_a_saved_and_reloaded_prediction(tmp_path, statue, predictor):
 def test_predict_defaults_are_the_commands():
     defaults = {k: p.default for k, p in inspect.signature(ii.Predictor.predict).parameters.items()}
     assert (defaults["align_depth"], defaults["depth_detail"], defaults["frame_margin"], defaults["region_cover"],
-            defaults["fade_floaters"], defaults["measured_surface"], defaults["stereo_depth"]) == (
-        "photos", 1.5, 0.125, 0.3, 0.3, 0.95, True)
+            defaults["fade_floaters"], defaults["measured_surface"], defaults["stereo_depth"],
+            defaults["frame_margin_drop_seen"]) == ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True)
 
 
 def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
@@ -118,6 +119,10 @@ def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
     g = predictor.predict(statue, height=HEIGHT)
     assert raw.geometry["source"] == "off" and raw.geometry["views"] == []
     assert raw.geometry["frame_margin"]["fraction"] == 0.125
+    assert g.geometry["frame_margin"]["dropped"] > 0, g.geometry["frame_margin"]
+    whole = predictor.predict(statue, height=HEIGHT, frame_margin_drop_seen=False).geometry["frame_margin"]
+    assert whole["dropped"] == 0 and whole["gaussians"] == g.geometry["frame_margin"]["gaussians"] + \
+        g.geometry["frame_margin"]["dropped"], whole
     # The statue has no depth maps: its photos measure the surface (none at all without alignment).
     assert raw.geometry["measured_surface"] == {}
     surface = g.geometry["measured_surface"]
@@ -129,14 +134,16 @@ def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
     assert [v["view"] for v in g.geometry["views"]] == g.context
     assert all(v["points"] >= 20 and v["scale"] > 0 for v in g.geometry["views"]), g.geometry
     assert any(abs(v["scale"] - 1) > 0.5 for v in g.geometry["views"]), g.geometry  # the statue is seen too near
-    np.testing.assert_array_equal(g.colors, raw.colors)
-    assert not np.allclose(g.means, raw.means)
+    # The per-pixel rows come first, then the frame margin's and the region cover's.
+    pixels = len(raw) - raw.geometry["frame_margin"]["gaussians"] - raw.geometry["region_cover"]["gaussians"]
+    np.testing.assert_array_equal(g.colors[:pixels], raw.colors[:pixels])
+    assert not np.allclose(g.means[:pixels], raw.means[:pixels])
     # Beyond one scale per view the depth follows the points near each pixel (depth_detail).
     assert g.geometry["detail"] == 1.5 and all(v["detail_mean"] > 0 for v in g.geometry["views"]), g.geometry
     scale_only = predictor.predict(statue, height=HEIGHT, depth_detail=0)
     assert scale_only.geometry["detail"] == 0 and all(v["detail_mean"] == 0 for v in scale_only.geometry["views"])
     assert [v["scale"] for v in scale_only.geometry["views"]] == [v["scale"] for v in g.geometry["views"]]
-    assert not np.allclose(g.means, scale_only.means)
+    assert not np.allclose(g.means[:pixels], scale_only.means[:pixels])
 
 
 def test_bad_arguments_raise_clear_errors(tmp_path, statue, predictor):

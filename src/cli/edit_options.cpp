@@ -117,6 +117,11 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
                   "context cameras show the scene's edge instead of the background; 0 = none (the paper's)")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  cmd->add_option("--frame-margin-drop-seen", geometry.frame_margin.drop_seen_through,
+                  "Drop the frame margin's Gaussians that another context view sees through (they lie in front of "
+                  "the depth it saw there), so that a repeated border does not stand in front of what the other "
+                  "views saw (false: keep the whole margin)")
+      ->capture_default_str();
   cmd->add_option("--region-cover", geometry.region_cover.opacity,
                   "Cover the reference's region with flat splats of this opacity on its depth, beside the network's "
                   "Gaussians, so that views from elsewhere show no background between them where the object "

@@ -31,7 +31,7 @@ void add_edit_options(CLI::App* cmd, EditArgs& args);
 void add_reference_options(CLI::App* cmd, EditArgs& args);
 // What is done with the network's output, into `geometry` as the options are parsed:
 // --align-depth, --depth-detail, --measured-surface, --fade-floaters, --frame-margin,
-// --region-cover.
+// --frame-margin-drop-seen, --region-cover.
 void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry);
 // --align-depth and --depth-detail alone (add_geometry_options adds them too).
 void add_align_depth_option(CLI::App* cmd, GeometryOptions& geometry);

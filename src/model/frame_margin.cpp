@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "model/floaters.h"
 
 namespace ii {
 
@@ -59,10 +60,22 @@ GaussianSet gaussians_beyond_frame(const GaussianMaps& maps, const ModelInput& i
   return g;
 }
 
-nlohmann::json describe_frame_margin(const FrameMarginOptions& options, int64_t height, int64_t gaussians) {
+GaussianSet without_seen_through(const GaussianSet& margin, const GaussianMaps& maps,
+                                 const std::vector<PreparedView>& views, const std::vector<Camera>& cameras) {
+  if (margin.size() == 0) return margin;
+  torch::NoGradGuard no_grad;
+  const torch::Tensor through =
+      seen_through(margin.means.to(torch::kFloat32), view_depths(maps, views), cameras, /*tolerance=*/0);
+  return select_rows(margin, through.logical_not());
+}
+
+nlohmann::json describe_frame_margin(const FrameMarginOptions& options, int64_t height, int64_t gaussians,
+                                     int64_t dropped) {
   return {{"fraction", options.fraction},
           {"pixels", frame_margin_pixels(height, options)},
-          {"gaussians", gaussians}};
+          {"gaussians", gaussians},
+          {"drop_seen_through", options.drop_seen_through},
+          {"dropped", dropped}};
 }
 
 }  // namespace ii

@@ -78,7 +78,11 @@ void after_the_network(Prediction& p, const Scene& scene, const SceneInputOption
   p.floaters = describe_floaters(geometry.floaters, faded);
   if (geometry.floaters.fade < 1) p.stages.lap("fade floaters");
   p.beyond_frame = gaussians_beyond_frame(p.maps, p.input.input, geometry.frame_margin);
-  p.frame_margin = describe_frame_margin(geometry.frame_margin, p.maps.depth.size(3), p.beyond_frame.size());
+  const int64_t continued = p.beyond_frame.size();
+  if (geometry.frame_margin.drop_seen_through)
+    p.beyond_frame = without_seen_through(p.beyond_frame, p.maps, p.input.views, p.input.input.view_cameras);
+  p.frame_margin = describe_frame_margin(geometry.frame_margin, p.maps.depth.size(3), p.beyond_frame.size(),
+                                         continued - p.beyond_frame.size());
   if (p.beyond_frame.size() > 0) p.stages.lap("Gaussians past the frames");
   p.region_cover = region_cover_gaussians(p.input.views.front(), p.input.input.view_cameras.front(),
                                           p.maps.depth[0][0][0], geometry.region_cover, p.maps.xyz);

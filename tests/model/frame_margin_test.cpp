@@ -1,8 +1,8 @@
 // Gaussians past the frame: each view's border pixels continued outward. Every new Gaussian
 // takes its nearest border pixel's attributes and depth and sits on its own pixel's ray, checked
 // against the rays of a larger camera (the same pose and focal length, the principal point moved
-// by the margin) computed independently; a margin of 0 adds nothing; the prediction joins them
-// after the per-pixel rows and records them.
+// by the margin) computed independently; a margin of 0 adds nothing; those another view sees
+// through are dropped; the prediction joins them after the per-pixel rows and records them.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -101,6 +101,45 @@ TEST(FrameMargin, NoMarginAddsNothingAndABadFractionIsNamed) {
             "frame margin: the fraction of the height must be between 0 and 1 (got -0.1)");
 }
 
+// Where view 1 saw a far wall, view 0's margin in front of it is empty space: each of its margin
+// Gaussians that lands inside view 1's picture is dropped, each outside kept (checked with the
+// camera's own matrices); view 1's margin, behind view 0's near depth, stays whole; behind view 1's
+// mask its depth is no evidence and nothing goes.
+TEST(FrameMargin, WhatAnotherViewSeesThroughIsDropped) {
+  Views s = two_views();
+  s.maps.depth[0][1].fill_(10);
+  s.maps.xyz[0][1] = s.input.rays_o[1].permute({2, 0, 1}) + 10 * s.input.rays_d_un[1].permute({2, 0, 1});
+  FrameMarginOptions options;
+  options.fraction = 0.25;
+  const GaussianSet margin = gaussians_beyond_frame(s.maps, s.input, options);
+  const int64_t per_view = margin.size() / kViews;
+  std::vector<PreparedView> views(kViews);
+  for (int v = 0; v < kViews; ++v) views[static_cast<size_t>(v)].name = "view " + std::to_string(v);
+  const GaussianSet kept = without_seen_through(margin, s.maps, views, s.input.view_cameras);
+
+  const Camera& other = s.input.view_cameras[1];
+  const Eigen::Matrix4d w2c = other.w2c_opencv();
+  std::vector<int64_t> expected;  // the rows kept
+  int64_t inside = 0;
+  for (int64_t k = 0; k < margin.size(); ++k) {
+    const Eigen::Vector4d p(margin.means[k][0].item<double>(), margin.means[k][1].item<double>(),
+                            margin.means[k][2].item<double>(), 1);
+    const Eigen::Vector4d c = w2c * p;
+    const double x = other.K.fx * c.x() / c.z() + other.K.cx, y = other.K.fy * c.y() / c.z() + other.K.cy;
+    const bool lands_inside = c.z() > 0 && x >= 0 && y >= 0 && x < kW && y < kH;
+    if (k < per_view && lands_inside) ++inside;
+    else expected.push_back(k);
+  }
+  ASSERT_GT(inside, 10);  // the two cameras overlap: some of view 0's margin is in view 1's picture
+  ASSERT_EQ(kept.size(), static_cast<int64_t>(expected.size()));
+  EXPECT_TRUE(torch::equal(kept.means, margin.means.index({torch::tensor(expected)})));
+  EXPECT_TRUE(torch::equal(kept.colors, margin.colors.index({torch::tensor(expected)})));
+
+  // View 1's mask over its whole picture: its depth is the network's guess, nothing is dropped.
+  views[1].mask = Image(kW, kH, 1, 1.f);
+  EXPECT_EQ(without_seen_through(margin, s.maps, views, s.input.view_cameras).size(), margin.size());
+}
+
 TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
   if (!has_default_model()) GTEST_SKIP() << "this build has no default model";
   const std::filesystem::path dir = test::synthetic_room("frame-margin", 4, 64, 8);
@@ -112,9 +151,10 @@ TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
   const Prediction with = predictor.predict(scene, options);
   options.geometry.frame_margin.fraction = 0;
   const Prediction without = predictor.predict(scene, options);
-  const int64_t pixels = 4 * 64 * 64, margin = 4 * (80 * 80 - 64 * 64);  // 8 pixels at 64 rows
+  const int64_t pixels = 4 * 64 * 64, continued = 4 * (80 * 80 - 64 * 64);  // 8 pixels at 64 rows
   EXPECT_EQ(without.gaussians().size(), pixels);
   const GaussianSet joined_set = with.gaussians();
+  const int64_t margin = with.beyond_frame.size();
   ASSERT_EQ(joined_set.size(), pixels + margin);
   EXPECT_TRUE(torch::equal(joined_set.means.narrow(0, 0, pixels), without.gaussians().means));
   EXPECT_TRUE(torch::equal(joined_set.means.narrow(0, pixels, margin), with.beyond_frame.means));
@@ -122,6 +162,9 @@ TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
   EXPECT_EQ(recorded["fraction"], 0.125);
   EXPECT_EQ(recorded["pixels"], 8);
   EXPECT_EQ(recorded["gaussians"], margin);
+  EXPECT_EQ(recorded["drop_seen_through"], true);
+  EXPECT_GT(recorded["dropped"].get<int64_t>(), 0);  // the room's views overlap
+  EXPECT_EQ(recorded["dropped"].get<int64_t>() + margin, continued);
   EXPECT_EQ(without.describe_geometry()["frame_margin"]["gaussians"], 0);
 }
 
