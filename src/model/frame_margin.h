@@ -5,7 +5,8 @@
 // largest single loss on real captures (SPIn-NeRF scene 1: a band at the bottom of every test
 // view). Each view's border Gaussians are continued outward: the pixel grid extended past the
 // frame, each new pixel taking its nearest border pixel's depth, colour, opacity, scale and
-// rotation along its own ray.
+// rotation along its own ray; those another context view sees through are then dropped (a
+// repeated border is no evidence against what a photo saw).
 #include <cstdint>
 #include <vector>
 
@@ -28,7 +29,8 @@ struct FrameMarginOptions {
   // A view's border repeated outward stood in front of what the others saw (SPIn-NeRF scene 1:
   // bands of streaks over the bricks and gravel). Measured (docs/benchmarks.md, session 34): the
   // scene's whole image +0.17 dB with the official reference, +0.82 with the object-free photo;
-  // the held-out rooms +0.36 / +0.60 (128 / 256 rows), the statue +0.08, the fern +0.11; a
+  // the held-out rooms' whole images +0.36 / +0.60 (128 / 256 rows, their regions +0.10 /
+  // +0.17), the statue +0.08, the fern +0.11; a
   // tolerance of 10 % in front (the floaters') gained a third as much, fading instead of dropping
   // less.
   bool drop_seen_through = true;
