@@ -170,7 +170,7 @@ torch::Tensor brought_up(const torch::Tensor& depth, int64_t height, int64_t wid
 }  // namespace
 
 std::vector<torch::Tensor> stereo_depth(const std::vector<Image>& photos, const std::vector<Camera>& cameras,
-                         const std::vector<torch::Tensor>& guides, const StereoOptions& options) {
+                                        const std::vector<torch::Tensor>& guides, const StereoOptions& options) {
   if (photos.size() != cameras.size() || guides.size() != cameras.size() || photos.size() < 2)
     throw Error("stereo depth needs two or more photos with a camera and a guiding depth each");
   if (!(options.spread > 1)) throw Error("stereo depth needs a spread above 1");

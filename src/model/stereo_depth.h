@@ -36,6 +36,6 @@ struct StereoOptions {
 // depth (H, W; camera z, the cameras' units) per view about which to search, e.g. a network's.
 // Returns each view's depth (H, W) float32, camera z at its picture's size; 0 = unknown.
 std::vector<torch::Tensor> stereo_depth(const std::vector<Image>& photos, const std::vector<Camera>& cameras,
-                         const std::vector<torch::Tensor>& guides, const StereoOptions& options = {});
+                                        const std::vector<torch::Tensor>& guides, const StereoOptions& options = {});
 
 }  // namespace ii
