@@ -92,10 +92,7 @@ int64_t put_beside_object(GaussianMaps& maps, int64_t vi, const Camera& camera, 
   if (hidden.size() == 0) return 0;
   const torch::Tensor rows = not_the_object(object, hidden.means).nonzero().squeeze(1);
   if (rows.numel() == 0) return 0;
-  GaussianSet beside;
-  for (auto member : {&GaussianSet::means, &GaussianSet::scales, &GaussianSet::quats, &GaussianSet::opacities,
-                      &GaussianSet::colors})
-    beside.*member = (hidden.*member).index({rows});
+  const GaussianSet beside = select_rows(hidden, rows);
   write_splats(maps, vi, masked.flatten().nonzero().squeeze(1).index({rows}), beside,
                depth.index({masked}).index({rows}), true);
   return beside.size();
