@@ -32,7 +32,7 @@ from ._core import Camera, Error, Scene, set_log_level, set_threads
 
 # Predictor.predict's defaults: the library's own (GeometryOptions), as the commands use them.
 (_ALIGN_DEPTH, _DEPTH_DETAIL, _FRAME_MARGIN, _REGION_COVER, _FADE_FLOATERS,
- _MEASURED_SURFACE, _STEREO_DEPTH, _FRAME_MARGIN_DROP_SEEN) = _core._geometry_defaults
+ _MEASURED_SURFACE, _STEREO_DEPTH, _FRAME_MARGIN_DROP_SEEN, _FRAME_MARGIN_OUTER) = _core._geometry_defaults
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
@@ -218,7 +218,8 @@ class Predictor:
                 frame_margin: float = _FRAME_MARGIN, region_cover: float = _REGION_COVER,
                 fade_floaters: float = _FADE_FLOATERS,
                 measured_surface: float = _MEASURED_SURFACE, stereo_depth: bool = _STEREO_DEPTH,
-                frame_margin_drop_seen: bool = _FRAME_MARGIN_DROP_SEEN) -> Gaussians:
+                frame_margin_drop_seen: bool = _FRAME_MARGIN_DROP_SEEN,
+                frame_margin_outer: float = _FRAME_MARGIN_OUTER) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -249,6 +250,9 @@ class Predictor:
         surface where the photos agree on it.
         frame_margin_drop_seen: the frame margin's Gaussians that another context view sees through
         (in front of the depth it saw there) dropped (`--frame-margin-drop-seen`); False keeps them.
+        frame_margin_outer: past `frame_margin`, the margin continued out to this fraction of the
+        height with one Gaussian per 2 x 2 pixels, twice as wide (`--frame-margin-outer`); no more
+        than `frame_margin` for none.
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
@@ -256,7 +260,7 @@ class Predictor:
                                           keep_object, dict(masks or {}), align_depth, float(depth_detail),
                                           float(frame_margin), float(region_cover), float(fade_floaters),
                                           float(measured_surface), bool(stereo_depth),
-                                          bool(frame_margin_drop_seen)))
+                                          bool(frame_margin_drop_seen), float(frame_margin_outer)))
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

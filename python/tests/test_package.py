@@ -44,10 +44,13 @@ def test_attributes_are_arrays_over_the_librarys_memory(statue, predictor):
     photo = statue.camera(statue.views[0])
     width = photo.width * HEIGHT // photo.height // 8 * 8
     margin = round(HEIGHT / 8)  # Gaussians past each frame's edges, an eighth of its height
+    outer = round(HEIGHT / 4)  # then to a quarter one per 2 x 2 block (the sizes here are even)
+    blocks = ((width + 2 * outer) // 2 * ((HEIGHT + 2 * outer) // 2)
+              - (width + 2 * margin) // 2 * ((HEIGHT + 2 * margin) // 2))
     cover = g.geometry["region_cover"]  # flat splats over the reference's region, one per pixel of it
     assert cover["opacity"] == 0.3 and cover["gaussians"] > 0, cover
     dropped = g.geometry["frame_margin"]["dropped"]  # the margin's Gaussians another view sees through
-    assert n == 4 * (width + 2 * margin) * (HEIGHT + 2 * margin) - dropped + cover["gaussians"]
+    assert n == 4 * ((width + 2 * margin) * (HEIGHT + 2 * margin) + blocks) - dropped + cover["gaussians"]
     assert len(predictor.predict(statue, height=HEIGHT, frame_margin=0, region_cover=0)) == 4 * HEIGHT * width
     for name, shape in [("means", (n, 3)), ("quats", (n, 4)), ("scales", (n, 3)), ("opacities", (n,)),
                         ("colors", (n, 3))]:
@@ -111,7 +114,8 @@ def test_predict_defaults_are_the_commands():
     defaults = {k: p.default for k, p in inspect.signature(ii.Predictor.predict).parameters.items()}
     assert (defaults["align_depth"], defaults["depth_detail"], defaults["frame_margin"], defaults["region_cover"],
             defaults["fade_floaters"], defaults["measured_surface"], defaults["stereo_depth"],
-            defaults["frame_margin_drop_seen"]) == ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True)
+            defaults["frame_margin_drop_seen"], defaults["frame_margin_outer"]) == \
+        ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True, 0.25)
 
 
 def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
@@ -119,6 +123,11 @@ def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
     g = predictor.predict(statue, height=HEIGHT)
     assert raw.geometry["source"] == "off" and raw.geometry["views"] == []
     assert raw.geometry["frame_margin"]["fraction"] == 0.125
+    assert raw.geometry["frame_margin"]["outer_fraction"] == 0.25
+    assert raw.geometry["frame_margin"]["outer_stride"] == 2
+    dense_only = predictor.predict(statue, height=HEIGHT, frame_margin_outer=0).geometry["frame_margin"]
+    assert dense_only["outer_pixels"] == dense_only["pixels"] and \
+        dense_only["gaussians"] < g.geometry["frame_margin"]["gaussians"], dense_only
     assert g.geometry["frame_margin"]["dropped"] > 0, g.geometry["frame_margin"]
     whole = predictor.predict(statue, height=HEIGHT, frame_margin_drop_seen=False).geometry["frame_margin"]
     assert whole["dropped"] == 0 and whole["gaussians"] == g.geometry["frame_margin"]["gaussians"] + \

@@ -117,6 +117,16 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
                   "context cameras show the scene's edge instead of the background; 0 = none (the paper's)")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  cmd->add_option("--frame-margin-outer", geometry.frame_margin.outer_fraction,
+                  "Past --frame-margin, continue the margin out to this fraction of the height more sparsely: one "
+                  "Gaussian per --frame-margin-stride pixels square, as wide as that square (no more than "
+                  "--frame-margin: none)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--frame-margin-stride", geometry.frame_margin.outer_stride,
+                  "The outer frame margin's pixels per Gaussian along each side")
+      ->check(CLI::Range(1, 16))
+      ->capture_default_str();
   cmd->add_option("--frame-margin-drop-seen", geometry.frame_margin.drop_seen_through,
                   "Drop the frame margin's Gaussians that another context view sees through (they lie in front of "
                   "the depth it saw there), so that a repeated border does not stand in front of what the other "

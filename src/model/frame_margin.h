@@ -24,6 +24,15 @@ struct FrameMarginOptions {
   // there as inside: a sparser margin of wider Gaussians (every second pixel, twice as wide and as
   // opaque as four) lost 0.02-0.36 dB on every held-out set for a margin a quarter the size.
   double fraction = 0.125;
+  // Past that, out to this fraction of the height, one Gaussian per outer_stride x outer_stride
+  // block of pixels, as wide as the block and as opaque as its pixels' over each other (no more
+  // than `fraction`, or `fraction` 0: none). Measured (docs/benchmarks.md, session 35): to a
+  // quarter, every pixel or one per 2 x 2 block gave the same (SPIn-NeRF scene 1 +1.1 dB, make
+  // demo's feed-forward whole image +1.9 and most white patches at its frames' edges gone, the
+  // rooms' whole images +0.2-0.3, statue and fern +-0.04) for a quarter of the Gaussians; 3 x 3
+  // blocks or out to a half (4 x 4) lost 0.1-0.15 dB on scene 1, out to 3/8 gained nothing more.
+  double outer_fraction = 0.25;
+  int64_t outer_stride = 2;
   // Drop the margin's Gaussians that another context view sees through: in front of the depth
   // that view saw at their pixel (outside its mask), where it saw farther, so that space is empty.
   // A view's border repeated outward stood in front of what the others saw (SPIn-NeRF scene 1:
@@ -46,8 +55,9 @@ GaussianSet gaussians_beyond_frame(const GaussianMaps& maps, const ModelInput& i
 GaussianSet without_seen_through(const GaussianSet& margin, const GaussianMaps& maps,
                                  const std::vector<PreparedView>& views, const std::vector<Camera>& cameras);
 
-// Its width in pixels at a view `height` pixels high.
+// Its width in pixels at a view `height` pixels high: the dense band's, and the whole margin's.
 int64_t frame_margin_pixels(int64_t height, const FrameMarginOptions& options);
+int64_t frame_margin_outer_pixels(int64_t height, const FrameMarginOptions& options);
 
 // What run.json and metrics.json record of it: `gaussians` kept, `dropped` seen through.
 nlohmann::json describe_frame_margin(const FrameMarginOptions& options, int64_t height, int64_t gaussians,

@@ -53,8 +53,10 @@ Views two_views() {
 TEST(FrameMargin, EachNewGaussianRepeatsItsNearestBorderPixelOnItsOwnRay) {
   const Views s = two_views();
   FrameMarginOptions options;
-  options.fraction = 0.25;  // 2 pixels at 8 rows
+  options.fraction = 0.25;      // 2 pixels at 8 rows
+  options.outer_fraction = 0;   // all of them dense
   ASSERT_EQ(frame_margin_pixels(kH, options), 2);
+  ASSERT_EQ(frame_margin_outer_pixels(kH, options), 2);
   const GaussianSet g = gaussians_beyond_frame(s.maps, s.input, options);
   constexpr int m = 2, kOuterW = kW + 2 * m, kOuterH = kH + 2 * m;
   constexpr int per_view = kOuterW * kOuterH - kW * kH;
@@ -90,6 +92,59 @@ TEST(FrameMargin, EachNewGaussianRepeatsItsNearestBorderPixelOnItsOwnRay) {
   }
 }
 
+// Past the dense band, out to outer_fraction: one Gaussian per 2 x 2 block, at the block's
+// centre on the larger camera's rays (the mean of its four pixels' rays), twice as wide and as
+// opaque as its four pixels' Gaussians over each other, with the block corner's nearest border
+// pixel's other attributes.
+TEST(FrameMargin, PastTheDenseBandOneWiderGaussianPerBlock) {
+  const Views s = two_views();
+  FrameMarginOptions options;
+  options.fraction = 0.25;       // 2 pixels dense at 8 rows
+  options.outer_fraction = 0.5;  // out to 4 pixels
+  options.outer_stride = 2;
+  ASSERT_EQ(frame_margin_outer_pixels(kH, options), 4);
+  const GaussianSet g = gaussians_beyond_frame(s.maps, s.input, options);
+  constexpr int dense = 2, m = 4, kLargerW = kW + 2 * m + 1, kLargerH = kH + 2 * m + 1;
+
+  int64_t k = 0;
+  for (int v = 0; v < kViews; ++v) {
+    Camera larger = view_camera(v);  // pixel (u + m, v + m) is this view's pixel (u, v)
+    larger.K.width = kLargerW;
+    larger.K.height = kLargerH;
+    larger.K.cx += m;
+    larger.K.cy += m;
+    const Rays rays = compute_rays(larger);
+    auto ray = [&](int row, int col, int c, const std::vector<float>& of) {
+      return of[static_cast<size_t>((row + m) * kLargerW + (col + m)) * 3 + static_cast<size_t>(c)];
+    };
+    for (int row = -m; row < kH + m; ++row)
+      for (int col = -m; col < kW + m; ++col) {
+        const int past = std::max({-col, col - (kW - 1), -row, row - (kH - 1)});
+        if (past <= 0) continue;
+        const bool corner = (col + m) % 2 == 0 && (row + m) % 2 == 0;
+        if (past > dense && !corner) continue;
+        const int block = past > dense ? 2 : 1;
+        const int br = std::clamp(row, 0, kH - 1), bc = std::clamp(col, 0, kW - 1);
+        const double depth = s.maps.depth[0][v][0][br][bc].item<double>();
+        ASSERT_LT(k, g.size());
+        for (int c = 0; c < 3; ++c) {
+          double origin = ray(row, col, c, rays.origin), direction = 0;
+          for (int dr = 0; dr < block; ++dr)
+            for (int dc = 0; dc < block; ++dc) direction += ray(row + dr, col + dc, c, rays.dir_unnorm);
+          direction /= block * block;
+          ASSERT_NEAR(g.means[k][c].item<double>(), origin + depth * direction, 1e-5)
+              << "view " << v << " pixel " << col << "," << row;
+          ASSERT_EQ(g.colors[k][c].item<float>(), s.maps.rgb[0][v][c][br][bc].item<float>());
+          ASSERT_FLOAT_EQ(g.scales[k][c].item<float>(), block * s.maps.scale[0][v][c][br][bc].item<float>());
+        }
+        const double alpha = s.maps.opacity[0][v][0][br][bc].item<double>();
+        ASSERT_NEAR(g.opacities[k].item<double>(), 1 - std::pow(1 - alpha, block * block), 1e-6);
+        ++k;
+      }
+  }
+  ASSERT_EQ(k, g.size());
+}
+
 TEST(FrameMargin, NoMarginAddsNothingAndABadFractionIsNamed) {
   const Views s = two_views();
   FrameMarginOptions none;
@@ -99,6 +154,14 @@ TEST(FrameMargin, NoMarginAddsNothingAndABadFractionIsNamed) {
   bad.fraction = -0.1;
   EXPECT_EQ(test::error_message([&] { frame_margin_pixels(kH, bad); }),
             "frame margin: the fraction of the height must be between 0 and 1 (got -0.1)");
+  FrameMarginOptions bad_stride;
+  bad_stride.outer_stride = 0;
+  EXPECT_EQ(test::error_message([&] { frame_margin_outer_pixels(kH, bad_stride); }),
+            "frame margin: the outer stride must be between 1 and 16 pixels (got 0)");
+  FrameMarginOptions none_outer;  // no dense band: nothing past it either
+  none_outer.fraction = 0;
+  none_outer.outer_fraction = 0.5;
+  EXPECT_EQ(gaussians_beyond_frame(s.maps, s.input, none_outer).size(), 0);
 }
 
 // Where view 1 saw a far wall, view 0's margin in front of it is empty space: each of its margin
@@ -151,7 +214,9 @@ TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
   const Prediction with = predictor.predict(scene, options);
   options.geometry.frame_margin.fraction = 0;
   const Prediction without = predictor.predict(scene, options);
-  const int64_t pixels = 4 * 64 * 64, continued = 4 * (80 * 80 - 64 * 64);  // 8 pixels at 64 rows
+  // 8 pixels dense at 64 rows, then out to 16 one per 2 x 2 block (48 blocks along 96 pixels, 40
+  // along the dense band's 80).
+  const int64_t pixels = 4 * 64 * 64, continued = 4 * (80 * 80 - 64 * 64 + 48 * 48 - 40 * 40);
   EXPECT_EQ(without.gaussians().size(), pixels);
   const GaussianSet joined_set = with.gaussians();
   const int64_t margin = with.beyond_frame.size();
@@ -161,6 +226,8 @@ TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
   const nlohmann::json recorded = with.describe_geometry()["frame_margin"];
   EXPECT_EQ(recorded["fraction"], 0.125);
   EXPECT_EQ(recorded["pixels"], 8);
+  EXPECT_EQ(recorded["outer_pixels"], 16);
+  EXPECT_EQ(recorded["outer_stride"], 2);
   EXPECT_EQ(recorded["gaussians"], margin);
   EXPECT_EQ(recorded["drop_seen_through"], true);
   EXPECT_GT(recorded["dropped"].get<int64_t>(), 0);  // the room's views overlap

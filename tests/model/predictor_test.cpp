@@ -48,13 +48,14 @@ TEST(Predictor, GivesWhatTheStepsItReplacesGive) {
   const SceneInput si = prepare_scene_input(scene, two_views());
   const Network net = network_from_checkpoint(default_checkpoint(), "default");
   expect_same_maps(p.maps, run_network(net, si.input, Precision::Float32));
-  // One Gaussian a pixel, then 8 pixels (an eighth of 64 rows) past each frame's edges but those
-  // the other view sees through, then one flat splat per pixel of the reference's region.
+  // One Gaussian a pixel, then 8 pixels (an eighth of 64 rows) past each frame's edges and out to
+  // 16 one per 2 x 2 block (56 x 48 blocks less the dense band's 48 x 40) but those the other view
+  // sees through, then one flat splat per pixel of the reference's region.
   int64_t region = 0;
   for (float m : p.input.views.front().mask->pixels) region += m > 0.5f;
   EXPECT_GT(region, 0);
   const int64_t dropped = p.describe_geometry()["frame_margin"]["dropped"].get<int64_t>();
-  EXPECT_EQ(p.gaussians().size(), 2 * 64 * 80 + 2 * (96 * 80 - 80 * 64) - dropped + region);
+  EXPECT_EQ(p.gaussians().size(), 2 * 64 * 80 + 2 * (96 * 80 - 80 * 64 + 56 * 48 - 48 * 40) - dropped + region);
   // Loaded once, called again: the same answer.
   expect_same_maps(predictor.predict(scene, two_views()).maps, p.maps);
 }
