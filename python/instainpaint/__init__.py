@@ -32,7 +32,8 @@ from ._core import Camera, Error, Scene, set_log_level, set_threads
 
 # Predictor.predict's defaults: the library's own (GeometryOptions), as the commands use them.
 (_ALIGN_DEPTH, _DEPTH_DETAIL, _FRAME_MARGIN, _REGION_COVER, _FADE_FLOATERS,
- _MEASURED_SURFACE, _STEREO_DEPTH, _FRAME_MARGIN_DROP_SEEN, _FRAME_MARGIN_OUTER) = _core._geometry_defaults
+ _MEASURED_SURFACE, _STEREO_DEPTH, _FRAME_MARGIN_DROP_SEEN, _FRAME_MARGIN_OUTER,
+ _BEHIND_EDGES) = _core._geometry_defaults
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
@@ -219,7 +220,8 @@ class Predictor:
                 fade_floaters: float = _FADE_FLOATERS,
                 measured_surface: float = _MEASURED_SURFACE, stereo_depth: bool = _STEREO_DEPTH,
                 frame_margin_drop_seen: bool = _FRAME_MARGIN_DROP_SEEN,
-                frame_margin_outer: float = _FRAME_MARGIN_OUTER) -> Gaussians:
+                frame_margin_outer: float = _FRAME_MARGIN_OUTER,
+                behind_edges: float = _BEHIND_EDGES) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -253,6 +255,9 @@ class Predictor:
         frame_margin_outer: past `frame_margin`, the margin continued out to this fraction of the
         height with one Gaussian per 2 x 2 pixels, twice as wide (`--frame-margin-outer`); no more
         than `frame_margin` for none.
+        behind_edges: the far side of each context view's depth edges continued under the near side
+        by this fraction of its height (`--behind-edges`), those another view sees through dropped,
+        so that a camera beside it sees the ground behind an object's edge; 0 for none (the paper's).
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
@@ -260,7 +265,8 @@ class Predictor:
                                           keep_object, dict(masks or {}), align_depth, float(depth_detail),
                                           float(frame_margin), float(region_cover), float(fade_floaters),
                                           float(measured_surface), bool(stereo_depth),
-                                          bool(frame_margin_drop_seen), float(frame_margin_outer)))
+                                          bool(frame_margin_drop_seen), float(frame_margin_outer),
+                                          float(behind_edges)))
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

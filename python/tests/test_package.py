@@ -50,8 +50,10 @@ def test_attributes_are_arrays_over_the_librarys_memory(statue, predictor):
     cover = g.geometry["region_cover"]  # flat splats over the reference's region, one per pixel of it
     assert cover["opacity"] == 0.3 and cover["gaussians"] > 0, cover
     dropped = g.geometry["frame_margin"]["dropped"]  # the margin's Gaussians another view sees through
-    assert n == 4 * ((width + 2 * margin) * (HEIGHT + 2 * margin) + blocks) - dropped + cover["gaussians"]
-    assert len(predictor.predict(statue, height=HEIGHT, frame_margin=0, region_cover=0)) == 4 * HEIGHT * width
+    behind = g.geometry["behind_edges"]["gaussians"]  # the far side of depth edges under the near side
+    assert n == 4 * ((width + 2 * margin) * (HEIGHT + 2 * margin) + blocks) - dropped + behind + cover["gaussians"]
+    bare = predictor.predict(statue, height=HEIGHT, frame_margin=0, region_cover=0, behind_edges=0)
+    assert len(bare) == 4 * HEIGHT * width
     for name, shape in [("means", (n, 3)), ("quats", (n, 4)), ("scales", (n, 3)), ("opacities", (n,)),
                         ("colors", (n, 3))]:
         a = getattr(g, name)
@@ -114,8 +116,8 @@ def test_predict_defaults_are_the_commands():
     defaults = {k: p.default for k, p in inspect.signature(ii.Predictor.predict).parameters.items()}
     assert (defaults["align_depth"], defaults["depth_detail"], defaults["frame_margin"], defaults["region_cover"],
             defaults["fade_floaters"], defaults["measured_surface"], defaults["stereo_depth"],
-            defaults["frame_margin_drop_seen"], defaults["frame_margin_outer"]) == \
-        ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True, 0.25)
+            defaults["frame_margin_drop_seen"], defaults["frame_margin_outer"], defaults["behind_edges"]) == \
+        ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True, 0.25, 0.03125)
 
 
 def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
@@ -126,6 +128,8 @@ def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
     assert raw.geometry["frame_margin"]["outer_fraction"] == 0.25
     assert raw.geometry["frame_margin"]["outer_stride"] == 2
     dense_only = predictor.predict(statue, height=HEIGHT, frame_margin_outer=0).geometry["frame_margin"]
+    assert g.geometry["behind_edges"]["fraction"] == 0.03125 and g.geometry["behind_edges"]["pixels"] == 2
+    assert predictor.predict(statue, height=HEIGHT, behind_edges=0).geometry["behind_edges"]["gaussians"] == 0
     assert dense_only["outer_pixels"] == dense_only["pixels"] and \
         dense_only["gaussians"] < g.geometry["frame_margin"]["gaussians"], dense_only
     assert g.geometry["frame_margin"]["dropped"] > 0, g.geometry["frame_margin"]
@@ -143,8 +147,8 @@ def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
     assert [v["view"] for v in g.geometry["views"]] == g.context
     assert all(v["points"] >= 20 and v["scale"] > 0 for v in g.geometry["views"]), g.geometry
     assert any(abs(v["scale"] - 1) > 0.5 for v in g.geometry["views"]), g.geometry  # the statue is seen too near
-    # The per-pixel rows come first, then the frame margin's and the region cover's.
-    pixels = len(raw) - raw.geometry["frame_margin"]["gaussians"] - raw.geometry["region_cover"]["gaussians"]
+    # The per-pixel rows come first, then the frame margin's, those behind depth edges, the region cover's.
+    pixels = len(raw) - sum(raw.geometry[step]["gaussians"] for step in ("frame_margin", "behind_edges", "region_cover"))
     np.testing.assert_array_equal(g.colors[:pixels], raw.colors[:pixels])
     assert not np.allclose(g.means[:pixels], raw.means[:pixels])
     # Beyond one scale per view the depth follows the points near each pixel (depth_detail).

@@ -132,6 +132,16 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
                   "the depth it saw there), so that a repeated border does not stand in front of what the other "
                   "views saw (false: keep the whole margin)")
       ->capture_default_str();
+  cmd->add_option("--behind-edges", geometry.behind_edges.fraction,
+                  "Continue the far side of each context view's depth edges under the near side by this fraction "
+                  "of its height (those another context view sees through dropped), so that a camera beside it "
+                  "sees the ground behind an object's edge instead of the background; 0 = none (the paper's)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--behind-edges-jump", geometry.behind_edges.jump,
+                  "A depth edge for --behind-edges: the far side more than this fraction farther than its neighbour")
+      ->check(CLI::Range(0.001, 10.0))
+      ->capture_default_str();
   cmd->add_option("--region-cover", geometry.region_cover.opacity,
                   "Cover the reference's region with flat splats of this opacity on its depth, beside the network's "
                   "Gaussians, so that views from elsewhere show no background between them where the object "

@@ -80,6 +80,7 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
       options.geometry.align_depth == DepthPoints::photos ? DepthPoints::depth_maps : options.geometry.align_depth;
   o.geometry.depth_detail = options.geometry.depth_detail;
   o.geometry.frame_margin.fraction = 0;  // only the marked view's depth map is read
+  o.geometry.behind_edges.fraction = 0;
   o.geometry.floaters.fade = 1;          // (nor its opacities)
   o.geometry.region_cover.opacity = 0;
   const Prediction p = predictor.predict(scene, o);

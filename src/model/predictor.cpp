@@ -84,6 +84,12 @@ void after_the_network(Prediction& p, const Scene& scene, const SceneInputOption
   p.frame_margin = describe_frame_margin(geometry.frame_margin, p.maps.depth.size(3), p.beyond_frame.size(),
                                          continued - p.beyond_frame.size());
   if (p.beyond_frame.size() > 0) p.stages.lap("Gaussians past the frames");
+  p.behind_edges = gaussians_behind_edges(p.maps, p.input.input, p.input.views, geometry.behind_edges);
+  const int64_t behind = p.behind_edges.size();
+  p.behind_edges = without_seen_through(p.behind_edges, p.maps, p.input.views, p.input.input.view_cameras);
+  p.behind_edges_record = describe_behind_edges(geometry.behind_edges, p.maps.depth.size(3), p.behind_edges.size(),
+                                                behind - p.behind_edges.size());
+  if (behind > 0) p.stages.lap("Gaussians behind depth edges");
   p.region_cover = region_cover_gaussians(p.input.views.front(), p.input.input.view_cameras.front(),
                                           p.maps.depth[0][0][0], geometry.region_cover, p.maps.xyz);
   p.region_cover_record = describe_region_cover(geometry.region_cover, p.region_cover.size());
@@ -115,7 +121,7 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
 
 GaussianSet Prediction::gaussians() const {
   GaussianSet all = gaussians_from_maps(maps);
-  for (const GaussianSet* more : {&beyond_frame, &region_cover})
+  for (const GaussianSet* more : {&beyond_frame, &behind_edges, &region_cover})
     if (more->size() > 0) all = joined(all, *more);
   return all;
 }
@@ -124,9 +130,13 @@ nlohmann::json Prediction::describe_geometry() const {
   nlohmann::json views = nlohmann::json::array();
   for (const DepthAlignment& a : depth_alignment)
     views.push_back({{"view", a.view}, {"scale", a.scale}, {"points", a.points}, {"detail_mean", a.detail_mean}});
-  return {{"source", geometry},          {"detail", depth_detail},
-          {"views", views},              {"floaters", floaters},
-          {"frame_margin", frame_margin}, {"region_cover", region_cover_record},
+  return {{"source", geometry},
+          {"detail", depth_detail},
+          {"views", views},
+          {"floaters", floaters},
+          {"frame_margin", frame_margin},
+          {"behind_edges", behind_edges_record},
+          {"region_cover", region_cover_record},
           {"measured_surface", measured_surface}};
 }
 

@@ -48,6 +48,11 @@ struct Prediction {
   GaussianSet beyond_frame;
   nlohmann::json frame_margin;  // what run.json and metrics.json record of it
 
+  // With GeometryOptions::behind_edges: the far side of each view's depth edges continued under
+  // the near side (model/behind_edges.h), an empty set without.
+  GaussianSet behind_edges;
+  nlohmann::json behind_edges_record;  // what run.json and metrics.json record of it
+
   // With GeometryOptions::region_cover: flat splats over the reference's region
   // (model/region_cover.h), an empty set without.
   GaussianSet region_cover;
@@ -57,7 +62,7 @@ struct Prediction {
   nlohmann::json describe_geometry() const;
 
   // One Gaussian per input pixel, rows in the official order (views of `maps`), then those past
-  // the frames, then the region's cover.
+  // the frames, then those behind the depth edges, then the region's cover.
   GaussianSet gaussians() const;
 };
 

@@ -90,6 +90,7 @@ GeometryOptions GeometryOptions::papers() {
   none.floaters.fade = 1;
   none.measured_surface.opacity = 0;
   none.frame_margin.fraction = 0;
+  none.behind_edges.fraction = 0;
   none.region_cover.opacity = 0;
   return none;
 }

@@ -14,6 +14,7 @@
 #include "data/scene.h"
 #include "gaussians/gaussians.h"
 #include "model/floaters.h"
+#include "model/behind_edges.h"
 #include "model/frame_margin.h"
 #include "model/measured_surface.h"
 #include "model/model_input.h"
@@ -66,6 +67,9 @@ struct GeometryOptions {
   // Each view's Gaussians continued past the edges of its picture (model/frame_margin.h);
   // fraction 0 = none (the paper's).
   FrameMarginOptions frame_margin;
+  // The far side of each view's depth edges continued under the near side
+  // (model/behind_edges.h); fraction 0 = none (the paper's).
+  BehindEdgesOptions behind_edges;
   // The reference's region covered by flat splats besides the network's Gaussians
   // (model/region_cover.h); opacity 0 = none (the paper's).
   RegionCoverOptions region_cover;

@@ -461,12 +461,13 @@ nlohmann::json refinement_report(const RefineResult& r, const RefineOptions& opt
 
 GaussianSet thinned_prediction(const GaussianSet& gaussians, const Prediction& prediction, int stride) {
   // The network's Gaussians are per pixel, in the order view, row, column; those past the frames
-  // (model/frame_margin.h) and the region's cover (model/region_cover.h) follow them and are left
-  // out: refinement starts from what the context views saw, and its densification grows the rest
-  // from the views it fits.
+  // (model/frame_margin.h), behind the depth edges (model/behind_edges.h) and the region's cover
+  // (model/region_cover.h) follow them and are left out: refinement starts from what the context
+  // views saw, and its densification grows the rest from the views it fits.
   int64_t pixels = 0;
   for (const PreparedView& v : prediction.input.views) pixels += int64_t(v.rgb.width) * v.rgb.height;
-  const int64_t extra = prediction.beyond_frame.size() + prediction.region_cover.size();
+  const int64_t extra =
+      prediction.beyond_frame.size() + prediction.behind_edges.size() + prediction.region_cover.size();
   if (gaussians.size() != pixels && gaussians.size() != pixels + extra)
     fail("refine: {} Gaussians do not match the prediction's {} pixels", gaussians.size(), pixels);
   GaussianSet g = gaussians;

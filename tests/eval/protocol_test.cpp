@@ -284,8 +284,8 @@ TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
   EXPECT_EQ(m["prediction"]["context"], json::array({"03", "02", "04", "05"}));
   EXPECT_EQ(m["prediction"]["reference"], "telea");
   // One Gaussian a pixel, then those past the frames (an eighth of the height past each edge, then
-  // sparser to a quarter) but those another view sees through, then the reference's region
-  // covered, a splat a pixel of it.
+  // sparser to a quarter) but those another view sees through, then those behind depth edges,
+  // then the reference's region covered, a splat a pixel of it.
   const int margin = static_cast<int>(std::lround(test::kSceneHeight / 8.0));
   const int past = (test::kSceneWidth + 2 * margin) * (test::kSceneHeight + 2 * margin) - test::kSceneWidth * test::kSceneHeight;
   // Out to a quarter of the height, one per 2 x 2 block past that (the sizes here are even).
@@ -295,8 +295,9 @@ TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
   const int64_t region = m["prediction"]["geometry"]["region_cover"]["gaussians"];
   EXPECT_GT(region, 0);
   const int64_t dropped = m["prediction"]["geometry"]["frame_margin"]["dropped"];
+  const int64_t behind = m["prediction"]["geometry"]["behind_edges"]["gaussians"];
   EXPECT_EQ(m["prediction"]["gaussians"],
-            4 * (test::kSceneWidth * test::kSceneHeight + past + blocks) - dropped + region);
+            4 * (test::kSceneWidth * test::kSceneHeight + past + blocks) - dropped + behind + region);
   EXPECT_EQ(m["prediction"]["geometry"]["frame_margin"]["pixels"], margin);
   // The prediction's stages come first; computation is the work between the files.
   const std::vector<std::string> names = stage_names(m);

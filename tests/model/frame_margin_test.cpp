@@ -213,6 +213,7 @@ TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
   options.preprocess.height = 64;
   const Prediction with = predictor.predict(scene, options);
   options.geometry.frame_margin.fraction = 0;
+  options.geometry.behind_edges.fraction = 0;  // the per-pixel rows alone
   const Prediction without = predictor.predict(scene, options);
   // 8 pixels dense at 64 rows, then out to 16 one per 2 x 2 block (48 blocks along 96 pixels, 40
   // along the dense band's 80).
@@ -220,7 +221,7 @@ TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
   EXPECT_EQ(without.gaussians().size(), pixels);
   const GaussianSet joined_set = with.gaussians();
   const int64_t margin = with.beyond_frame.size();
-  ASSERT_EQ(joined_set.size(), pixels + margin);
+  ASSERT_EQ(joined_set.size(), pixels + margin + with.behind_edges.size());  // then those behind depth edges
   EXPECT_TRUE(torch::equal(joined_set.means.narrow(0, 0, pixels), without.gaussians().means));
   EXPECT_TRUE(torch::equal(joined_set.means.narrow(0, pixels, margin), with.beyond_frame.means));
   const nlohmann::json recorded = with.describe_geometry()["frame_margin"];

@@ -50,12 +50,15 @@ TEST(Predictor, GivesWhatTheStepsItReplacesGive) {
   expect_same_maps(p.maps, run_network(net, si.input, Precision::Float32));
   // One Gaussian a pixel, then 8 pixels (an eighth of 64 rows) past each frame's edges and out to
   // 16 one per 2 x 2 block (56 x 48 blocks less the dense band's 48 x 40) but those the other view
-  // sees through, then one flat splat per pixel of the reference's region.
+  // sees through, then those behind depth edges it does not see through, then one flat splat per
+  // pixel of the reference's region.
   int64_t region = 0;
   for (float m : p.input.views.front().mask->pixels) region += m > 0.5f;
   EXPECT_GT(region, 0);
   const int64_t dropped = p.describe_geometry()["frame_margin"]["dropped"].get<int64_t>();
-  EXPECT_EQ(p.gaussians().size(), 2 * 64 * 80 + 2 * (96 * 80 - 80 * 64 + 56 * 48 - 48 * 40) - dropped + region);
+  const int64_t behind = p.describe_geometry()["behind_edges"]["gaussians"].get<int64_t>();
+  EXPECT_EQ(p.gaussians().size(),
+            2 * 64 * 80 + 2 * (96 * 80 - 80 * 64 + 56 * 48 - 48 * 40) - dropped + behind + region);
   // Loaded once, called again: the same answer.
   expect_same_maps(predictor.predict(scene, two_views()).maps, p.maps);
 }
@@ -77,6 +80,7 @@ TEST(Predictor, PapersGeometryLeavesTheNetworksGaussiansAlone) {
   EXPECT_EQ(record["source"], "off");
   EXPECT_EQ(record["floaters"]["faded"], 0);
   EXPECT_EQ(record["frame_margin"]["gaussians"], 0);
+  EXPECT_EQ(record["behind_edges"]["gaussians"], 0);
   EXPECT_EQ(record["region_cover"]["gaussians"], 0);
 }
 

@@ -83,6 +83,7 @@ TEST(RegionCover, APredictionJoinsItAfterThePixelsAndRecordsIt) {
   SceneInputOptions options;
   options.preprocess.height = 64;
   options.geometry.frame_margin.fraction = 0;
+  options.geometry.behind_edges.fraction = 0;  // the pixels' rows, then the cover's
   const Prediction with = predictor.predict(scene, options);
   options.geometry.region_cover.opacity = 0;
   const Prediction without = predictor.predict(scene, options);
