@@ -33,7 +33,7 @@ from ._core import Camera, Error, Scene, set_log_level, set_threads
 # Predictor.predict's defaults: the library's own (GeometryOptions), as the commands use them.
 (_ALIGN_DEPTH, _DEPTH_DETAIL, _FRAME_MARGIN, _REGION_COVER, _FADE_FLOATERS,
  _MEASURED_SURFACE, _STEREO_DEPTH, _FRAME_MARGIN_DROP_SEEN, _FRAME_MARGIN_OUTER,
- _BEHIND_EDGES) = _core._geometry_defaults
+ _BEHIND_EDGES, _REGION_SURFACE) = _core._geometry_defaults
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
@@ -221,7 +221,8 @@ class Predictor:
                 measured_surface: float = _MEASURED_SURFACE, stereo_depth: bool = _STEREO_DEPTH,
                 frame_margin_drop_seen: bool = _FRAME_MARGIN_DROP_SEEN,
                 frame_margin_outer: float = _FRAME_MARGIN_OUTER,
-                behind_edges: float = _BEHIND_EDGES) -> Gaussians:
+                behind_edges: float = _BEHIND_EDGES,
+                region_surface: float = _REGION_SURFACE) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -258,6 +259,10 @@ class Predictor:
         behind_edges: the far side of each context view's depth edges continued under the near side
         by this fraction of its height (`--behind-edges`), those another view sees through dropped,
         so that a camera beside it sees the ground behind an object's edge; 0 for none (the paper's).
+        region_surface: with a measured surface, the reference's region put on the measured depth
+        around it (each pixel on the surrounding surface its colour resembles) as flat splats at
+        least this opaque in the reference's colours (`--region-surface`); 0 for none (the
+        network's depth there).
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
@@ -266,7 +271,7 @@ class Predictor:
                                           float(frame_margin), float(region_cover), float(fade_floaters),
                                           float(measured_surface), bool(stereo_depth),
                                           bool(frame_margin_drop_seen), float(frame_margin_outer),
-                                          float(behind_edges)))
+                                          float(behind_edges), float(region_surface)))
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

@@ -49,6 +49,10 @@ def test_attributes_are_arrays_over_the_librarys_memory(statue, predictor):
               - (width + 2 * margin) // 2 * ((HEIGHT + 2 * margin) // 2))
     cover = g.geometry["region_cover"]  # flat splats over the reference's region, one per pixel of it
     assert cover["opacity"] == 0.3 and cover["gaussians"] > 0, cover
+    # The region's own pixels (its mask grown by one) put on the photos' surface around it, in place.
+    surface = g.geometry["region_surface"]
+    assert surface["opacity"] == 0.95 and surface["slopes"] is False and surface["ring"] > 0, surface
+    assert surface["gaussians"] >= cover["gaussians"], (surface, cover)  # the mask grown by a pixel
     dropped = g.geometry["frame_margin"]["dropped"]  # the margin's Gaussians another view sees through
     behind = g.geometry["behind_edges"]["gaussians"]  # the far side of depth edges under the near side
     assert n == 4 * ((width + 2 * margin) * (HEIGHT + 2 * margin) + blocks) - dropped + behind + cover["gaussians"]
@@ -116,8 +120,9 @@ def test_predict_defaults_are_the_commands():
     defaults = {k: p.default for k, p in inspect.signature(ii.Predictor.predict).parameters.items()}
     assert (defaults["align_depth"], defaults["depth_detail"], defaults["frame_margin"], defaults["region_cover"],
             defaults["fade_floaters"], defaults["measured_surface"], defaults["stereo_depth"],
-            defaults["frame_margin_drop_seen"], defaults["frame_margin_outer"], defaults["behind_edges"]) == \
-        ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True, 0.25, 0.03125)
+            defaults["frame_margin_drop_seen"], defaults["frame_margin_outer"], defaults["behind_edges"],
+            defaults["region_surface"]) == \
+        ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True, 0.25, 0.03125, 0.95)
 
 
 def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
@@ -149,7 +154,12 @@ def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
     assert any(abs(v["scale"] - 1) > 0.5 for v in g.geometry["views"]), g.geometry  # the statue is seen too near
     # The per-pixel rows come first, then the frame margin's, those behind depth edges, the region cover's.
     pixels = len(raw) - sum(raw.geometry[step]["gaussians"] for step in ("frame_margin", "behind_edges", "region_cover"))
-    np.testing.assert_array_equal(g.colors[:pixels], raw.colors[:pixels])
+    # The alignment keeps the colours; the region surface gives the reference's region (the first
+    # view's rows) its photo's.
+    np.testing.assert_array_equal(g.colors[pixels // 4:pixels], raw.colors[pixels // 4:pixels])
+    kept = predictor.predict(statue, height=HEIGHT, region_surface=0)
+    assert kept.geometry["region_surface"]["gaussians"] == 0 < g.geometry["region_surface"]["gaussians"]
+    np.testing.assert_array_equal(kept.colors[:pixels], raw.colors[:pixels])
     assert not np.allclose(g.means[:pixels], raw.means[:pixels])
     # Beyond one scale per view the depth follows the points near each pixel (depth_detail).
     assert g.geometry["detail"] == 1.5 and all(v["detail_mean"] > 0 for v in g.geometry["views"]), g.geometry

@@ -142,6 +142,18 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
                   "A depth edge for --behind-edges: the far side more than this fraction farther than its neighbour")
       ->check(CLI::Range(0.001, 10.0))
       ->capture_default_str();
+  cmd->add_option("--region-surface", geometry.region_surface.opacity,
+                  "With --measured-surface: put the reference's region on the measured depth around it (each pixel "
+                  "on the surrounding surface its colour resembles: the hedge's green on the hedge, the bench's "
+                  "grey on the bench) as flat splats at least this opaque, in the reference's colours; 0 = none "
+                  "(the network's depth there); off for --mode insert")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->add_option("--region-surface-colour", geometry.region_surface.colour,
+                  "With --region-surface: how far (RGB distance, 0-1) a surrounding pixel's colour may be from a "
+                  "region pixel's and still lend it its depth")
+      ->check(CLI::Range(0.001, 2.0))
+      ->capture_default_str();
   cmd->add_option("--region-cover", geometry.region_cover.opacity,
                   "Cover the reference's region with flat splats of this opacity on its depth, beside the network's "
                   "Gaussians, so that views from elsewhere show no background between them where the object "
@@ -154,6 +166,8 @@ void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
   options.inpainter = parse_inpainter(args.inpainter);
   options.geometry = args.geometry;
+  // An inserted object is not the surface around it.
+  if (args.mode == "insert") options.geometry.region_surface.opacity = 0;
 }
 
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene) {

@@ -83,6 +83,7 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
   o.geometry.behind_edges.fraction = 0;
   o.geometry.floaters.fade = 1;          // (nor its opacities)
   o.geometry.region_cover.opacity = 0;
+  o.geometry.region_surface.opacity = 0;  // the region's depth is the object's here
   const Prediction p = predictor.predict(scene, o);
   Stopwatch watch;
   const Image depth = depth_at_image_size(p.maps.depth[0][0][0], p.input.normalization.scale, marked, o.preprocess);

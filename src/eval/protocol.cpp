@@ -117,6 +117,8 @@ json own_views(const Prediction& p, const GaussianSet& g) {
                          "outside its mask (the reference: against the picture the network saw)"}};
 }
 
+std::string scene_task(const Scene& scene);  // below
+
 // The predicted Gaussians, float32 on `render_on` (where the rasterizer runs).
 GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const torch::Device& render_on,
                               json& info, StageTimes& stages) {
@@ -153,6 +155,9 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   opts.reference_view = o.reference_view;
   opts.keep_object = o.keep_object;
   opts.geometry = o.geometry;
+  // An inserted object is not the surface around it.
+  if (scene_task(scene) == "insert" || (o.edit && o.edit->propagation.mode == EditMode::Insert))
+    opts.geometry.region_surface.opacity = 0;
   if (o.edit) {
     spdlog::info("masks for every view from the region on {}", o.edit->view);
     const SceneMasks masks =

@@ -12,9 +12,9 @@
 
 namespace ii {
 
-namespace {
-
 using torch::indexing::Slice;
+
+namespace {
 
 // `scene`'s depth map of the context view `v` at the working size (nearest: no depth between the
 // two sides of an edge), in the pose-normalised frame's units; undefined without one.
@@ -29,31 +29,6 @@ torch::Tensor working_depth_map(const Scene& scene, const SceneInput& input, con
                           torch::kFloat32)
              .clone() /
          input.normalization.scale;
-}
-
-// The view's mask grown by `grow` pixels (a square), (H, W) bool; all false without a mask.
-torch::Tensor grown_mask(const PreparedView& view, int grow) {
-  if (!view.mask) return torch::zeros({view.rgb.height, view.rgb.width}, torch::kBool);
-  return image_to_tensor(dilate_mask(*view.mask, grow > 0 ? 1 : 0, 2 * grow + 1))[0][0].gt(0.5);
-}
-
-// Splats (rows in the order of `pixels`, flat indices of view `vi`) written over that view's maps:
-// positions, `depth` (one per row), sizes, rotations, opacities at least the splats', and with
-// `colours` their colours too.
-void write_splats(GaussianMaps& maps, int64_t vi, const torch::Tensor& pixels, const GaussianSet& splats,
-                  const torch::Tensor& depth, bool colours) {
-  const torch::Tensor at = pixels.to(maps.xyz.device());
-  auto put = [&](const torch::Tensor& map, const torch::Tensor& rows) {  // map (C, H, W), rows (N, C)
-    map.view({map.size(0), -1}).index_put_({Slice(), at}, rows.t().to(map.device(), map.scalar_type()));
-  };
-  put(maps.xyz[0][vi], splats.means);
-  put(maps.depth[0][vi], depth.view({-1, 1}));
-  put(maps.scale[0][vi], splats.scales);
-  put(maps.rotation[0][vi], splats.quats);
-  const torch::Tensor network_opacity =
-      maps.opacity[0][vi].view({1, -1}).index({Slice(), at}).t().to(torch::kCPU, torch::kFloat32);
-  put(maps.opacity[0][vi], torch::maximum(network_opacity, splats.opacities.view({-1, 1})));
-  if (colours) put(maps.rgb[0][vi], splats.colors);
 }
 
 // Where the object can be: the cone of the reference's mask, grown, from its camera. Its measured
@@ -115,6 +90,27 @@ MeasuredDepth stereo_of_photos(const SceneInput& input, const GaussianMaps& maps
 }
 
 }  // namespace
+
+torch::Tensor grown_mask(const PreparedView& view, int grow) {
+  if (!view.mask) return torch::zeros({view.rgb.height, view.rgb.width}, torch::kBool);
+  return image_to_tensor(dilate_mask(*view.mask, grow > 0 ? 1 : 0, 2 * grow + 1))[0][0].gt(0.5);
+}
+
+void write_splats(GaussianMaps& maps, int64_t vi, const torch::Tensor& pixels, const GaussianSet& splats,
+                  const torch::Tensor& depth, bool colours) {
+  const torch::Tensor at = pixels.to(maps.xyz.device());
+  auto put = [&](const torch::Tensor& map, const torch::Tensor& rows) {  // map (C, H, W), rows (N, C)
+    map.view({map.size(0), -1}).index_put_({Slice(), at}, rows.t().to(map.device(), map.scalar_type()));
+  };
+  put(maps.xyz[0][vi], splats.means);
+  put(maps.depth[0][vi], depth.view({-1, 1}));
+  put(maps.scale[0][vi], splats.scales);
+  put(maps.rotation[0][vi], splats.quats);
+  const torch::Tensor network_opacity =
+      maps.opacity[0][vi].view({1, -1}).index({Slice(), at}).t().to(torch::kCPU, torch::kFloat32);
+  put(maps.opacity[0][vi], torch::maximum(network_opacity, splats.opacities.view({-1, 1})));
+  if (colours) put(maps.rgb[0][vi], splats.colors);
+}
 
 MeasuredDepth measured_depth(const Scene& scene, const SceneInput& input, const PreprocessOptions& preprocess,
                              const GaussianMaps& maps, const MeasuredSurfaceOptions& options) {

@@ -75,6 +75,15 @@ MeasuredDepth measured_depth(const Scene& scene, const SceneInput& input, const 
 // In place on `maps` (the network's output for `input`; pose-normalised frame): each context view
 // with a measured depth gets its outside-the-mask pixels' positions, depth, sizes, rotations and
 // opacities from the measured surface where the depth is known; colours stay the network's.
+// The view's mask grown by `grow` pixels (a square), (H, W) bool; all false without a mask.
+torch::Tensor grown_mask(const PreparedView& view, int grow);
+
+// Splats (rows in the order of `pixels`, flat indices of view `vi`) written over that view's maps:
+// positions, `depth` (one per row), sizes, rotations, opacities at least the splats', and with
+// `colours` their colours too.
+void write_splats(GaussianMaps& maps, int64_t vi, const torch::Tensor& pixels, const GaussianSet& splats,
+                  const torch::Tensor& depth, bool colours);
+
 MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const SceneInput& input, const MeasuredDepth& measured,
                                         const MeasuredSurfaceOptions& options);
 

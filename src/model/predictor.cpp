@@ -73,6 +73,12 @@ void after_the_network(Prediction& p, const Scene& scene, const SceneInputOption
     p.measured_surface = describe_measured_surface(
         geometry.measured_surface, put_on_measured_surface(p.maps, p.input, measured, geometry.measured_surface));
     if (!p.measured_surface["views"].empty()) p.stages.lap("the measured surface");
+    const RegionSurface region = put_region_on_surface(p.maps, p.input, measured,
+                                                       geometry.measured_surface.mask_margin, geometry.region_surface);
+    p.region_surface = describe_region_surface(geometry.region_surface, region);
+    p.region_surface_replaced = region.replaced;
+    p.region_surface_pixels = region.pixels;
+    if (region.gaussians > 0) p.stages.lap("the region on the surface around it");
   }
   const int64_t faded = fade_floaters(p.maps, p.input.views, p.input.input.view_cameras, geometry.floaters);
   p.floaters = describe_floaters(geometry.floaters, faded);
@@ -137,7 +143,8 @@ nlohmann::json Prediction::describe_geometry() const {
           {"frame_margin", frame_margin},
           {"behind_edges", behind_edges_record},
           {"region_cover", region_cover_record},
-          {"measured_surface", measured_surface}};
+          {"measured_surface", measured_surface},
+          {"region_surface", region_surface}};
 }
 
 }  // namespace ii

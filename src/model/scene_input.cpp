@@ -92,6 +92,7 @@ GeometryOptions GeometryOptions::papers() {
   none.frame_margin.fraction = 0;
   none.behind_edges.fraction = 0;
   none.region_cover.opacity = 0;
+  none.region_surface.opacity = 0;
   return none;
 }
 

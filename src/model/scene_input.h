@@ -19,6 +19,7 @@
 #include "model/measured_surface.h"
 #include "model/model_input.h"
 #include "model/region_cover.h"
+#include "model/region_surface.h"
 
 namespace ii {
 
@@ -61,6 +62,10 @@ struct GeometryOptions {
   // camera's, a synthetic scene's), its Gaussians outside its mask lie on that surface as flat,
   // opaque splats (model/measured_surface.h); opacity 0 = none.
   MeasuredSurfaceOptions measured_surface;
+  // With a measured surface: the reference's region on the measured depth around it, chosen by
+  // colour, as opaque flat splats (model/region_surface.h); opacity 0 = none. Off for an
+  // insertion, whose region holds a new object rather than what lies behind.
+  RegionSurfaceOptions region_surface;
   // Gaussians on a view's depth edges that another view sees through keep a fraction of their
   // opacity (model/floaters.h); fade 1 = none (the paper's).
   FloaterOptions floaters;

@@ -471,6 +471,20 @@ GaussianSet thinned_prediction(const GaussianSet& gaussians, const Prediction& p
   if (gaussians.size() != pixels && gaussians.size() != pixels + extra)
     fail("refine: {} Gaussians do not match the prediction's {} pixels", gaussians.size(), pixels);
   GaussianSet g = gaussians;
+  // The reference's region as the network made it: refinement from the region's opaque splats
+  // (model/region_surface.h) lost make demo's refined room 2.6 dB.
+  if (prediction.region_surface_pixels.defined() && prediction.region_surface_pixels.numel() > 0) {
+    const torch::Tensor at = prediction.region_surface_pixels.to(g.means.device());
+    const GaussianSet& network = prediction.region_surface_replaced;
+    auto restored = [&](const torch::Tensor& all, const torch::Tensor& rows) {
+      return all.index_copy(0, at, rows.to(all.device(), all.scalar_type()));
+    };
+    g.means = restored(g.means, network.means);
+    g.scales = restored(g.scales, network.scales);
+    g.quats = restored(g.quats, network.quats);
+    g.opacities = restored(g.opacities, network.opacities);
+    g.colors = restored(g.colors, network.colors);
+  }
   if (stride <= 1) {
     for (torch::Tensor* t : {&g.means, &g.scales, &g.quats, &g.opacities, &g.colors}) *t = t->narrow(0, 0, pixels);
     return g;

@@ -59,6 +59,7 @@ TEST(MeasuredSurface, PutsTheGaussiansOutsideTheMaskOnTheMeasuredDepth) {
   const Predictor predictor("", torch::kCPU, Precision::Float32);
   SceneInputOptions options = at_64_rows();
   options.geometry.measured_surface.beside_object = false;  // (the next test: inside the masks)
+  options.geometry.region_surface.opacity = 0;  // (the reference's region: region_surface_test.cpp)
   const Prediction with = predictor.predict(scene, options);
   options.geometry.measured_surface.opacity = 0;
   const Prediction without = predictor.predict(scene, options);

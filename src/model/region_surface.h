@@ -1,0 +1,76 @@
+#pragma once
+// The reference's region on the surface around it. Where the object stood, the reference's photo
+// (or its 2D fill) shows what lies behind it, but nothing measured that depth: the network's guess
+// puts it a few pixels off, often far off (SPIn-NeRF scene 1: the bench's end where the box stood
+// at the depth of the pavement behind it), and from elsewhere the region is a blurred smear. Each
+// region pixel instead takes the depth of the measured surface around the mask where that surface
+// looks like it: a mean over the ring's pixels weighted by distance and by colour, in inverse
+// depth, so that the bench's grey continues the bench and the hedge's green the hedge. Where the
+// measured depth is a depth map, each ring pixel continues its local plane (a table top seen
+// obliquely keeps its slope); a plane sweep's depth (model/stereo_depth.h) holds each patch
+// facing the camera, so its slopes are steps and the ring's depth is continued flat. The region's
+// pixels then become flat, opaque splats on that depth (model/surface_splats.h) in the
+// reference's colours, as the measured surface does outside the mask.
+#include <cstdint>
+
+#include <nlohmann/json.hpp>
+
+#include "common/torch.h"
+#include "gaussians/gaussians.h"
+#include "model/measured_surface.h"
+
+namespace ii {
+
+struct SceneInput;
+
+// Measured on SPIn-NeRF scene 1 with an object-free photo as the reference, the held-out rooms
+// and make demo (docs/benchmarks.md, session 36).
+struct RegionSurfaceOptions {
+  double opacity = 0.95;  // the splats' least opacity; 0 = none (the network's Gaussians stay)
+  // A ring pixel's weight falls off over this fraction of the height from the region pixel
+  // (0.02 and 0.16 lost 0.8 and 0.1 dB on scene 1's region) ...
+  double spatial = 0.08;
+  // ... and over this distance between their colours (RGB in 0-1, each blurred over 5 x 5 pixels
+  // so that a leaf's texture does not decide it; 0.1 and 0.2 lost 0.3 and 0.7 dB).
+  double colour = 0.05;
+  int gap = 3;                // the ring starts this many pixels outside the mask (its edge blends the object)
+  double reach = 0.1;         // and reaches this fraction of the height beyond that
+  int ring_samples = 3000;    // at most this many of its pixels weigh in (evenly spaced; 1000 lost 0.1 dB)
+  // With depth maps: each ring pixel's plane (its inverse depth fitted over this fraction of the
+  // height) continues into the region where it fits within `slope_fit` of the depth.
+  double slope_window = 1.0 / 32;
+  double slope_fit = 0.02;
+};
+
+struct RegionSurface {
+  int64_t gaussians = 0;  // the region pixels put on the surface
+  int64_t ring = 0;       // the ring pixels that weighed in
+  bool slopes = false;    // whether the ring's planes were continued (a depth map) or held flat
+  // The network's Gaussians those splats replaced, and their pixels (flat indices of the
+  // reference's maps): refinement starts from them (it lost make demo 2.6 dB from the splats).
+  GaussianSet replaced;
+  torch::Tensor pixels;
+};
+
+// The depth of each `region` pixel (H, W bool) from `measured` (H, W; camera z, 0 where unknown)
+// outside it, weighed by `colour` (3, H, W in 0-1); with `slopes`, each ring pixel's local plane
+// continued. Returns (H, W) float32: the depth at the region's pixels, 0 elsewhere and wherever
+// no ring pixel is known. `ring_used`, when given, receives the ring's size.
+torch::Tensor depth_from_surroundings(const torch::Tensor& measured, const torch::Tensor& region,
+                                      const torch::Tensor& colour, bool slopes, const RegionSurfaceOptions& options,
+                                      int64_t* ring_used = nullptr);
+
+// In place on `maps` (the network's output for `input`, after the measured surface): the
+// reference's region (its mask grown by `mask_margin` pixels, as the measured surface leaves it)
+// on the depth of the measured surface around it, as flat splats of at least options.opacity in
+// the reference's colours. Nothing without a mask on the reference or without its measured depth.
+RegionSurface put_region_on_surface(GaussianMaps& maps, const SceneInput& input, const MeasuredDepth& measured,
+                                    int mask_margin, const RegionSurfaceOptions& options);
+
+// Checks the options; throws Error naming the bad one.
+void check_region_surface_options(const RegionSurfaceOptions& options);
+
+// What run.json and metrics.json record of it.
+nlohmann::json describe_region_surface(const RegionSurfaceOptions& options, const RegionSurface& done);
+
+}  // namespace ii

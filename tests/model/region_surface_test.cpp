@@ -1,0 +1,141 @@
+// The reference's region on the surface around it: each region pixel takes the depth of the
+// surrounding surface whose colour it shares (a red half and a blue half at two depths); with a
+// depth map's slopes a slanted floor goes on exactly, held flat it does not; without a ring there
+// is no depth; bad values are named; in a prediction the region's pixels become opaque splats in
+// the reference's colours and nothing else changes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "model/default_model.h"
+#include "model/predictor.h"
+#include "model/region_surface.h"
+#include "synthetic_room.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+using torch::indexing::None;
+using torch::indexing::Slice;
+
+constexpr int kW = 40, kH = 30;
+
+// A square region of side 10 in the middle of the picture.
+torch::Tensor square_region() {
+  torch::Tensor region = torch::zeros({kH, kW}, torch::kBool);
+  region.index_put_({Slice(10, 20), Slice(15, 25)}, true);
+  return region;
+}
+
+TEST(RegionSurface, EachPixelTakesTheDepthOfTheSurfaceItsColourMatches) {
+  // Left half red at depth 2, right half blue at depth 5; the region straddles them and shows both.
+  torch::Tensor measured = torch::full({kH, kW}, 2.f), colour = torch::zeros({3, kH, kW});
+  measured.index_put_({Slice(), Slice(kW / 2, None)}, 5.f);
+  colour.index_put_({0, Slice(), Slice(None, kW / 2)}, 1.f);
+  colour.index_put_({2, Slice(), Slice(kW / 2, None)}, 1.f);
+  const torch::Tensor region = square_region();
+  measured.index_put_({region}, 0.f);  // unknown where the object stood
+  int64_t ring = 0;
+  const torch::Tensor depth = depth_from_surroundings(measured, region, colour, false, {}, &ring);
+  EXPECT_GT(ring, 0);
+  for (int row = 0; row < kH; ++row)
+    for (int col = 0; col < kW; ++col) {
+      const float d = depth[row][col].item<float>();
+      if (!region[row][col].item<bool>()) {
+        EXPECT_EQ(d, 0.f) << col << "," << row;
+        continue;
+      }
+      if (std::abs(col + 0.5 - kW / 2.0) < 3) continue;  // the colours blur across the seam here
+      EXPECT_NEAR(d, col < kW / 2 ? 2.f : 5.f, 0.02) << col << "," << row;
+    }
+}
+
+TEST(RegionSurface, ADepthMapsSlopeGoesOnAndHeldFlatItDoesNot) {
+  // A floor seen obliquely: inverse depth falls linearly towards the top of the picture.
+  const torch::Tensor rows = torch::arange(kH, torch::kFloat32).view({kH, 1}).expand({kH, kW});
+  const torch::Tensor truth = (0.2f + 0.02f * rows).reciprocal();
+  const torch::Tensor region = square_region();
+  const torch::Tensor measured = torch::where(region, torch::zeros_like(truth), truth);
+  const torch::Tensor colour = torch::full({3, kH, kW}, 0.5f);
+  auto error = [&](bool slopes) {
+    const torch::Tensor depth = depth_from_surroundings(measured, region, colour, slopes, {});
+    return ((depth.index({region}) / truth.index({region})).log().abs()).max().item<double>();
+  };
+  EXPECT_LT(error(true), 1e-3);
+  EXPECT_GT(error(false), 0.05);  // the ring's depths averaged: the floor's rows flattened
+}
+
+TEST(RegionSurface, NoRingNoDepthAndBadValuesAreNamed) {
+  const torch::Tensor region = square_region(), colour = torch::zeros({3, kH, kW});
+  EXPECT_EQ(depth_from_surroundings(torch::zeros({kH, kW}), region, colour, true, {}).count_nonzero().item<int64_t>(),
+            0);
+  EXPECT_EQ(depth_from_surroundings(torch::ones({kH, kW}), torch::zeros({kH, kW}, torch::kBool), colour, true, {})
+                .count_nonzero()
+                .item<int64_t>(),
+            0);
+  RegionSurfaceOptions bad;
+  bad.opacity = 2;
+  EXPECT_EQ(test::error_message([&] { check_region_surface_options(bad); }),
+            "region surface: the opacity must be between 0 and 1 (got 2)");
+  bad = {};
+  bad.colour = 0;
+  EXPECT_EQ(test::error_message([&] { check_region_surface_options(bad); }),
+            "region surface: the colour width must be above 0 (got 0)");
+  EXPECT_EQ(test::error_message([&] {
+              depth_from_surroundings(torch::ones({kH, kW}), region, torch::zeros({3, kH, kW + 1}), false, {});
+            }),
+            "region surface: the depth, region and colour must be one picture's size (40x30)");
+}
+
+// In a prediction of a room with depth maps: the reference's region (its mask grown by the
+// measured surface's margin) becomes opaque splats in the reference's colours along the slopes
+// of its depth map; every other Gaussian is as without it.
+TEST(RegionSurface, APredictionPutsTheReferencesRegionOnTheSurfaceAroundIt) {
+  if (!has_default_model()) GTEST_SKIP() << "this build has no default model";
+  const std::filesystem::path dir = test::synthetic_room("region-surface", 4, 64, 8);
+  const Scene scene = load_scene(dir);
+  const Predictor predictor("", torch::kCPU, Precision::Float32);
+  SceneInputOptions options;
+  options.preprocess.height = 64;
+  const Prediction with = predictor.predict(scene, options);
+  options.geometry.region_surface.opacity = 0;
+  const Prediction without = predictor.predict(scene, options);
+  const PreparedView& reference = with.input.views.front();
+  ASSERT_TRUE(reference.mask.has_value());
+  const torch::Tensor region = grown_mask(reference, options.geometry.measured_surface.mask_margin);
+  const int64_t pixels = region.sum().item<int64_t>();
+  ASSERT_GT(pixels, 0);
+  const nlohmann::json recorded = with.describe_geometry()["region_surface"];
+  EXPECT_EQ(recorded["opacity"], 0.95);
+  EXPECT_EQ(recorded["slopes"], true);  // the room's depth maps
+  EXPECT_GT(recorded["ring"].get<int64_t>(), 0);
+  EXPECT_EQ(recorded["gaussians"], pixels);
+  EXPECT_EQ(without.describe_geometry()["region_surface"]["gaussians"], 0);
+
+  const torch::Tensor outside = region.logical_not().flatten();
+  auto reference_map = [](const torch::Tensor& map) {  // the reference's (C, H x W)
+    return map[0][0].reshape({map.size(2), -1}).to(torch::kFloat32);
+  };
+  for (auto member : {&GaussianMaps::xyz, &GaussianMaps::opacity, &GaussianMaps::rgb, &GaussianMaps::scale}) {
+    const torch::Tensor a = reference_map(with.maps.*member), b = reference_map(without.maps.*member);
+    EXPECT_TRUE(torch::equal(a.index({Slice(), outside}), b.index({Slice(), outside})));
+    EXPECT_FALSE(torch::equal(a.index({Slice(), region.flatten()}), b.index({Slice(), region.flatten()})));
+  }
+  for (int64_t v = 1; v < 4; ++v) EXPECT_TRUE(torch::equal(with.maps.xyz[0][v], without.maps.xyz[0][v]));
+  const torch::Tensor inside = region.flatten();
+  EXPECT_GE(reference_map(with.maps.opacity).index({Slice(), inside}).min().item<float>(), 0.95f);
+  const torch::Tensor photo =
+      torch::from_blob(const_cast<float*>(reference.rgb.pixels.data()), {64 * 64, reference.rgb.channels})
+          .index({Slice(), Slice(0, 3)})
+          .t();
+  EXPECT_TRUE(torch::allclose(reference_map(with.maps.rgb).index({Slice(), inside}),
+                              photo.index({Slice(), inside}).clamp(0, 1)));
+  // A reconstruction of the scene as captured has no region.
+  options.geometry.region_surface.opacity = 0.95;
+  options.keep_object = true;
+  EXPECT_EQ(predictor.predict(scene, options).describe_geometry()["region_surface"]["gaussians"], 0);
+}
+
+}  // namespace
+}  // namespace ii
