@@ -476,14 +476,11 @@ GaussianSet thinned_prediction(const GaussianSet& gaussians, const Prediction& p
   if (prediction.region_surface_pixels.defined() && prediction.region_surface_pixels.numel() > 0) {
     const torch::Tensor at = prediction.region_surface_pixels.to(g.means.device());
     const GaussianSet& network = prediction.region_surface_replaced;
-    auto restored = [&](const torch::Tensor& all, const torch::Tensor& rows) {
-      return all.index_copy(0, at, rows.to(all.device(), all.scalar_type()));
-    };
-    g.means = restored(g.means, network.means);
-    g.scales = restored(g.scales, network.scales);
-    g.quats = restored(g.quats, network.quats);
-    g.opacities = restored(g.opacities, network.opacities);
-    g.colors = restored(g.colors, network.colors);
+    for (auto member : {&GaussianSet::means, &GaussianSet::scales, &GaussianSet::quats, &GaussianSet::opacities,
+                        &GaussianSet::colors}) {
+      torch::Tensor& all = g.*member;
+      all = all.index_copy(0, at, (network.*member).to(all.device(), all.scalar_type()));
+    }
   }
   if (stride <= 1) {
     for (torch::Tensor* t : {&g.means, &g.scales, &g.quats, &g.opacities, &g.colors}) *t = t->narrow(0, 0, pixels);
