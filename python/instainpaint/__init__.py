@@ -33,7 +33,7 @@ from ._core import Camera, Error, Scene, set_log_level, set_threads
 # Predictor.predict's defaults: the library's own (GeometryOptions), as the commands use them.
 (_ALIGN_DEPTH, _DEPTH_DETAIL, _FRAME_MARGIN, _REGION_COVER, _FADE_FLOATERS,
  _MEASURED_SURFACE, _STEREO_DEPTH, _FRAME_MARGIN_DROP_SEEN, _FRAME_MARGIN_OUTER,
- _BEHIND_EDGES, _REGION_SURFACE) = _core._geometry_defaults
+ _BEHIND_EDGES, _REGION_SURFACE, _FLYING_PIXELS_FAR) = _core._geometry_defaults
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
@@ -222,7 +222,8 @@ class Predictor:
                 frame_margin_drop_seen: bool = _FRAME_MARGIN_DROP_SEEN,
                 frame_margin_outer: float = _FRAME_MARGIN_OUTER,
                 behind_edges: float = _BEHIND_EDGES,
-                region_surface: float = _REGION_SURFACE) -> Gaussians:
+                region_surface: float = _REGION_SURFACE,
+                flying_pixels_far: bool = _FLYING_PIXELS_FAR) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -263,6 +264,9 @@ class Predictor:
         around it (each pixel on the surrounding surface its colour resembles) as flat splats at
         least this opaque in the reference's colours (`--region-surface`); 0 for none (the
         network's depth there).
+        flying_pixels_far: a depth map's pixels that straddle an edge (a depth between the two
+        sides, as depth cameras and supersampled synthetic depth give) moved to the far side, in
+        its colour (`--flying-pixels far`); False keeps them where they were measured.
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
@@ -271,7 +275,7 @@ class Predictor:
                                           float(frame_margin), float(region_cover), float(fade_floaters),
                                           float(measured_surface), bool(stereo_depth),
                                           bool(frame_margin_drop_seen), float(frame_margin_outer),
-                                          float(behind_edges), float(region_surface)))
+                                          float(behind_edges), float(region_surface), bool(flying_pixels_far)))
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

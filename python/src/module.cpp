@@ -200,7 +200,7 @@ NB_MODULE(_core, m) {
                                                 geometry.measured_surface.from_photos,
                                                 geometry.frame_margin.drop_seen_through,
                                                 geometry.frame_margin.outer_fraction, geometry.behind_edges.fraction,
-                                                geometry.region_surface.opacity);
+                                                geometry.region_surface.opacity, geometry.measured_surface.far_side);
 
   m.def("set_threads",
         [](int threads) {
@@ -456,7 +456,7 @@ NB_MODULE(_core, m) {
               const std::map<std::string, AnyArray>& masks, const std::string& align_depth, double depth_detail,
               double frame_margin, double region_cover, double fade_floaters, double measured_surface,
               bool stereo_depth, bool frame_margin_drop_seen, double frame_margin_outer, double behind_edges,
-              double region_surface) {
+              double region_surface, bool flying_pixels_far) {
              auto input = std::make_shared<SceneInputOptions>(
                  input_options(context, views, reference, reference_view, height, keep_object, masks));
              input->geometry.align_depth = parse_depth_points(align_depth);
@@ -470,6 +470,7 @@ NB_MODULE(_core, m) {
              input->geometry.floaters.fade = fade_floaters;
              input->geometry.measured_surface.opacity = measured_surface;
              input->geometry.measured_surface.from_photos = stereo_depth;
+             input->geometry.measured_surface.far_side = flying_pixels_far;
              PyGaussians g;
              {
                nb::gil_scoped_release release;
@@ -484,7 +485,7 @@ NB_MODULE(_core, m) {
            "scene"_a, "context"_a, "views"_a, "reference"_a.none(), "reference_view"_a, "height"_a, "keep_object"_a,
            "masks"_a, "align_depth"_a, "depth_detail"_a, "frame_margin"_a, "region_cover"_a, "fade_floaters"_a,
            "measured_surface"_a, "stereo_depth"_a, "frame_margin_drop_seen"_a, "frame_margin_outer"_a,
-           "behind_edges"_a, "region_surface"_a);
+           "behind_edges"_a, "region_surface"_a, "flying_pixels_far"_a);
 
   m.def("_masks_from_one",
         [](const Scene& scene, const std::string& view, const nb::object& region, const Predictor* predictor,

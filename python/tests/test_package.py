@@ -121,8 +121,8 @@ def test_predict_defaults_are_the_commands():
     assert (defaults["align_depth"], defaults["depth_detail"], defaults["frame_margin"], defaults["region_cover"],
             defaults["fade_floaters"], defaults["measured_surface"], defaults["stereo_depth"],
             defaults["frame_margin_drop_seen"], defaults["frame_margin_outer"], defaults["behind_edges"],
-            defaults["region_surface"]) == \
-        ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True, 0.25, 0.03125, 0.95)
+            defaults["region_surface"], defaults["flying_pixels_far"]) == \
+        ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True, 0.25, 0.03125, 0.95, True)
 
 
 def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):

@@ -80,6 +80,14 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
                   "Gaussians, aligned as --align-depth says; --align-depth none turns this off too)")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  cmd->add_option_function<std::string>(
+         "--flying-pixels",
+         [&geometry](const std::string& where) { geometry.measured_surface.far_side = where == "far"; },
+         "A depth map's pixels that straddle an edge (a depth between the near and the far side, as depth "
+         "cameras and supersampled synthetic depth give): far = moved to the far side in its colour, so that "
+         "they do not float as specks between the two; keep = where they were measured")
+      ->check(CLI::IsMember({"far", "keep"}))
+      ->default_str(geometry.measured_surface.far_side ? "far" : "keep");
   cmd->add_option("--stereo-depth", geometry.measured_surface.from_photos,
                   "Where no context view has a depth map, measure each one's depth from the context photos "
                   "themselves (a plane sweep between them about the network's aligned depth) and use it as the "

@@ -60,10 +60,10 @@ torch::Tensor not_the_object(const ObjectCone& cone, const torch::Tensor& points
 // (The margin too: between these splats and those outside, its soft Gaussians drew white outlines
 // in make demo's novel views.) Returns how many.
 int64_t put_beside_object(GaussianMaps& maps, int64_t vi, const Camera& camera, const torch::Tensor& depth,
-                          const torch::Tensor& masked, const PreparedView& view, const ObjectCone& object,
+                          const torch::Tensor& masked, const Image& photo, const ObjectCone& object,
                           const MeasuredSurfaceOptions& options) {
   const GaussianSet hidden =
-      surface_gaussians(camera, depth, masked, view.rgb, static_cast<float>(options.opacity), options.width);
+      surface_gaussians(camera, depth, masked, photo, static_cast<float>(options.opacity), options.width);
   if (hidden.size() == 0) return 0;
   const torch::Tensor rows = not_the_object(object, hidden.means).nonzero().squeeze(1);
   if (rows.numel() == 0) return 0;
@@ -112,6 +112,12 @@ void write_splats(GaussianMaps& maps, int64_t vi, const torch::Tensor& pixels, c
   if (colours) put(maps.rgb[0][vi], splats.colors);
 }
 
+void write_colours(GaussianMaps& maps, int64_t vi, const torch::Tensor& pixels, const torch::Tensor& colours) {
+  const torch::Tensor map = maps.rgb[0][vi];
+  map.view({map.size(0), -1})
+      .index_put_({Slice(), pixels.to(map.device())}, colours.t().to(map.device(), map.scalar_type()));
+}
+
 MeasuredDepth measured_depth(const Scene& scene, const SceneInput& input, const PreprocessOptions& preprocess,
                              const GaussianMaps& maps, const MeasuredSurfaceOptions& options) {
   MeasuredDepth out;
@@ -119,6 +125,11 @@ MeasuredDepth measured_depth(const Scene& scene, const SceneInput& input, const 
   bool any = false;
   for (size_t v = 0; v < input.views.size(); ++v) {
     out.depth.push_back(working_depth_map(scene, input, preprocess, v));
+    out.far_side.emplace_back();
+    if (out.depth.back().defined() && options.far_side) {
+      out.far_side.back() = flying_pixels_to_far_side(out.depth.back(), options.flying);
+      out.depth.back() = out.far_side.back().depth;
+    }
     any = any || out.depth.back().defined();
   }
   if (any) {
@@ -147,16 +158,27 @@ MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const SceneInput& in
     const torch::Tensor valid = depth.gt(0).logical_and(depth.isfinite());
     done.views.push_back(view.name);
     done.known.push_back(valid.to(torch::kFloat32).mean().item<double>());
-    // Outside the mask (grown): the surface in place of the network's Gaussians, its colours kept.
+    // The photo with the moved pixels in their far side's colours.
+    const FarSide* far = v < measured.far_side.size() && measured.far_side[v].moved.defined() ? &measured.far_side[v]
+                                                                                               : nullptr;
+    const Image photo = far ? tensor_to_image(far_side_colours(image_to_tensor(view.rgb)[0], *far)) : view.rgb;
+    // Outside the mask (grown): the surface in place of the network's Gaussians, its colours kept
+    // but for the moved pixels'.
     const torch::Tensor take = valid.logical_and(grown_mask(view, options.mask_margin).logical_not());
-    const GaussianSet surface = surface_gaussians(camera, depth, take, view.rgb, opacity, options.width);
+    const GaussianSet surface = surface_gaussians(camera, depth, take, photo, opacity, options.width);
     // surface_gaussians keeps the `take` pixels in row-major order: their indices in the maps' rows.
-    if (surface.size() > 0)
-      write_splats(maps, vi, take.flatten().nonzero().squeeze(1), surface, depth.index({take}), false);
+    const torch::Tensor pixels = take.flatten().nonzero().squeeze(1);
+    if (surface.size() > 0) write_splats(maps, vi, pixels, surface, depth.index({take}), false);
+    if (far && surface.size() > 0) {
+      const torch::Tensor moved = far->moved.index({take}).nonzero().squeeze(1);
+      if (moved.numel() > 0)
+        write_colours(maps, vi, pixels.index_select(0, moved), surface.colors.index_select(0, moved));
+    }
     done.gaussians += surface.size();
+    done.far_side += far ? far->moved.sum().item<int64_t>() : 0;
     // Inside another view's mask (and its margin): the scene beside the object.
     if (v > 0 && object && view.mask)
-      done.beside_object += put_beside_object(maps, vi, camera, depth, valid.logical_and(take.logical_not()), view,
+      done.beside_object += put_beside_object(maps, vi, camera, depth, valid.logical_and(take.logical_not()), photo,
                                               *object, options);
   }
   return done;
@@ -171,7 +193,8 @@ nlohmann::json describe_measured_surface(const MeasuredSurfaceOptions& options, 
           {"views", done.views},
           {"gaussians", done.gaussians},
           {"cone_margin", options.cone_margin},
-          {"beside_object", done.beside_object}};
+          {"beside_object", done.beside_object},
+          {"far_side", done.far_side}};
 }
 
 }  // namespace ii

@@ -13,6 +13,7 @@
 #include "eval/metrics.h"
 #include "gaussians/gaussians.h"
 #include "model/default_model.h"
+#include "model/flying_pixels.h"
 #include "model/predictor.h"
 #include "render/rasterizer.h"
 #include "synthetic_room.h"
@@ -68,13 +69,16 @@ TEST(MeasuredSurface, PutsTheGaussiansOutsideTheMaskOnTheMeasuredDepth) {
   ASSERT_EQ(record["views"].size(), 4u);
   EXPECT_EQ(record["opacity"], 0.95);
   EXPECT_EQ(without.describe_geometry()["measured_surface"]["views"].size(), 0u);
-  int64_t taken = 0;
+  int64_t taken = 0, moved = 0;
   for (size_t v = 0; v < 4; ++v) {
     const PreparedView& view = with.input.views[v];
     EXPECT_EQ(record["views"][v], view.name);
     const Image map = *load_view_depth(scene, scene.views[static_cast<size_t>(with.input.context[v])]);
     ASSERT_EQ(map.width, 64);  // the room is made at the working size: no resampling to follow
-    const torch::Tensor measured = image_to_tensor(map)[0][0] / with.input.normalization.scale;
+    // Its flying pixels (the room's depth is a mean over each pixel) on their far side.
+    const FarSide far = flying_pixels_to_far_side(image_to_tensor(map)[0][0], FlyingPixelOptions());
+    moved += far.moved.sum().item<int64_t>();
+    const torch::Tensor measured = far.depth / with.input.normalization.scale;
     const torch::Tensor take = away_from_mask(view, 1).logical_and(measured.gt(0));
     const int64_t vi = static_cast<int64_t>(v);
     taken += take.sum().item<int64_t>();
@@ -96,6 +100,8 @@ TEST(MeasuredSurface, PutsTheGaussiansOutsideTheMaskOnTheMeasuredDepth) {
   }
   EXPECT_EQ(record["gaussians"], taken);
   EXPECT_GT(taken, 4 * 64 * 64 / 2);
+  EXPECT_GT(moved, 0);
+  EXPECT_EQ(record["far_side"], moved);
 }
 
 // A mask propagated from one view is wider than the object: inside the other views' masks, what
@@ -144,9 +150,10 @@ TEST(MeasuredSurface, TheSceneBesideTheObjectInsideAWideMask) {
         << view.name;
     // There: the measured depth and the photo's colours.
     const Image map = *load_view_depth(scene, scene.views[static_cast<size_t>(with.input.context[v])]);
-    const torch::Tensor measured = image_to_tensor(map)[0][0] / with.input.normalization.scale;
+    const FarSide far = flying_pixels_to_far_side(image_to_tensor(map)[0][0], FlyingPixelOptions());
+    const torch::Tensor measured = far.depth / with.input.normalization.scale;
     EXPECT_TRUE(torch::allclose(with.maps.depth[0][vi][0].index({changed}), measured.index({changed}), 1e-5, 1e-6));
-    const torch::Tensor photo = image_to_tensor(view.rgb)[0].clamp(0, 1);
+    const torch::Tensor photo = far_side_colours(image_to_tensor(view.rgb)[0], far).clamp(0, 1);
     EXPECT_TRUE(torch::allclose(with.maps.rgb[0][vi].permute({1, 2, 0}).index({changed}),
                                 photo.permute({1, 2, 0}).index({changed}), 1e-6, 1e-6));
   }

@@ -98,6 +98,7 @@ TEST(RegionSurface, APredictionPutsTheReferencesRegionOnTheSurfaceAroundIt) {
   const Predictor predictor("", torch::kCPU, Precision::Float32);
   SceneInputOptions options;
   options.preprocess.height = 64;
+  options.geometry.floaters.fade = 1;  // the opacities as this step leaves them (fading weighs every view's)
   const Prediction with = predictor.predict(scene, options);
   options.geometry.region_surface.opacity = 0;
   const Prediction without = predictor.predict(scene, options);
