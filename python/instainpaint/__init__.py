@@ -259,7 +259,8 @@ class Predictor:
         than `frame_margin` for none.
         behind_edges: the far side of each context view's depth edges continued under the near side
         by this fraction of its height (`--behind-edges`), those another view sees through dropped,
-        so that a camera beside it sees the ground behind an object's edge; 0 for none (the paper's).
+        so that a camera beside it sees the ground behind an object's edge (twice as far where the
+        depth is the views' depth maps); 0 for none (the paper's).
         region_surface: with a measured surface, the reference's region put on the measured depth
         around it (each pixel on the surrounding surface its colour resembles) as flat splats at
         least this opaque in the reference's colours (`--region-surface`); 0 for none (the

@@ -143,7 +143,8 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
   cmd->add_option("--behind-edges", geometry.behind_edges.fraction,
                   "Continue the far side of each context view's depth edges under the near side by this fraction "
                   "of its height (those another context view sees through dropped), so that a camera beside it "
-                  "sees the ground behind an object's edge instead of the background; 0 = none (the paper's)")
+                  "sees the ground behind an object's edge instead of the background; twice as far where the depth "
+                  "is the views' depth maps; 0 = none (the paper's)")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   cmd->add_option("--behind-edges-jump", geometry.behind_edges.jump,

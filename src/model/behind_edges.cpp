@@ -1,5 +1,6 @@
 #include "model/behind_edges.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/error.h"
@@ -13,6 +14,14 @@ int64_t behind_edges_pixels(int64_t height, const BehindEdgesOptions& options) {
   if (!(options.jump > 0 && options.jump <= 10))
     fail("behind edges: the depth jump must be above 0 and at most 10 (got {})", options.jump);
   return static_cast<int64_t>(std::llround(options.fraction * static_cast<double>(height)));
+}
+
+BehindEdgesOptions behind_edges_for(const BehindEdgesOptions& options, bool depth_maps) {
+  if (!(options.depth_map_factor >= 1 && options.depth_map_factor <= 16))
+    fail("behind edges: the depth maps' factor must be between 1 and 16 (got {})", options.depth_map_factor);
+  BehindEdgesOptions out = options;
+  if (depth_maps) out.fraction = std::min(1.0, options.fraction * options.depth_map_factor);
+  return out;
 }
 
 namespace {

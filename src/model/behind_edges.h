@@ -27,6 +27,11 @@ namespace ii {
 struct BehindEdgesOptions {
   // How far under the near side, as a fraction of the view's height (0: none).
   double fraction = 0.03125;
+  // ... this many times as far where the context views' depth is their depth maps: an edge there
+  // is where the map says, and the ground behind it is the map's (session 37, with the maps' flying
+  // pixels on the far side: make demo's last white sliver closed, +0.22 dB whole, the held-out
+  // rooms +0.02 / +0.03 masked; a 16th everywhere had lost the statue 0.13).
+  double depth_map_factor = 2;
   // A depth edge: the far side more than this fraction farther than its nearest neighbour.
   double jump = 0.1;
 };
@@ -38,6 +43,9 @@ struct BehindEdgesOptions {
 // mask; the near pixels too lie outside it.
 GaussianSet gaussians_behind_edges(const GaussianMaps& maps, const ModelInput& input,
                                    const std::vector<PreparedView>& views, const BehindEdgesOptions& options);
+
+// The options for depth that is its depth maps' (`depth_maps`): the fraction times depth_map_factor.
+BehindEdgesOptions behind_edges_for(const BehindEdgesOptions& options, bool depth_maps);
 
 // How far under the near side in pixels at a view `height` pixels high.
 int64_t behind_edges_pixels(int64_t height, const BehindEdgesOptions& options);

@@ -90,10 +90,12 @@ void after_the_network(Prediction& p, const Scene& scene, const SceneInputOption
   p.frame_margin = describe_frame_margin(geometry.frame_margin, p.maps.depth.size(3), p.beyond_frame.size(),
                                          continued - p.beyond_frame.size());
   if (p.beyond_frame.size() > 0) p.stages.lap("Gaussians past the frames");
-  p.behind_edges = gaussians_behind_edges(p.maps, p.input.input, p.input.views, geometry.behind_edges);
+  const BehindEdgesOptions behind_options =
+      behind_edges_for(geometry.behind_edges, p.measured_surface.value("source", "") == "depth maps");
+  p.behind_edges = gaussians_behind_edges(p.maps, p.input.input, p.input.views, behind_options);
   const int64_t behind = p.behind_edges.size();
   p.behind_edges = without_seen_through(p.behind_edges, p.maps, p.input.views, p.input.input.view_cameras);
-  p.behind_edges_record = describe_behind_edges(geometry.behind_edges, p.maps.depth.size(3), p.behind_edges.size(),
+  p.behind_edges_record = describe_behind_edges(behind_options, p.maps.depth.size(3), p.behind_edges.size(),
                                                 behind - p.behind_edges.size());
   if (behind > 0) p.stages.lap("Gaussians behind depth edges");
   p.region_cover = region_cover_gaussians(p.input.views.front(), p.input.input.view_cameras.front(),

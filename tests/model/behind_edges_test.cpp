@@ -140,6 +140,9 @@ TEST(BehindEdges, NoneAddsNothingAndABadValueIsNamed) {
   bad.jump = 0;
   EXPECT_EQ(test::error_message([&] { behind_edges_pixels(kH, bad); }),
             "behind edges: the depth jump must be above 0 and at most 10 (got 0)");
+  bad.depth_map_factor = 0.5;
+  EXPECT_EQ(test::error_message([&] { behind_edges_for(bad, true); }),
+            "behind edges: the depth maps' factor must be between 1 and 16 (got 0.5)");
 }
 
 // In a prediction they follow the frame margin's Gaussians, less those another view sees through,
@@ -153,13 +156,17 @@ TEST(BehindEdges, APredictionJoinsThemAfterTheMarginAndRecordsThem) {
   options.keep_object = true;
   options.preprocess.height = 64;
   const Prediction with = predictor.predict(scene, options);
-  const int64_t found =
-      gaussians_behind_edges(with.maps, with.input.input, with.input.views, options.geometry.behind_edges).size();
+  // The room's depth maps measured its edges: twice as far under the near side.
+  ASSERT_EQ(with.describe_geometry()["measured_surface"]["source"], "depth maps");
+  const BehindEdgesOptions used = behind_edges_for(options.geometry.behind_edges, true);
+  EXPECT_EQ(used.fraction, 0.0625);
+  EXPECT_EQ(behind_edges_for(options.geometry.behind_edges, false).fraction, 0.03125);
+  const int64_t found = gaussians_behind_edges(with.maps, with.input.input, with.input.views, used).size();
   const int64_t kept = with.behind_edges.size();
   EXPECT_GT(kept, 0);  // the room's table stands in front of its floor
   const nlohmann::json recorded = with.describe_geometry()["behind_edges"];
-  EXPECT_EQ(recorded["fraction"], 0.03125);
-  EXPECT_EQ(recorded["pixels"], 2);
+  EXPECT_EQ(recorded["fraction"], 0.0625);
+  EXPECT_EQ(recorded["pixels"], 4);
   EXPECT_EQ(recorded["jump"], 0.1);
   EXPECT_EQ(recorded["gaussians"], kept);
   EXPECT_EQ(recorded["dropped"].get<int64_t>() + kept, found);
