@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/cpu_features.h"
 #include "common/error.h"
+#include "common/parallel.h"
+#include "model/region_weights.h"
 #include "model/scene_input.h"
 #include "model/surface_splats.h"
 
@@ -120,19 +123,49 @@ torch::Tensor depth_from_surroundings(const torch::Tensor& measured_in, const to
     return torch::cat({xy / spatial, rgb / tint}, 1);
   };
   const torch::Tensor ring_features = features(ring_xy, colour.index_select(0, ring_at));  // (m, 5)
-  const torch::Tensor ring_bias = ring_features.pow(2).sum(1).view({1, -1});             // (1, m)
-  const int64_t n = inside.numel(), chunk = 4096;
-  for (int64_t start = 0; start < n; start += chunk) {
-    const torch::Tensor at = inside.index({Slice(start, std::min(n, start + chunk))});
-    const torch::Tensor xy = pixel_xy(at, W);
-    const torch::Tensor weights =
-        torch::softmax(2 * features(xy, colour.index_select(0, at)).matmul(ring_features.t()) - ring_bias, 1);
-    const torch::Tensor c = weights.matmul(planes);  // (chunk, 3): the weighted plane
-    const torch::Tensor here = c.index({Slice(), 0}) + c.index({Slice(), 1}) * xy.index({Slice(), 0}) +
-                               c.index({Slice(), 2}) * xy.index({Slice(), 1});
-    out.view({-1}).index_put_({at}, here.clamp(lowest, highest).reciprocal());
-  }
+  const torch::Tensor xy = pixel_xy(inside, W);
+  const torch::Tensor c = ring_weighted_planes(features(xy, colour.index_select(0, inside)), ring_features, planes);
+  const torch::Tensor here = c.index({Slice(), 0}) + c.index({Slice(), 1}) * xy.index({Slice(), 0}) +
+                             c.index({Slice(), 2}) * xy.index({Slice(), 1});
+  out.view({-1}).index_put_({inside}, here.clamp(lowest, highest).reciprocal());
   return out;
+}
+
+torch::Tensor ring_weighted_planes(const torch::Tensor& pixels_in, const torch::Tensor& ring_in,
+                                   const torch::Tensor& planes_in, bool fused) {
+  using region_detail::kFeatures;
+  const torch::Tensor pixels = pixels_in.to(torch::kCPU, torch::kFloat32).contiguous();
+  const torch::Tensor ring = ring_in.to(torch::kCPU, torch::kFloat32);
+  const torch::Tensor planes = planes_in.to(torch::kCPU, torch::kFloat32);
+  if (pixels.dim() != 2 || pixels.size(1) != kFeatures || ring.dim() != 2 || ring.size(1) != kFeatures ||
+      planes.dim() != 2 || planes.size(1) != 3 || planes.size(0) != ring.size(0) || ring.size(0) == 0)
+    fail("region surface: the ring's weights need (n, {0}) pixels, (m, {0}) ring features and (m, 3) planes, m > 0",
+         kFeatures);
+  const int64_t n = pixels.size(0), m = ring.size(0);
+  const torch::Tensor bias = ring.pow(2).sum(1);  // (m): |b|^2, the same for every pixel's logit
+  torch::Tensor weighted = torch::empty({n, 3}, torch::kFloat32);
+  if (fused && cpu_features().has(CpuIsa::Avx2)) {
+    // Padded to whole vectors with ring pixels that weigh nothing.
+    const int64_t padded = (m + 7) / 8 * 8;
+    auto pad = [&](const torch::Tensor& rows, float value) {  // (C, m) -> (C, padded), contiguous
+      return torch::constant_pad_nd(rows, {0, padded - m}, value).contiguous();
+    };
+    const torch::Tensor ring_rows = pad(ring.t(), 0), planes_rows = pad(planes.t(), 0);
+    const torch::Tensor bias_row = pad(bias.view({1, m}), 1e30f);
+    const region_detail::RingWeightsIo io{pixels.data_ptr<float>(), ring_rows.data_ptr<float>(),
+                                          bias_row.data_ptr<float>(), planes_rows.data_ptr<float>(), padded,
+                                          weighted.data_ptr<float>()};
+    parallel_range(n, 64, at::get_num_threads(),
+                   [&](int64_t begin, int64_t end) { region_detail::weighted_planes_avx2(io, begin, end); });
+    return weighted;
+  }
+  for (int64_t start = 0; start < n; start += 4096) {
+    const int64_t count = std::min<int64_t>(4096, n - start);
+    const torch::Tensor weights =
+        torch::softmax(2 * pixels.narrow(0, start, count).matmul(ring.t()) - bias.view({1, m}), 1);
+    weighted.narrow(0, start, count).copy_(weights.matmul(planes));
+  }
+  return weighted;
 }
 
 RegionSurface put_region_on_surface(GaussianMaps& maps, const SceneInput& input, const MeasuredDepth& measured,

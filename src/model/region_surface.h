@@ -52,6 +52,13 @@ struct RegionSurface {
   torch::Tensor pixels;
 };
 
+// Each region pixel's plane weighted by the softmax over the ring of 2 a.b - |b|^2, a its row of
+// `pixels` (n, 5) and b the ring pixel's row of `ring` (m, 5), over the ring's `planes` (m, 3):
+// (n, 3). `fused`: model/region_weights.h's kernel where the CPU has AVX2; else, and with false,
+// LibTorch's softmax and products.
+torch::Tensor ring_weighted_planes(const torch::Tensor& pixels, const torch::Tensor& ring, const torch::Tensor& planes,
+                                   bool fused = true);
+
 // The depth of each `region` pixel (H, W bool) from `measured` (H, W; camera z, 0 where unknown)
 // outside it, weighed by `colour` (3, H, W in 0-1); with `slopes`, each ring pixel's local plane
 // continued. Returns (H, W) float32: the depth at the region's pixels, 0 elsewhere and wherever

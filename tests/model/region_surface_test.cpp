@@ -2,11 +2,13 @@
 // surrounding surface whose colour it shares (a red half and a blue half at two depths); with a
 // depth map's slopes a slanted floor goes on exactly, held flat it does not; without a ring there
 // is no depth; bad values are named; in a prediction the region's pixels become opaque splats in
-// the reference's colours and nothing else changes.
+// the reference's colours and nothing else changes; the fused kernel of the ring's weights gives
+// LibTorch's softmax.
 #include <gtest/gtest.h>
 
 #include <cmath>
 
+#include "common/cpu_features.h"
 #include "model/default_model.h"
 #include "model/predictor.h"
 #include "model/region_surface.h"
@@ -26,6 +28,33 @@ torch::Tensor square_region() {
   torch::Tensor region = torch::zeros({kH, kW}, torch::kBool);
   region.index_put_({Slice(10, 20), Slice(15, 25)}, true);
   return region;
+}
+
+// The fused kernel (model/region_weights.h) against LibTorch's softmax and product: ring sizes
+// that are and are not whole vectors, features as wide as a 512-row picture's (logits in the
+// thousands: the row's largest must be taken out before the exponentials).
+TEST(RegionSurface, TheFusedRingWeightsAreLibTorchsSoftmax) {
+  if (!cpu_features().has(CpuIsa::Avx2)) GTEST_SKIP() << "this CPU has no AVX2: the fused kernel is not used";
+  torch::manual_seed(7);
+  for (const int64_t m : {1, 8, 13, 2757}) {
+    for (const double spread : {1.0, 30.0}) {
+      const torch::Tensor pixels = torch::rand({301, 5}) * spread;
+      const torch::Tensor ring = torch::rand({m, 5}) * spread;
+      const torch::Tensor planes = torch::randn({m, 3});
+      const torch::Tensor fused = ring_weighted_planes(pixels, ring, planes, true);
+      const torch::Tensor libtorch = ring_weighted_planes(pixels, ring, planes, false);
+      // The truth in double precision: both float forms round the logits (2 a.b - |b|^2 cancels).
+      const torch::Tensor p64 = pixels.to(torch::kFloat64), r64 = ring.to(torch::kFloat64);
+      const torch::Tensor exact = torch::softmax(2 * p64.matmul(r64.t()) - r64.pow(2).sum(1).view({1, -1}), 1)
+                                      .matmul(planes.to(torch::kFloat64));
+      const double fused_error = (fused.to(torch::kFloat64) - exact).abs().max().item<double>();
+      const double libtorch_error = (libtorch.to(torch::kFloat64) - exact).abs().max().item<double>();
+      EXPECT_TRUE(fused.isfinite().all().item<bool>()) << m << " " << spread;
+      EXPECT_LT(fused_error, std::max(2 * libtorch_error, 1e-5)) << m << " " << spread << " " << libtorch_error;
+    }
+  }
+  EXPECT_EQ(test::error_message([] { ring_weighted_planes(torch::zeros({4, 5}), torch::zeros({0, 5}), torch::zeros({0, 3})); }),
+            "region surface: the ring's weights need (n, 5) pixels, (m, 5) ring features and (m, 3) planes, m > 0");
 }
 
 TEST(RegionSurface, EachPixelTakesTheDepthOfTheSurfaceItsColourMatches) {
