@@ -159,8 +159,9 @@ MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const SceneInput& in
     done.views.push_back(view.name);
     done.known.push_back(valid.to(torch::kFloat32).mean().item<double>());
     // The photo with the moved pixels in their far side's colours.
-    const FarSide* far = v < measured.far_side.size() && measured.far_side[v].moved.defined() ? &measured.far_side[v]
-                                                                                               : nullptr;
+    const bool moved_any = v < measured.far_side.size() && measured.far_side[v].moved.defined() &&
+                           measured.far_side[v].moved.any().item<bool>();
+    const FarSide* far = moved_any ? &measured.far_side[v] : nullptr;
     const Image photo = far ? tensor_to_image(far_side_colours(image_to_tensor(view.rgb)[0], *far)) : view.rgb;
     // Outside the mask (grown): the surface in place of the network's Gaussians, its colours kept
     // but for the moved pixels'.
@@ -175,7 +176,7 @@ MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const SceneInput& in
         write_colours(maps, vi, pixels.index_select(0, moved), surface.colors.index_select(0, moved));
     }
     done.gaussians += surface.size();
-    done.far_side += far ? far->moved.sum().item<int64_t>() : 0;
+    if (far) done.far_side += far->moved.sum().item<int64_t>();
     // Inside another view's mask (and its margin): the scene beside the object.
     if (v > 0 && object && view.mask)
       done.beside_object += put_beside_object(maps, vi, camera, depth, valid.logical_and(take.logical_not()), photo,

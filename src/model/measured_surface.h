@@ -53,8 +53,8 @@ struct MeasuredSurfaceOptions {
   bool from_photos = true;
   StereoOptions stereo;
   // A depth map's pixels that straddle an edge, moved to its far side (model/flying_pixels.h;
-  // false: where they were measured). The held-out rooms +0.27 / +0.23 dB masked (128² / 256²),
-  // make demo's room +0.31.
+  // false: where they were measured). The held-out rooms +0.35 / +0.26 dB masked (128² / 256²),
+  // make demo's room +0.33 (docs/benchmarks.md, session 37).
   bool far_side = true;
   FlyingPixelOptions flying;
 };
@@ -75,7 +75,8 @@ struct MeasuredSurface {
 struct MeasuredDepth {
   std::string source;
   std::vector<torch::Tensor> depth;
-  // With depth maps, each view's flying pixels moved to the far side (undefined: none moved).
+  // With depth maps and MeasuredSurfaceOptions::far_side, each view's flying pixels moved to the
+  // far side (default-constructed for the others).
   std::vector<FarSide> far_side;
 };
 MeasuredDepth measured_depth(const Scene& scene, const SceneInput& input, const PreprocessOptions& preprocess,

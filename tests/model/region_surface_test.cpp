@@ -53,7 +53,8 @@ TEST(RegionSurface, TheFusedRingWeightsAreLibTorchsSoftmax) {
       EXPECT_LT(fused_error, std::max(2 * libtorch_error, 1e-5)) << m << " " << spread << " " << libtorch_error;
     }
   }
-  EXPECT_EQ(test::error_message([] { ring_weighted_planes(torch::zeros({4, 5}), torch::zeros({0, 5}), torch::zeros({0, 3})); }),
+  EXPECT_EQ(test::error_message(
+                [] { ring_weighted_planes(torch::zeros({4, 5}), torch::zeros({0, 5}), torch::zeros({0, 3})); }),
             "region surface: the ring's weights need (n, 5) pixels, (m, 5) ring features and (m, 3) planes, m > 0");
 }
 
