@@ -266,8 +266,9 @@ class Predictor:
         least this opaque in the reference's colours (`--region-surface`); 0 for none (the
         network's depth there).
         flying_pixels_far: a depth map's pixels that straddle an edge (a depth between the two
-        sides, as depth cameras and supersampled synthetic depth give) moved to the far side, in
-        its colour (`--flying-pixels far`); False keeps them where they were measured.
+        sides, as depth cameras and supersampled synthetic depth give), and the reference's region
+        pixels whose depth falls between two surfaces, moved to the far side (`--flying-pixels
+        far`); False keeps them where they were measured.
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)

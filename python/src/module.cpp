@@ -471,6 +471,7 @@ NB_MODULE(_core, m) {
              input->geometry.measured_surface.opacity = measured_surface;
              input->geometry.measured_surface.from_photos = stereo_depth;
              input->geometry.measured_surface.far_side = flying_pixels_far;
+             input->geometry.region_surface.far_side = flying_pixels_far;
              PyGaussians g;
              {
                nb::gil_scoped_release release;

@@ -82,10 +82,13 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
       ->capture_default_str();
   cmd->add_option_function<std::string>(
          "--flying-pixels",
-         [&geometry](const std::string& where) { geometry.measured_surface.far_side = where == "far"; },
+         [&geometry](const std::string& where) {
+           geometry.measured_surface.far_side = geometry.region_surface.far_side = where == "far";
+         },
          "A depth map's pixels that straddle an edge (a depth between the near and the far side, as depth "
-         "cameras and supersampled synthetic depth give): far = moved to the far side in its colour, so that "
-         "they do not float as specks between the two; keep = where they were measured")
+         "cameras and supersampled synthetic depth give), and the reference's region pixels whose depth from "
+         "the surface around them falls between two surfaces: far = moved to the far side (a depth map's in "
+         "its colour), so that they do not float as specks between the two; keep = where they were measured")
       ->check(CLI::IsMember({"far", "keep"}))
       ->default_str(geometry.measured_surface.far_side ? "far" : "keep");
   cmd->add_option("--stereo-depth", geometry.measured_surface.from_photos,

@@ -6,6 +6,7 @@
 #include "common/cpu_features.h"
 #include "common/error.h"
 #include "common/parallel.h"
+#include "model/flying_pixels.h"
 #include "model/region_weights.h"
 #include "model/scene_input.h"
 #include "model/surface_splats.h"
@@ -190,7 +191,14 @@ RegionSurface put_region_on_surface(GaussianMaps& maps, const SceneInput& input,
   const torch::Tensor take = region.logical_and(completed.gt(0));
   if (!take.any().item<bool>()) return done;
   // Neighbours outside the region keep their own depth, so that the splats at its edge meet them.
-  const torch::Tensor surface = torch::where(take, completed, maps.depth[0][0][0].to(torch::kCPU, torch::kFloat32));
+  torch::Tensor surface = torch::where(take, completed, maps.depth[0][0][0].to(torch::kCPU, torch::kFloat32));
+  if (options.far_side) {
+    const FarSide far =
+        flying_pixels_to_far_side(torch::where(take, completed, depth.to(torch::kCPU, torch::kFloat32)), {});
+    const torch::Tensor moved = far.moved.logical_and(take);
+    surface = torch::where(moved, far.depth, surface);
+    done.far_side = moved.sum().item<int64_t>();
+  }
   const GaussianSet splats = surface_gaussians(input.input.view_cameras.front(), surface, take, rgb,
                                                static_cast<float>(options.opacity), /*width=*/0.25);
   done.pixels = take.flatten().nonzero().squeeze(1);
@@ -226,6 +234,7 @@ nlohmann::json describe_region_surface(const RegionSurfaceOptions& options, cons
           {"spatial", options.spatial},
           {"colour", options.colour},
           {"slopes", done.slopes},
+          {"far_side", done.far_side},
           {"ring", done.ring},
           {"gaussians", done.gaussians}};
 }

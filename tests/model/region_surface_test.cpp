@@ -2,8 +2,8 @@
 // surrounding surface whose colour it shares (a red half and a blue half at two depths); with a
 // depth map's slopes a slanted floor goes on exactly, held flat it does not; without a ring there
 // is no depth; bad values are named; in a prediction the region's pixels become opaque splats in
-// the reference's colours and nothing else changes; the fused kernel of the ring's weights gives
-// LibTorch's softmax.
+// the reference's colours and nothing else changes, and those whose weighted depth fell between two
+// surfaces go to the far one; the fused kernel of the ring's weights gives LibTorch's softmax.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -162,8 +162,21 @@ TEST(RegionSurface, APredictionPutsTheReferencesRegionOnTheSurfaceAroundIt) {
           .t();
   EXPECT_TRUE(torch::allclose(reference_map(with.maps.rgb).index({Slice(), inside}),
                               photo.index({Slice(), inside}).clamp(0, 1)));
-  // A reconstruction of the scene as captured has no region.
+  // Region pixels whose weighted depth fell between two surfaces went to the far one: only they
+  // differ from a run that keeps them, each farther than it was.
   options.geometry.region_surface.opacity = 0.95;
+  options.geometry.region_surface.far_side = false;
+  const Prediction kept = predictor.predict(scene, options);
+  const int64_t moved = recorded["far_side"].get<int64_t>();
+  EXPECT_GT(moved, 0);
+  EXPECT_EQ(kept.describe_geometry()["region_surface"]["far_side"], 0);
+  const torch::Tensor depth_moved = reference_map(with.maps.depth)[0], depth_kept = reference_map(kept.maps.depth)[0];
+  const torch::Tensor differ = depth_moved.ne(depth_kept);
+  EXPECT_EQ(differ.sum().item<int64_t>(), moved);
+  EXPECT_FALSE(differ.logical_and(inside.logical_not()).any().item<bool>());
+  EXPECT_TRUE(depth_moved.index({differ}).gt(depth_kept.index({differ})).all().item<bool>());
+  options.geometry.region_surface.far_side = true;
+  // A reconstruction of the scene as captured has no region.
   options.keep_object = true;
   EXPECT_EQ(predictor.predict(scene, options).describe_geometry()["region_surface"]["gaussians"], 0);
 }
