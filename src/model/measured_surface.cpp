@@ -96,6 +96,12 @@ torch::Tensor grown_mask(const PreparedView& view, int grow) {
   return image_to_tensor(dilate_mask(*view.mask, grow > 0 ? 1 : 0, 2 * grow + 1))[0][0].gt(0.5);
 }
 
+void write_colours(GaussianMaps& maps, int64_t vi, const torch::Tensor& pixels, const torch::Tensor& colours) {
+  const torch::Tensor map = maps.rgb[0][vi];
+  map.view({map.size(0), -1})
+      .index_put_({Slice(), pixels.to(map.device())}, colours.t().to(map.device(), map.scalar_type()));
+}
+
 void write_splats(GaussianMaps& maps, int64_t vi, const torch::Tensor& pixels, const GaussianSet& splats,
                   const torch::Tensor& depth, bool colours) {
   const torch::Tensor at = pixels.to(maps.xyz.device());
@@ -109,13 +115,7 @@ void write_splats(GaussianMaps& maps, int64_t vi, const torch::Tensor& pixels, c
   const torch::Tensor network_opacity =
       maps.opacity[0][vi].view({1, -1}).index({Slice(), at}).t().to(torch::kCPU, torch::kFloat32);
   put(maps.opacity[0][vi], torch::maximum(network_opacity, splats.opacities.view({-1, 1})));
-  if (colours) put(maps.rgb[0][vi], splats.colors);
-}
-
-void write_colours(GaussianMaps& maps, int64_t vi, const torch::Tensor& pixels, const torch::Tensor& colours) {
-  const torch::Tensor map = maps.rgb[0][vi];
-  map.view({map.size(0), -1})
-      .index_put_({Slice(), pixels.to(map.device())}, colours.t().to(map.device(), map.scalar_type()));
+  if (colours) write_colours(maps, vi, pixels, splats.colors);
 }
 
 MeasuredDepth measured_depth(const Scene& scene, const SceneInput& input, const PreprocessOptions& preprocess,
