@@ -44,7 +44,7 @@ struct RegionSurfaceOptions {
   // the measured depth around it, model/flying_pixels.h), the pixel goes to the far one: a splat
   // between a table's edge and the floor is a speck from elsewhere (session 37: the held-out rooms
   // +0.04 / +0.44 dB masked at 128² / 256², make demo's room -0.6 masked, +0.2 whole and fewer
-  // specks; scene 1's region -0.04, the statue unchanged; to the side whose colour the pixel
+  // specks; scene 1's region -0.03, the statue unchanged; to the side whose colour the pixel
   // shares instead, the rooms -0.35 / -0.48).
   bool far_side = true;
 };
