@@ -24,7 +24,8 @@
 # Everything it prints also goes to $OUT (the device tool brings that folder back).
 #   run(command="bash scripts/device/build-and-check.sh", carry=[".device/debs", ".device/shared", ".device/wheels"],
 #       timeout_s=600)
-# STEPS="cpu ..." times the network on the host's CPU (AMX, issue 54 item 4; carry ".device/official" too,
+# STEPS="cpu ..." times the network on the host's CPU (AMX, issue 54 item 4: STEPS="tests cpu"
+# TEST_TARGETS=model_tests TESTS=FusedCpuAttention also checks the AMX kernel there; carry ".device/official" too,
 # made by OFFICIAL=<mirror> scripts/device/prepare.sh); STEPS="training ..." adds a
 # training-throughput probe; STEPS="bench eval" skips the tests on a later call (the
 # build folder is kept while the machine stays warm); TESTS=REGEX runs only the tests whose names match.
@@ -75,7 +76,12 @@ if [[ " $STEPS " == *" cpu "* ]]; then
   step "the host's CPU: its ISA and the network on 2 of its cores (issue 54, item 4: AMX)"
   lscpu | grep -E "Model name|^CPU\(s\)" || true
   echo "flags: $(grep -o -w -E 'amx_bf16|amx_tile|amx_int8|avx512_bf16|avx512f|avx2' /proc/cpuinfo | sort -u | paste -sd' ')"
+  # The AMX kernel against the hardware (with STEPS="tests cpu" TEST_TARGETS=model_tests the suite is
+  # built), then the network on its kernels and on AVX-512 BF16's in the same run.
+  [ -x "$BUILD/model_tests" ] && "$BUILD/model_tests" --gtest_filter='FusedCpuAttention.*:CpuFeatures.*' 2>&1 | tail -15 || true
   "$BIN" bench --device cpu --threads 2 --presets release --sizes 256 --precision bf16 --baseline none
+  INSTAINPAINT_MAX_CPU_ISA=avx512_bf16 "$BIN" bench --device cpu --threads 2 --presets release --sizes 256 \
+    --precision bf16 --baseline none || true
   python3 -c "import torch, time; torch.set_num_threads(2); a = torch.randn(4096, 4096, dtype=torch.bfloat16)
 a @ a; t = time.perf_counter(); [a @ a for _ in range(5)]; s = (time.perf_counter() - t) / 5
 print('LibTorch bf16 matmul 4096^3 on 2 threads: %.0f GFLOP/s' % (2 * 4096**3 / s / 1e9))" || true

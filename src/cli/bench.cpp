@@ -16,6 +16,7 @@
 #include "common/stopwatch.h"
 #include "common/torch_compat.h"
 #include "model/attention.h"
+#include "model/cpu/dispatch.h"
 #include "model/cuda_graph.h"
 #include "model/device.h"
 #include "model/network.h"
@@ -147,9 +148,14 @@ void run_attention(const BenchArgs& a, const Runtime& rt) {
   auto skipped = [](const std::string& form, const std::string& why) { fmt::print("{:<44} {}\n", form, why); };
   print_row("chunked (LibTorch calls; the reference twin)", chunked_ms);
   if (rt.device.is_cpu()) {
-    if (const auto isa = fused_cpu_attention_isa(q, k, v))
-      row(fmt::format("fused CPU kernel ({})", cpu_isa_name(*isa)), [&] { return fused_cpu_attention(q, k, v, *isa); });
-    else
+    // Every kernel set this CPU has for the dtype, the one the network uses first (AMX beside
+    // AVX-512 BF16, AVX-512 beside AVX2: the same run compares them).
+    if (const auto isa = fused_cpu_attention_isa(q, k, v)) {
+      for (CpuIsa other : {CpuIsa::Amx, CpuIsa::Avx512Bf16, CpuIsa::Avx512, CpuIsa::Avx2})
+        if (other <= *isa && cpu_kernels::kernel_takes(other, q.scalar_type()))
+          row(fmt::format("fused CPU kernel ({}){}", cpu_isa_name(other), other == *isa ? "" : ", not used"),
+              [&] { return fused_cpu_attention(q, k, v, other); });
+    } else
       skipped("fused CPU kernel", fmt::format("does not apply here (instruction set {})",
                                               cpu_isa_name(cpu_features().isa)));
   }

@@ -143,6 +143,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   info["checkpoint"] = model["checkpoint"];
   info["checkpoint_format"] = model["format"];
   info["config"] = model["config"];
+  if (model.contains("cpu")) info["cpu"] = model["cpu"];
   stages.merge(predictor.load_stages(), "load model: ");
   stages.restart_lap();
 

@@ -269,6 +269,7 @@ nlohmann::json FillResult::report() const {
       j["cameras"]["views"][i]["uncovered_after_reference"] = uncovered[i];
   }
   if (!refine_report.is_null()) j["refine"] = refine_report;
+  if (!model.is_null()) j["model"] = model;
   return j;
 }
 
@@ -629,6 +630,7 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   StageTimes& stages = result.stages;
   check_splats_finite(cloud, options.scene_name);
   const RegionMask region = choose_region(cloud, options);
+  result.model = predictor.describe();
   result.total = static_cast<int64_t>(cloud.size());
   result.removed = region_count(region);
   result.region_how = options.box ? "box: " + options.box->describe()

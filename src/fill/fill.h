@@ -74,6 +74,7 @@ struct FillResult {
   std::vector<int64_t> uncovered;
   std::string region_how;              // how the region was chosen
   nlohmann::json refine_report;        // with refinement
+  nlohmann::json model;                // Predictor::describe(): the checkpoint, and the CPU's kernels
   StageTimes stages;
 
   nlohmann::json report() const;  // fill.json

@@ -61,16 +61,10 @@ std::string fused_cpu_refusal(const torch::Tensor& q, const torch::Tensor& k, co
 
 }  // namespace
 
-std::optional<CpuIsa> fused_cpu_attention_isa(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
-  const std::optional<CpuIsa> isa = cpu_kernels::kernel_isa(q.scalar_type());
-  if (!isa || !fused_cpu_refusal(q, k, v, *isa).empty()) return std::nullopt;
-  return isa;
-}
+namespace cpu_kernels {
 
-torch::Tensor fused_cpu_attention(const torch::Tensor& q_in, const torch::Tensor& k_in, const torch::Tensor& v_in,
-                                  CpuIsa isa) {
-  if (const std::string why = fused_cpu_refusal(q_in, k_in, v_in, isa); !why.empty())
-    fail("fused CPU attention ({}): {}", cpu_isa_name(isa), why);
+torch::Tensor run_attention_kernel(const torch::Tensor& q_in, const torch::Tensor& k_in, const torch::Tensor& v_in,
+                                   AttentionKernel kernel) {
   // The kernels read rows of head_dim contiguous elements at any other strides (the network's
   // q, k, v are strided views of one qkv product).
   auto rows = [](const torch::Tensor& t) { return t.stride(3) == 1 ? t : t.contiguous(); };
@@ -79,7 +73,7 @@ torch::Tensor fused_cpu_attention(const torch::Tensor& q_in, const torch::Tensor
   torch::Tensor out = torch::empty({B, N, H, d}, q.options());
   if (out.numel() == 0) return out.permute({0, 2, 1, 3});
 
-  cpu_kernels::AttentionProblem p;
+  AttentionProblem p;
   p.batch = B;
   p.heads = H;
   p.queries = N;
@@ -98,13 +92,29 @@ torch::Tensor fused_cpu_attention(const torch::Tensor& q_in, const torch::Tensor
   p.out_strides[1] = out.stride(2);  // out is (B, N, H, d): heads are its dimension 2
   p.out_strides[2] = out.stride(1);
   p.scale = static_cast<float>(1.0 / std::sqrt(static_cast<double>(d)));
-  const bool done = isa == CpuIsa::Avx512Bf16 ? cpu_kernels::attention_avx512_bf16(p, cpu_kernels::parallel_tasks)
-                    : isa == CpuIsa::Avx512   ? cpu_kernels::attention_avx512_fp32(p, cpu_kernels::parallel_tasks)
-                                              : cpu_kernels::attention_avx2_fp32(p, cpu_kernels::parallel_tasks);
-  if (!done)
+  if (!kernel(p, parallel_tasks))
     fail("fused CPU attention: out of memory for the packed keys and values of {} x {} heads of {} tokens", B, H,
          p.keys);
   return out.permute({0, 2, 1, 3});
+}
+
+}  // namespace cpu_kernels
+
+std::optional<CpuIsa> fused_cpu_attention_isa(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
+  const std::optional<CpuIsa> isa = cpu_kernels::kernel_isa(q.scalar_type());
+  if (!isa || !fused_cpu_refusal(q, k, v, *isa).empty()) return std::nullopt;
+  return isa;
+}
+
+torch::Tensor fused_cpu_attention(const torch::Tensor& q_in, const torch::Tensor& k_in, const torch::Tensor& v_in,
+                                  CpuIsa isa) {
+  if (const std::string why = fused_cpu_refusal(q_in, k_in, v_in, isa); !why.empty())
+    fail("fused CPU attention ({}): {}", cpu_isa_name(isa), why);
+  const cpu_kernels::AttentionKernel kernel = isa == CpuIsa::Amx          ? cpu_kernels::attention_amx_bf16
+                                              : isa == CpuIsa::Avx512Bf16 ? cpu_kernels::attention_avx512_bf16
+                                              : isa == CpuIsa::Avx512     ? cpu_kernels::attention_avx512_fp32
+                                                                          : cpu_kernels::attention_avx2_fp32;
+  return cpu_kernels::run_attention_kernel(q_in, k_in, v_in, kernel);
 }
 
 torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v, AttentionForm form) {

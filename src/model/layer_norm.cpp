@@ -41,6 +41,7 @@ AddNorm add_layer_norm(const torch::Tensor& x, const torch::Tensor& residual, do
   p.normed = r.normed.data_ptr();
   p.eps = static_cast<float>(eps);
   switch (*cpu_kernels::kernel_isa(dtype)) {
+    case CpuIsa::Amx:  // no matrix product here: AVX-512 BF16's
     case CpuIsa::Avx512Bf16: cpu_kernels::add_layer_norm_avx512_bf16(p, cpu_kernels::parallel_tasks); break;
     case CpuIsa::Avx512: cpu_kernels::add_layer_norm_avx512_fp32(p, cpu_kernels::parallel_tasks); break;
     default: cpu_kernels::add_layer_norm_avx2_fp32(p, cpu_kernels::parallel_tasks); break;

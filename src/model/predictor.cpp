@@ -5,6 +5,7 @@
 #include "data/masks.h"
 
 #include "model/checkpoint.h"
+#include "model/cpu/dispatch.h"
 #include "model/default_model.h"
 #include "model/device.h"
 #include "model/inference.h"
@@ -35,7 +36,10 @@ Predictor::Predictor(const std::string& checkpoint, const torch::Device& device,
       }()) {}
 
 nlohmann::json Predictor::describe() const {
-  return {{"checkpoint", model_name_}, {"format", format_}, {"config", config().to_json()}};
+  nlohmann::json d = {{"checkpoint", model_name_}, {"format", format_}, {"config", config().to_json()}};
+  if (device_.is_cpu())
+    d["cpu"] = cpu_kernels::describe_cpu_kernels(precision_ == Precision::BFloat16 ? torch::kBFloat16 : torch::kFloat32);
+  return d;
 }
 
 namespace {

@@ -86,7 +86,8 @@ class Predictor {
   const ModelConfig& config() const { return network_.config(); }
   const torch::Device& device() const { return device_; }
   Precision precision() const { return precision_; }
-  // {"checkpoint", "format", "config"}: what run.json and metrics.json record of the model.
+  // {"checkpoint", "format", "config"} and on a CPU "cpu" (the instruction sets detected, the
+  // network's kernels: model/cpu/dispatch.h): what run.json and metrics.json record of the model.
   nlohmann::json describe() const;
   // Where the constructor's time went: "read checkpoint", "network from checkpoint",
   // "weights to <device>" (a command adds them to its own stages).

@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
 #include "common/cpu_features.h"
+#include "amx_tile_model.h"
 #include "model/attention.h"
+#include "model/cpu/dispatch.h"
 #include "test_support.h"
 
 namespace ii {
@@ -108,17 +110,50 @@ TEST(FusedCpuAttention, PeakedScoresStayAccurate) {
 // chunked bf16 form (whose probabilities and products are bf16 too), plus one bf16 step.
 TEST(FusedCpuAttention, BFloat16IsAsCloseToFloat32AsTheChunkedForm) {
   if (!cpu_features().has(CpuIsa::Avx512Bf16)) GTEST_SKIP() << "this CPU has no AVX-512 BF16";
+  std::vector<CpuIsa> kernels = {CpuIsa::Avx512Bf16};
+  if (cpu_features().has(CpuIsa::Amx)) kernels.push_back(CpuIsa::Amx);
   torch::manual_seed(5);
   for (int64_t d : {8, 32, 64, 128})
-    for (int64_t n : {1, 7, 300, 517}) {
+    for (int64_t n : {1, 7, 300, 517, 1100}) {
       const Qkv t = network_qkv(2, 3, n, d, 1.5, torch::kBFloat16);
       const torch::Tensor exact = chunked_attention(t.q.to(torch::kFloat32), t.k.to(torch::kFloat32),
                                                     t.v.to(torch::kFloat32));
-      const torch::Tensor fused = fused_cpu_attention(t.q, t.k, t.v, CpuIsa::Avx512Bf16);
-      ASSERT_EQ(fused.scalar_type(), torch::kBFloat16);
       const float chunked_error = max_abs(chunked_attention(t.q, t.k, t.v), exact);
-      EXPECT_LT(max_abs(fused, exact), chunked_error + 8e-3) << "head_dim " << d << " tokens " << n;
+      for (CpuIsa isa : kernels) {
+        const torch::Tensor fused = fused_cpu_attention(t.q, t.k, t.v, isa);
+        ASSERT_EQ(fused.scalar_type(), torch::kBFloat16);
+        EXPECT_LT(max_abs(fused, exact), chunked_error + 8e-3)
+            << cpu_isa_name(isa) << ": head_dim " << d << " tokens " << n;
+      }
     }
+}
+
+// The AMX kernel's packing, tiling and online softmax, on a model of the tiles (any CPU with
+// AVX2): within one bf16 step of the chunked bf16 form's error, across head sizes that pad to
+// whole tiles, queries past one task (64), keys past one block (512) and padded to whole tiles. (Where the CPU has AMX,
+// BFloat16IsAsCloseToFloat32AsTheChunkedForm runs the hardware's.)
+TEST(FusedCpuAttention, TheAmxKernelOnAModelOfTheTilesIsAsCloseAsTheChunkedForm) {
+  if (!cpu_features().has(CpuIsa::Avx2)) GTEST_SKIP() << "this CPU has no AVX2 (the model is compiled for it)";
+  torch::manual_seed(6);
+  for (int64_t d : {8, 40, 64, 128})
+    for (int64_t n : {1, 7, 65, 600}) {
+      const Qkv t = network_qkv(2, 3, n, d, 1.5, torch::kBFloat16);
+      const torch::Tensor exact = chunked_attention(t.q.to(torch::kFloat32), t.k.to(torch::kFloat32),
+                                                    t.v.to(torch::kFloat32));
+      const float chunked_error = max_abs(chunked_attention(t.q, t.k, t.v), exact);
+      const torch::Tensor modelled =
+          cpu_kernels::run_attention_kernel(t.q, t.k, t.v, test::attention_amx_bf16_on_tile_model);
+      ASSERT_EQ(modelled.scalar_type(), torch::kBFloat16);
+      EXPECT_EQ(test::tile_model_unconfigured_uses(), 0);
+      EXPECT_LT(max_abs(modelled, exact), chunked_error + 8e-3) << "head_dim " << d << " tokens " << n;
+    }
+}
+
+// The AMX kernel where the CPU has it, else the AVX-512 BF16 one: what the network runs.
+TEST(FusedCpuAttention, BFloat16UsesTheBestKernelOfThisCpu) {
+  if (!cpu_features().has(CpuIsa::Avx512Bf16)) GTEST_SKIP() << "this CPU has no AVX-512 BF16";
+  const auto x = torch::randn({1, 2, 10, 64}).to(torch::kBFloat16);
+  EXPECT_EQ(fused_cpu_attention_isa(x, x, x), cpu_features().isa);
 }
 
 TEST(FusedCpuAttention, FastestFormUsesItWithoutGradients) {
@@ -163,9 +198,10 @@ TEST(FusedCpuAttention, RefusesWhatItCannotRun) {
 TEST(CpuFeatures, LevelNames) {
   EXPECT_EQ(parse_cpu_isa("avx2", "X"), CpuIsa::Avx2);
   EXPECT_EQ(parse_cpu_isa("avx512_bf16", "X"), CpuIsa::Avx512Bf16);
+  EXPECT_EQ(parse_cpu_isa("amx", "X"), CpuIsa::Amx);
   EXPECT_EQ(test::error_message([] { parse_cpu_isa("sse9", "INSTAINPAINT_MAX_CPU_ISA"); }),
-            "INSTAINPAINT_MAX_CPU_ISA: unknown instruction set 'sse9' (expected baseline, avx2, avx512 or "
-            "avx512_bf16)");
+            "INSTAINPAINT_MAX_CPU_ISA: unknown instruction set 'sse9' (expected baseline, avx2, avx512, "
+            "avx512_bf16 or amx)");
 }
 
 }  // namespace

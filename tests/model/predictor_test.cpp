@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "data/scene.h"
+#include "model/cpu/dispatch.h"
 #include "model/default_model.h"
 #include "model/inference.h"
 #include "model/predictor.h"
@@ -41,6 +42,12 @@ TEST(Predictor, GivesWhatTheStepsItReplacesGive) {
   EXPECT_EQ(predictor.model_name(), kDefaultModelName);
   EXPECT_EQ(predictor.describe()["format"], "safetensors");
   EXPECT_EQ(predictor.describe()["config"], predictor.config().to_json());
+  // The CPU's instruction sets and the network's kernels for float32 on it (run.json, metrics.json).
+  const auto float_kernels = cpu_kernels::kernel_isa(torch::kFloat32);
+  EXPECT_EQ(predictor.describe()["cpu"],
+            (nlohmann::json{{"detected", cpu_isa_name(cpu_features().isa)},
+                            {"amx_bf16", cpu_features().amx_bf16},
+                            {"kernels", float_kernels ? cpu_isa_name(*float_kernels) : "none"}}));
   const Prediction p = predictor.predict(scene, two_views());
   ASSERT_EQ(p.maps.xyz.sizes(), (std::vector<int64_t>{1, 2, 3, 64, 80}));
   EXPECT_EQ(p.input.reference_source, "telea");

@@ -35,6 +35,13 @@ using simd::Avx2Float;
 constexpr int64_t round_up(int64_t x, int64_t to) { return (x + to - 1) / to * to; }
 inline int64_t smaller(int64_t a, int64_t b) { return a < b ? a : b; }
 inline float larger(float a, float b) { return a > b ? a : b; }
+// A float's bf16 bits, rounded to nearest even as LibTorch and vcvtneps2bf16 convert.
+inline uint16_t bf16_bits(float x) {
+  uint32_t bits;
+  __builtin_memcpy(&bits, &x, sizeof(bits));
+  bits += 0x7fffu + ((bits >> 16) & 1u);
+  return static_cast<uint16_t>(bits >> 16);
+}
 
 #if defined(__AVX512F__)
 struct Avx512Fp32 : Avx512Float {
@@ -79,13 +86,7 @@ struct Avx512Bf16 : Avx512Float {
     __builtin_memcpy(&f, &bits, sizeof(f));
     return f;
   }
-  // Round to nearest even, as LibTorch converts.
-  static In to_in(float x) {
-    uint32_t bits;
-    __builtin_memcpy(&bits, &x, sizeof(bits));
-    bits += 0x7fffu + ((bits >> 16) & 1u);
-    return static_cast<In>(bits >> 16);
-  }
+  static In to_in(float x) { return bf16_bits(x); }
 };
 #endif
 

@@ -33,6 +33,8 @@ constexpr int64_t kMaxHeadDim = 128;
 // bf16 inputs and output, bf16 dot products (vdpbf16ps), float softmax and accumulation.
 // Each returns false, computing nothing, when its packed copy of k and v cannot be allocated.
 bool attention_avx512_bf16(const AttentionProblem& problem, ParallelFor parallel);
+// The same with both matrix products on the AMX tiles (tdpbf16ps); softmax in AVX-512.
+bool attention_amx_bf16(const AttentionProblem& problem, ParallelFor parallel);
 // float inputs and output.
 bool attention_avx512_fp32(const AttentionProblem& problem, ParallelFor parallel);
 bool attention_avx2_fp32(const AttentionProblem& problem, ParallelFor parallel);
