@@ -57,8 +57,8 @@ class AmxAttention {
         tasks_per_slice_((problem.queries + kTaskRows - 1) / kTaskRows),
         scale_log2e_(problem.scale * 1.44269504088896341f) {
     const int64_t elements = pr_.batch * pr_.heads * keys_padded_ * dim_;
-    packed_k_ = allocate(elements);
-    packed_v_ = allocate(elements);
+    packed_k_ = aligned_elements<uint16_t>(elements);
+    packed_v_ = aligned_elements<uint16_t>(elements);
   }
   ~AmxAttention() {
     std::free(packed_k_);
@@ -77,22 +77,12 @@ class AmxAttention {
   }
 
  private:
-  static uint16_t* allocate(int64_t elements) {
-    const size_t bytes = static_cast<size_t>(round_up(elements * 2, 64));
-    return static_cast<uint16_t*>(std::aligned_alloc(64, bytes > 0 ? bytes : 64));
-  }
-
-  template <class T>
-  static T* at(T* base, const int64_t* strides, int64_t b, int64_t h) {
-    return base + b * strides[0] + h * strides[1];
-  }
-
   // k as panels of 16 keys, [panel][dim pair][key][2]: 16 dim pairs of a panel are the second
   // operand of q·kᵀ. v as [key pair][dim][2]: 16 key pairs x 16 dims are that of p·v.
   void pack(int64_t slice) {
     const int64_t b = slice / pr_.heads, h = slice % pr_.heads, d = pr_.head_dim;
-    const uint16_t* k = at(static_cast<const uint16_t*>(pr_.k), pr_.k_strides, b, h);
-    const uint16_t* v = at(static_cast<const uint16_t*>(pr_.v), pr_.v_strides, b, h);
+    const uint16_t* k = slice_at(static_cast<const uint16_t*>(pr_.k), pr_.k_strides, b, h);
+    const uint16_t* v = slice_at(static_cast<const uint16_t*>(pr_.v), pr_.v_strides, b, h);
     uint16_t* pk = packed_k_ + slice * keys_padded_ * dim_;
     uint16_t* pv = packed_v_ + slice * keys_padded_ * dim_;
     for (int64_t n = 0; n < keys_padded_; ++n) {
@@ -201,7 +191,8 @@ class AmxAttention {
     alignas(64) uint16_t probs[kGroup * kKeyBlock];
     float max[kTaskRows], sum[kTaskRows];
 
-    const uint16_t* qsrc = at(static_cast<const uint16_t*>(pr_.q), pr_.q_strides, b, h) + first * pr_.q_strides[2];
+    const uint16_t* qsrc =
+        slice_at(static_cast<const uint16_t*>(pr_.q), pr_.q_strides, b, h) + first * pr_.q_strides[2];
     for (int64_t r = 0; r < rows_padded; ++r) {
       for (int64_t x = 0; x < dim_; ++x) q[r * dim_ + x] = r < rows && x < d ? qsrc[r * pr_.q_strides[2] + x] : 0;
       for (int64_t x = 0; x < dim_; ++x) out[r * dim_ + x] = 0.0f;
@@ -224,7 +215,7 @@ class AmxAttention {
     }
     II_TILE_RELEASE();
 
-    uint16_t* dst = at(static_cast<uint16_t*>(pr_.out), pr_.out_strides, b, h) + first * pr_.out_strides[2];
+    uint16_t* dst = slice_at(static_cast<uint16_t*>(pr_.out), pr_.out_strides, b, h) + first * pr_.out_strides[2];
     for (int64_t r = 0; r < rows; ++r) {
       const float inv = 1.0f / sum[r];
       for (int64_t x = 0; x < d; ++x) dst[r * pr_.out_strides[2] + x] = Rows::to_in(out[r * dim_ + x] * inv);

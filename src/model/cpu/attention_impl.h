@@ -43,8 +43,8 @@ class Attention {
         tiles_((problem.queries + kTile - 1) / kTile),
         scale_log2e_(problem.scale * 1.44269504088896341f) {
     const int64_t slices = pr_.batch * pr_.heads;
-    packed_k_ = allocate(slices * keys_padded_ * dp_);
-    packed_v_ = allocate(slices * keys_padded_ * dv_);
+    packed_k_ = aligned_elements<In>(slices * keys_padded_ * dp_);
+    packed_v_ = aligned_elements<In>(slices * keys_padded_ * dv_);
   }
   ~Attention() {
     std::free(packed_k_);
@@ -63,23 +63,13 @@ class Attention {
   }
 
  private:
-  static In* allocate(int64_t elements) {
-    const size_t bytes = static_cast<size_t>(round_up(elements * static_cast<int64_t>(sizeof(In)), 64));
-    return static_cast<In*>(std::aligned_alloc(64, bytes > 0 ? bytes : 64));
-  }
-
-  template <class T>
-  static T* at(T* base, const int64_t* strides, int64_t b, int64_t h) {
-    return base + b * strides[0] + h * strides[1];
-  }
-
   // k into panels of W keys, [panel][step][key][pair]: the score microkernel loads one step of
   // W keys as one vector. v into [key pair][dim][pair]: the value microkernel loads W dims of
   // two consecutive keys as one vector.
   void pack(int64_t slice) {
     const int64_t b = slice / pr_.heads, h = slice % pr_.heads, d = pr_.head_dim;
-    const In* k = at(static_cast<const In*>(pr_.k), pr_.k_strides, b, h);
-    const In* v = at(static_cast<const In*>(pr_.v), pr_.v_strides, b, h);
+    const In* k = slice_at(static_cast<const In*>(pr_.k), pr_.k_strides, b, h);
+    const In* v = slice_at(static_cast<const In*>(pr_.v), pr_.v_strides, b, h);
     In* pk = packed_k_ + slice * keys_padded_ * dp_;
     In* pv = packed_v_ + slice * keys_padded_ * dv_;
     for (int64_t n = 0; n < keys_padded_; ++n) {
@@ -197,7 +187,7 @@ class Attention {
     alignas(64) In probs[SR * kBlock];
     float max[kTile], sum[kTile], alpha[SR];
 
-    const In* qsrc = at(static_cast<const In*>(pr_.q), pr_.q_strides, b, h) + first * pr_.q_strides[2];
+    const In* qsrc = slice_at(static_cast<const In*>(pr_.q), pr_.q_strides, b, h) + first * pr_.q_strides[2];
     for (int64_t r = 0; r < rows_padded; ++r) {
       for (int64_t x = 0; x < dp_; ++x) q[r * dp_ + x] = r < rows && x < d ? qsrc[r * pr_.q_strides[2] + x] : In(0);
       for (int64_t x = 0; x < dv_; ++x) out[r * dv_ + x] = 0.0f;
@@ -218,7 +208,7 @@ class Attention {
       }
     }
 
-    In* dst = at(static_cast<In*>(pr_.out), pr_.out_strides, b, h) + first * pr_.out_strides[2];
+    In* dst = slice_at(static_cast<In*>(pr_.out), pr_.out_strides, b, h) + first * pr_.out_strides[2];
     for (int64_t r = 0; r < rows; ++r) {
       const float inv = 1.0f / sum[r];
       for (int64_t x = 0; x < d; ++x) dst[r * pr_.out_strides[2] + x] = Isa::to_in(out[r * dv_ + x] * inv);

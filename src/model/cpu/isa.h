@@ -19,6 +19,7 @@
 #include <immintrin.h>
 
 #include <cstdint>
+#include <cstdlib>
 
 #include "common/simd_float.h"
 
@@ -35,6 +36,19 @@ using simd::Avx2Float;
 constexpr int64_t round_up(int64_t x, int64_t to) { return (x + to - 1) / to * to; }
 inline int64_t smaller(int64_t a, int64_t b) { return a < b ? a : b; }
 inline float larger(float a, float b) { return a > b ? a : b; }
+// `count` elements of T on a 64-byte boundary (std::free them), or nullptr.
+template <class T>
+T* aligned_elements(int64_t count) {
+  const size_t bytes = static_cast<size_t>(round_up(count * static_cast<int64_t>(sizeof(T)), 64));
+  return static_cast<T*>(std::aligned_alloc(64, bytes > 0 ? bytes : 64));
+}
+
+// Element (b, h, 0, 0) of a kernel's tensor (kernels.h: AttentionProblem's strides).
+template <class T>
+T* slice_at(T* base, const int64_t* strides, int64_t b, int64_t h) {
+  return base + b * strides[0] + h * strides[1];
+}
+
 // A float's bf16 bits, rounded to nearest even as LibTorch and vcvtneps2bf16 convert.
 inline uint16_t bf16_bits(float x) {
   uint32_t bits;
