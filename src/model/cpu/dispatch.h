@@ -32,9 +32,9 @@ inline std::optional<CpuIsa> kernel_isa(torch::ScalarType dtype) {
   return std::nullopt;
 }
 
-// What run.json and metrics.json record of the CPU: the instruction sets detected and the fused
-// kernels that the network's attention and norms use for inputs of `dtype` ("none": LibTorch's
-// chunked form and layer norm).
+// What run.json and metrics.json record of the CPU: the instruction sets detected and the kernel
+// set of the network's attention for inputs of `dtype` ("none": LibTorch's chunked form; the norms
+// take the same set, AVX-512 BF16's where it is AMX).
 inline nlohmann::json describe_cpu_kernels(torch::ScalarType dtype) {
   const std::optional<CpuIsa> isa = kernel_isa(dtype);
   return {{"detected", cpu_isa_name(cpu_features().isa)},

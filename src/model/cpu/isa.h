@@ -36,6 +36,7 @@ using simd::Avx2Float;
 constexpr int64_t round_up(int64_t x, int64_t to) { return (x + to - 1) / to * to; }
 inline int64_t smaller(int64_t a, int64_t b) { return a < b ? a : b; }
 inline float larger(float a, float b) { return a > b ? a : b; }
+
 // `count` elements of T on a 64-byte boundary (std::free them), or nullptr.
 template <class T>
 T* aligned_elements(int64_t count) {
