@@ -110,8 +110,6 @@ fi
 # ---- 3. configure and build ----------------------------------------------------------------
 # torch's own folder as the first prefix: its CMake files (share/cmake/Torch) and its libraries
 # (lib/) are found before any other LibTorch, Debian's included (cmake/torch_compat.cmake).
-launcher=()
-if command -v ccache > /dev/null; then launcher=(-DCMAKE_CUDA_COMPILER_LAUNCHER=ccache); fi
 say "configuring $build (CUDA architectures $archs)"
 if [ -f "$build/CMakeCache.txt" ] && ! grep -qx "Torch_DIR:PATH=$torch_root/share/cmake/Torch" "$build/CMakeCache.txt"; then
   say "$build was configured for another LibTorch: configuring it afresh"
@@ -122,7 +120,7 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_CUDA_COMPILER="$cuda_root/bin/nvcc" -DCUDAToolkit_ROOT="$cuda_root" -DCUDA_TOOLKIT_ROOT_DIR="$cuda_root" \
   -DTORCH_CUDA_ARCH_LIST="$archs" -DINSTAINPAINT_REQUIRE_CUDA=ON \
   -DCMAKE_EXE_LINKER_FLAGS="-Wl,--as-needed" -DCMAKE_MODULE_LINKER_FLAGS="-Wl,--as-needed" \
-  "${launcher[@]}" "${cmake_args[@]}" > "$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 1; }
+  "${cmake_args[@]}" > "$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 1; }
 grep -E "^-- (CUDA|LibTorch|Default model|Web page)" "$build/configure.log" || true
 say "building ($jobs jobs)"
 cmake --build "$build" -j "$jobs" "${targets[@]}"
