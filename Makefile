@@ -14,6 +14,8 @@ GPU_BUILD ?= build-gpu
 SHARED ?= ../shared
 
 FUZZ_SECONDS ?= 60
+# Each step says how long it took (CI's log shows where its time went).
+TIMED = $(CURDIR)/scripts/timed.sh
 
 .PHONY: all deps build demo test test-main san-build test-asan test-python python test-gpu-build fuzz bench clean
 
@@ -24,7 +26,7 @@ deps:
 
 build: deps
 	@cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release > /dev/null
-	@cmake --build $(BUILD) -j $(JOBS)
+	@$(TIMED) build cmake --build $(BUILD) -j $(JOBS)
 
 demo: build
 	@bash scripts/demo.sh $(BUILD)/instainpaint
@@ -32,29 +34,30 @@ demo: build
 test: test-main test-asan test-python
 
 test-main: build
-	@cd $(BUILD) && OMP_NUM_THREADS=$(TEST_THREADS) ctest --output-on-failure -j $(JOBS)
+	@cd $(BUILD) && OMP_NUM_THREADS=$(TEST_THREADS) $(TIMED) test-main ctest --output-on-failure -j $(JOBS)
 
 # Parsers, cameras and scene readers under AddressSanitizer + UndefinedBehaviorSanitizer,
 # built with clang so that the same build holds the libFuzzer targets (each runs briefly).
 san-build: deps
 	@cmake -S . -B $(SAN_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
 	  -DINSTAINPAINT_SANITIZE=ON > /dev/null
-	@cmake --build $(SAN_BUILD) -j $(JOBS)
+	@$(TIMED) san-build cmake --build $(SAN_BUILD) -j $(JOBS)
 
 test-asan: san-build
-	@cd $(SAN_BUILD) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 ctest --output-on-failure -j $(JOBS)
+	@cd $(SAN_BUILD) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	  $(TIMED) test-asan ctest --output-on-failure -j $(JOBS)
 
 # The Python package (pip install . into the project-local .venv-py) and its tests.
 python: build
 	@BUILD=$(BUILD) bash scripts/python-package.sh
 
 test-python: build
-	@BUILD=$(BUILD) OMP_NUM_THREADS=$(TEST_THREADS) bash scripts/python-package.sh --test
+	@BUILD=$(BUILD) OMP_NUM_THREADS=$(TEST_THREADS) $(TIMED) test-python bash scripts/python-package.sh --test
 
 # PyPI's torch + NVIDIA's CUDA compiler in the project-local .venv-gpu (pinned in
 # scripts/gpu/requirements.txt), the CUDA code compiled, every test run.
 test-gpu-build: deps
-	@JOBS=$(JOBS) bash scripts/gpu/build.sh --build $(GPU_BUILD) --test
+	@JOBS=$(JOBS) $(TIMED) test-gpu-build bash scripts/gpu/build.sh --build $(GPU_BUILD) --test
 
 # Every parser's fuzz target for FUZZ_SECONDS each (scripts/fuzz.sh --help).
 fuzz: san-build

@@ -9,6 +9,27 @@
 # folder uses LibTorch and shares the precompiled LibTorch header of the first such layer.
 set(II_LAYER_SCRIPT ${CMAKE_CURRENT_LIST_DIR}/check_layer.cmake)
 
+# A LibTorch translation unit pays seconds before any code of ours (the precompiled header's
+# 375 MB, LibTorch's templates instantiated again in each file): the LibTorch targets compile
+# their files in batches, one translation unit per batch (CMake's unity build; docs/benchmarks.md,
+# "CI on a fresh machine"). Files with options of their own (the kernels compiled for an
+# instruction set) stay alone, as CMake leaves them. Off for a quicker rebuild of one file.
+option(INSTAINPAINT_UNITY_BUILD "Compile the LibTorch targets' files in batches" ON)
+set(INSTAINPAINT_UNITY_BATCH_SIZE 8 CACHE STRING "Files per batch of a LibTorch target's unity build")
+#   ii_torch_target(<target>): the shared precompiled LibTorch header and the batches.
+function(ii_torch_target target)
+  get_property(pch_owner GLOBAL PROPERTY II_PCH_OWNER)
+  if(pch_owner)
+    target_precompile_headers(${target} REUSE_FROM ${pch_owner})
+  else()
+    target_precompile_headers(${target} PUBLIC ${PROJECT_SOURCE_DIR}/src/common/torch.h)
+    set_property(GLOBAL PROPERTY II_PCH_OWNER ${target})
+  endif()
+  if(INSTAINPAINT_UNITY_BUILD)
+    set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE ${INSTAINPAINT_UNITY_BATCH_SIZE})
+  endif()
+endfunction()
+
 function(ii_add_layer folder)
   cmake_parse_arguments(L "PCH" "" "DEPS;LIBS" ${ARGN})
   set(dir ${PROJECT_SOURCE_DIR}/src/${folder})
@@ -35,13 +56,7 @@ function(ii_add_layer folder)
   list(REMOVE_DUPLICATES allowed)
   set_property(GLOBAL PROPERTY II_LAYER_${folder} ${allowed})
   if(L_PCH AND sources)
-    get_property(pch_owner GLOBAL PROPERTY II_PCH_OWNER)
-    if(pch_owner)
-      target_precompile_headers(${target} REUSE_FROM ${pch_owner})
-    else()
-      target_precompile_headers(${target} PUBLIC ${PROJECT_SOURCE_DIR}/src/common/torch.h)
-      set_property(GLOBAL PROPERTY II_PCH_OWNER ${target})
-    endif()
+    ii_torch_target(${target})
   endif()
 
   string(REPLACE ";" "," allowed_list "${allowed}")

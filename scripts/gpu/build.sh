@@ -12,7 +12,10 @@
 #                  configuration ignores CMAKE_CUDA_ARCHITECTURES); default "8.0;9.0" (A100, H100/H200)
 #   --target T     build only target T (repeatable; default: everything)
 #   --cmake-arg A  one more argument to CMake's configuration (repeatable), e.g. -DINSTAINPAINT_PYTHON=ON
-#   --test         then run every test (those that need a GPU skip without one)
+#   --test         then run the tests whose code can differ between LibTorch versions and a smoke
+#                  run of every command (tests/pypi_build.list), and the Python package's tests
+#                  (those that need a GPU skip without one)
+#   --all-tests    the same with every test (the page's browser tests excepted)
 # Examples:
 #   scripts/gpu/build.sh --test                          # what `make test-gpu-build` runs
 #   scripts/gpu/build.sh --python ~/venvs/torch/bin/python  # against your own PyTorch
@@ -25,6 +28,7 @@ python=""
 build=build-gpu
 archs=${TORCH_CUDA_ARCH_LIST:-"8.0;9.0"}
 run_tests=0
+all_tests=0
 targets=()
 cmake_args=()
 while [ $# -gt 0 ]; do
@@ -35,6 +39,7 @@ while [ $# -gt 0 ]; do
     --target) targets+=(--target "$2"); shift 2 ;;
     --cmake-arg) cmake_args+=("$2"); shift 2 ;;
     --test) run_tests=1; shift ;;
+    --all-tests) run_tests=1; all_tests=1; shift ;;
     -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
     *) echo "gpu/build: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
@@ -54,7 +59,8 @@ if [ -z "$python" ]; then
   fi
   if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
     say "installing scripts/gpu/requirements.txt into $venv (PyPI's torch with CUDA, about 5 GB installed the first time; pip keeps the wheels in its cache)"
-    "$venv/bin/pip" install --quiet --disable-pip-version-check --only-binary=:all: -r "$requirements"
+    "$repo/scripts/timed.sh" "gpu/build: the PyPI packages" \
+      "$venv/bin/pip" install --quiet --disable-pip-version-check --only-binary=:all: -r "$requirements"
     echo "$want" > "$stamp"
   fi
   python=$venv/bin/python
@@ -123,7 +129,7 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   "${cmake_args[@]}" > "$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 1; }
 grep -E "^-- (CUDA|LibTorch|Default model|Web page)" "$build/configure.log" || true
 say "building ($jobs jobs)"
-cmake --build "$build" -j "$jobs" "${targets[@]}"
+"$repo/scripts/timed.sh" "gpu/build: the build" cmake --build "$build" -j "$jobs" "${targets[@]}"
 
 if readelf -d "$build/instainpaint" | grep -q 'libcuda\.so'; then
   say "$build/instainpaint needs libcuda.so: it would not start without a driver"
@@ -134,10 +140,13 @@ fi
 if [ "$run_tests" = 1 ]; then
   say "testing ($(command -v nvidia-smi > /dev/null && nvidia-smi -L | head -1 || echo 'no GPU: GPU tests skip'))"
   # One core's share per test (more oversubscribes, and time-budget tests miss their budget).
-  # The page's browser tests (-L browser: 4 minutes of Chromium under SwiftShader) run in the
-  # Debian build only: the page and what it asks of the server are the same in both builds.
+  # The tests whose code can differ between LibTorch versions, and a smoke run of every command
+  # (tests/pypi_build.list): the Debian build runs every test, and everything else compiles to
+  # the same behaviour in both builds. --all-tests runs every one here too (the page's browser
+  # tests excepted: the page and what it asks of the server are the same in both builds).
+  if [ "$all_tests" = 1 ]; then selection=(-LE browser); else selection=(-R "$(python3 "$repo/scripts/gpu/tests.py" --regex)"); fi
   cd "$build" && OMP_NUM_THREADS=${OMP_NUM_THREADS:-$(( $(nproc) / jobs > 1 ? $(nproc) / jobs : 1 ))} \
-    ctest --output-on-failure -j "$jobs" -LE browser
+    "$repo/scripts/timed.sh" "gpu/build: the tests" ctest --output-on-failure -j "$jobs" "${selection[@]}"
   # The Python package against this torch, imported beside it (only in our own environment:
   # a given --python may have no package index to install the build tools from).
   if [ -n "${venv:-}" ]; then
@@ -152,6 +161,6 @@ if [ "$run_tests" = 1 ]; then
       exit 1
     fi
     (cd python/tests && INSTAINPAINT_CLI="$build_dir/instainpaint" INSTAINPAINT_BUILD_DIR="$build_dir" \
-      "$python" -m pytest -q .)
+      "$repo/scripts/timed.sh" "gpu/build: the Python package's tests" "$python" -m pytest -q .)
   fi
 fi

@@ -1,6 +1,10 @@
 #pragma once
 // Each subcommand registers itself on the app; the command bodies are thin wrappers over
 // the library.
+#include <filesystem>
+#include <optional>
+#include <string>
+
 #include <CLI/CLI.hpp>
 
 #include "data/scene.h"
@@ -21,6 +25,12 @@ void add_train_command(CLI::App& app);
 void add_masks_command(CLI::App& app);
 void add_serve_command(CLI::App& app);
 void add_fill_command(CLI::App& app);
+
+// An optional file option's value: none when it was left empty.
+inline std::optional<std::filesystem::path> optional_path(const std::string& s) {
+  if (s.empty()) return std::nullopt;
+  return std::filesystem::path(s);
+}
 
 // Options shared by every command that reads a scene.
 void add_scene_options(CLI::App* cmd, std::string& scene_dir, SceneOptions& options);

@@ -36,11 +36,6 @@ struct EvalArgs {
   RuntimeOptions runtime;
 };
 
-std::optional<std::filesystem::path> optional_path(const std::string& s) {
-  if (s.empty()) return std::nullopt;
-  return std::filesystem::path(s);
-}
-
 std::string shown(const nlohmann::json& v, int decimals) {
   if (v.is_number()) return fmt::format("{:.{}f}", v.get<double>(), decimals);
   if (v.is_string()) return v.get<std::string>();

@@ -14,11 +14,6 @@ struct MetricsArgs {
   bool json = false;
 };
 
-std::optional<std::filesystem::path> optional_path(const std::string& s) {
-  if (s.empty()) return std::nullopt;
-  return std::filesystem::path(s);
-}
-
 std::string shown(const nlohmann::json& v) {
   if (v.is_number()) return fmt::format("{:.6f}", v.get<double>());
   if (v.is_string()) return v.get<std::string>();

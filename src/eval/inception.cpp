@@ -6,6 +6,7 @@
 #include <fmt/ranges.h>
 
 #include "common/error.h"
+#include "eval/weights.h"
 
 namespace ii {
 
@@ -79,12 +80,6 @@ torch::Tensor avg_pool_same(const torch::Tensor& x) {
 }
 torch::Tensor max_pool(const torch::Tensor& x, int64_t stride, int64_t padding = 0) {
   return F::max_pool2d(x, F::MaxPool2dFuncOptions(3).stride(stride).padding(padding));
-}
-
-std::optional<fs::path> env_path(const char* name) {
-  const char* value = std::getenv(name);
-  if (!value || !*value) return std::nullopt;
-  return fs::path(value);
 }
 
 }  // namespace

@@ -72,12 +72,6 @@ torch::Tensor normalize_channels(const torch::Tensor& x) {
   return x / (norm + 1e-10);
 }
 
-std::optional<fs::path> env_path(const char* name) {
-  const char* value = std::getenv(name);
-  if (!value || !*value) return std::nullopt;
-  return fs::path(value);
-}
-
 }  // namespace
 
 const char* lpips_net_name(LpipsNet net) { return net == LpipsNet::vgg ? "vgg" : "alex"; }

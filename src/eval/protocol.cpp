@@ -46,12 +46,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // JSON has no infinity: +inf (identical images' PSNR) is written as the string "inf", NaN
 // (a metric undefined for this view) as null.
-json number(double v) {
-  if (std::isnan(v)) return nullptr;
-  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  return v;
-}
-
 // The metric networks: each either loaded or unavailable with the reason.
 struct MetricNetworks {
   std::optional<Lpips> lpips_vgg, lpips_alex;
@@ -109,10 +103,10 @@ json own_views(const Prediction& p, const GaussianSet& g) {
     if (view.mask) outside = (image_to_tensor(*view.mask) <= 0.5).to(torch::kFloat32);
     const double db = masked_psnr(rendered, photo, outside)[0].item<double>();
     sum += db;
-    views.push_back({{"view", view.name}, {"psnr_outside_mask", number(db)}});
+    views.push_back({{"view", view.name}, {"psnr_outside_mask", metric_json(db)}});
   }
   return {{"views", views},
-          {"mean_psnr_outside_mask", number(sum / static_cast<double>(p.input.views.size()))},
+          {"mean_psnr_outside_mask", metric_json(sum / static_cast<double>(p.input.views.size()))},
           {"definition", "each context view's own Gaussians rendered at its camera against its working image "
                          "outside its mask (the reference: against the picture the network saw)"}};
 }
@@ -225,13 +219,13 @@ void distribution_metrics(const std::vector<std::vector<float>>& real, const std
     return;
   }
   const FeatureMatrix x = to_matrix(real), y = to_matrix(fake);
-  set[fid_key] = number(frechet_distance(x, y));
+  set[fid_key] = metric_json(frechet_distance(x, y));
   KidOptions ko;
   // With sets no larger than one subset every subset is the whole set: one suffices.
   if (std::min(x.rows(), y.rows()) <= ko.subset_size) ko.subsets = 1;
   const KidResult kid = kernel_inception_distance(x, y, ko);
-  set[kid_key] = number(kid.mean);
-  set[kid_key + "_std"] = number(kid.std);
+  set[kid_key] = metric_json(kid.mean);
+  set[kid_key + "_std"] = metric_json(kid.std);
   set[kid_key + "_subsets"] = kid.subsets;
   set[kid_key + "_subset_size"] = kid.subset_size;
 }
@@ -661,7 +655,7 @@ TestViewResults evaluate_test_views(const EvalRun& r, const MetricNetworks& nets
       }
       return;
     }
-    v[key] = number(value);
+    v[key] = metric_json(value);
     results.means[key].add(value);
   };
   std::optional<MeasuredView> measured;
@@ -728,7 +722,7 @@ json mean_metrics(const std::map<std::string, Averager>& means, json& unavailabl
   for (const char* key : {"psnr", "ssim", "masked_psnr", "masked_ssim", "outside_psnr", "outside_ssim", "box_psnr",
                           "box_ssim", "lpips", "masked_lpips", "lpips_alex"}) {
     if (means.count(key))
-      mean[key] = number(means.at(key).mean());
+      mean[key] = metric_json(means.at(key).mean());
     else if (unavailable.contains(key))
       mean[key] = nullptr;
   }

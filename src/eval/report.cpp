@@ -13,6 +13,12 @@
 
 namespace ii {
 
+nlohmann::json metric_json(double value) {
+  if (std::isnan(value)) return nullptr;
+  if (std::isinf(value)) return value > 0 ? "inf" : "-inf";
+  return value;
+}
+
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 

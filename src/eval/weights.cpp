@@ -1,5 +1,7 @@
 #include "eval/weights.h"
 
+#include <cstdlib>
+
 #include <fmt/ranges.h>
 
 #include "common/error.h"
@@ -8,6 +10,12 @@
 namespace ii {
 
 namespace fs = std::filesystem;
+
+std::optional<fs::path> env_path(const char* name) {
+  const char* value = std::getenv(name);
+  if (!value || !*value) return std::nullopt;
+  return fs::path(value);
+}
 
 WeightMap read_weight_file(const fs::path& path) {
   if (!fs::is_regular_file(path)) fail_file(path, "no such weight file");

@@ -5,6 +5,7 @@
 // the content, not the extension.
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,9 @@ using WeightMap = std::map<std::string, torch::Tensor>;
 
 // Every tensor of the file as float32 on the CPU, under its dotted key.
 WeightMap read_weight_file(const std::filesystem::path& path);
+
+// The path in environment variable `name`, when it is set and not empty (weight files' locations).
+std::optional<std::filesystem::path> env_path(const char* name);
 
 // weights[key], checked against `shape`. Errors: "<file>: no tensor KEY (HINT)" and
 // "<file>: KEY has shape [..], expected [..] (HINT)".

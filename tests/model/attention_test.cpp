@@ -8,6 +8,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace attention_test {
 
 float max_abs(const torch::Tensor& a, const torch::Tensor& b) {
   return static_cast<float>((a.to(torch::kFloat64) - b.to(torch::kFloat64)).abs().max().item<double>());
@@ -204,5 +206,6 @@ TEST(CpuFeatures, LevelNames) {
             "avx512_bf16 or amx)");
 }
 
+}  // namespace attention_test
 }  // namespace
 }  // namespace ii

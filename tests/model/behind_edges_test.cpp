@@ -18,6 +18,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace behind_edges_test {
 
 constexpr int kW = 24, kH = 16;
 constexpr int kLeft = 8, kRight = 15, kTop = 4, kBottom = 11;  // the near square, inclusive
@@ -181,5 +183,6 @@ TEST(BehindEdges, APredictionJoinsThemAfterTheMarginAndRecordsThem) {
   EXPECT_TRUE(torch::equal(joined_with.means.narrow(0, before, kept), with.behind_edges.means));
 }
 
+}  // namespace behind_edges_test
 }  // namespace
 }  // namespace ii

@@ -17,6 +17,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace depth_alignment_test {
 
 constexpr int kW = 32, kH = 24;
 
@@ -264,5 +266,6 @@ TEST(DepthAlignment, WithoutDepthMapsTheScenesPointsAreTriangulatedFromItsPhotos
   EXPECT_LT(errors[errors.size() / 2], 0.03) << origin.description;
 }
 
+}  // namespace depth_alignment_test
 }  // namespace
 }  // namespace ii

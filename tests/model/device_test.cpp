@@ -14,6 +14,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace device_test {
 
 float max_abs(const torch::Tensor& a, const torch::Tensor& b) {
   EXPECT_EQ(a.sizes(), b.sizes());
@@ -199,5 +201,6 @@ TEST(NetworkCuda, GraphReplayEqualsEagerAndFollowsNewInputs) {
             "CUDA graph: input of shape [1, 1, 4, 16, 24] given, the graph was captured for [1, 2, 4, 16, 24]");
 }
 
+}  // namespace device_test
 }  // namespace
 }  // namespace ii

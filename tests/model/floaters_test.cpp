@@ -17,6 +17,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace floaters_test {
 
 constexpr int kW = 16, kH = 12, kViews = 2;
 constexpr int kTop = 5, kLeft = 7, kSize = 2;  // the flying square in the first view
@@ -109,5 +111,6 @@ TEST(Floaters, APredictionRecordsThem) {
   EXPECT_TRUE(torch::allclose(faded.maps.opacity.index({changed}), kept.maps.opacity.index({changed}) * 0.3));
 }
 
+}  // namespace floaters_test
 }  // namespace
 }  // namespace ii

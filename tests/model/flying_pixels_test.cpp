@@ -10,6 +10,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace flying_pixels_test {
 
 using torch::indexing::Slice;
 
@@ -100,5 +102,6 @@ TEST(FlyingPixels, BadSettingsAndSizesAreNamed) {
   }
 }
 
+}  // namespace flying_pixels_test
 }  // namespace
 }  // namespace ii

@@ -18,6 +18,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace frame_margin_test {
 
 constexpr int kW = 12, kH = 8, kViews = 2;
 
@@ -236,5 +238,6 @@ TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
   EXPECT_EQ(without.describe_geometry()["frame_margin"]["gaussians"], 0);
 }
 
+}  // namespace frame_margin_test
 }  // namespace
 }  // namespace ii

@@ -5,6 +5,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace layer_norm_test {
 
 double max_abs(const torch::Tensor& a, const torch::Tensor& b) {
   return (a.to(torch::kFloat64) - b.to(torch::kFloat64)).abs().max().item<double>();
@@ -52,5 +54,6 @@ TEST(AddLayerNorm, GradientsUseLibTorch) {
   EXPECT_TRUE(x.grad().defined());
 }
 
+}  // namespace layer_norm_test
 }  // namespace
 }  // namespace ii

@@ -18,6 +18,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace parity_test {
 
 float max_abs(const torch::Tensor& a, const torch::Tensor& b) {
   EXPECT_EQ(a.sizes(), b.sizes());
@@ -129,5 +131,6 @@ TEST(ReleaseLayout, EveryReleaseKeyLoadsIntoTheReleasePreset) {
   EXPECT_NO_THROW(net.load(state, path.string()));
 }
 
+}  // namespace parity_test
 }  // namespace
 }  // namespace ii

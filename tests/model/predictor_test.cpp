@@ -11,6 +11,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace predictor_test {
 
 namespace fs = std::filesystem;
 
@@ -171,5 +173,6 @@ TEST(Predictor, BadCheckpointIsAClearError) {
             std::string::npos);
 }
 
+}  // namespace predictor_test
 }  // namespace
 }  // namespace ii

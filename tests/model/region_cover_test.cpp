@@ -16,6 +16,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace region_cover_test {
 
 constexpr int kW = 16, kH = 12;
 
@@ -107,5 +109,6 @@ TEST(RegionCover, APredictionJoinsItAfterThePixelsAndRecordsIt) {
   EXPECT_EQ(predictor.predict(scene, options).region_cover.size(), 0);
 }
 
+}  // namespace region_cover_test
 }  // namespace
 }  // namespace ii

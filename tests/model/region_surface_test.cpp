@@ -17,6 +17,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace region_surface_test {
 
 using torch::indexing::None;
 using torch::indexing::Slice;
@@ -181,5 +183,6 @@ TEST(RegionSurface, APredictionPutsTheReferencesRegionOnTheSurfaceAroundIt) {
   EXPECT_EQ(predictor.predict(scene, options).describe_geometry()["region_surface"]["gaussians"], 0);
 }
 
+}  // namespace region_surface_test
 }  // namespace
 }  // namespace ii

@@ -17,6 +17,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace stereo_depth_test {
 
 struct Views {
   std::vector<Image> photos;
@@ -154,5 +156,6 @@ TEST(StereoDepth, APredictionWithoutDepthMapsLiesOnTheSurfaceThePhotosMeasure) {
   EXPECT_EQ(off["gaussians"], 0);
 }
 
+}  // namespace stereo_depth_test
 }  // namespace
 }  // namespace ii

@@ -10,6 +10,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace cuda_test {
 
 #define II_REQUIRE_CUDA_RASTERIZER() \
   II_REQUIRE_CUDA();                  \
@@ -98,5 +100,6 @@ TEST(RenderCuda, DegenerateAndEmpty) {
   compare(test::random_scene(5, -1, torch::kFloat32, 6), test::opencv_camera(1, 1, 1, Eigen::Vector3d(0, 0, -4)));
 }
 
+}  // namespace cuda_test
 }  // namespace
 }  // namespace ii

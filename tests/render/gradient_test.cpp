@@ -8,6 +8,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace gradient_test {
 
 std::vector<torch::Tensor*> params(GaussianSet& g) {
   return {&g.means, &g.quats, &g.scales, &g.opacities, &g.colors};
@@ -179,5 +181,6 @@ TEST(RenderGradient, ThroughConversions) {
   EXPECT_GT(op.grad().abs().sum().item<double>(), 0);
 }
 
+}  // namespace gradient_test
 }  // namespace
 }  // namespace ii

@@ -14,6 +14,8 @@
 
 namespace ii::synth {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace synth_scene_test {
 
 SynthOptions tiny(ObjectSource source = ObjectSource::procedural) {
   SynthOptions o;
@@ -229,5 +231,6 @@ TEST(DegradeReference, ChangesOnlyAroundTheMaskAndIsDeterministic) {
   }
 }
 
+}  // namespace synth_scene_test
 }  // namespace
 }  // namespace ii::synth

@@ -12,6 +12,8 @@
 
 namespace ii::synth {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace synth_writer_test {
 
 namespace fs = std::filesystem;
 
@@ -215,5 +217,6 @@ TEST(SynthScene, SeveralObjectsStandApart) {
             "synth: several objects are procedural: use --object procedural or mixed");
 }
 
+}  // namespace synth_writer_test
 }  // namespace
 }  // namespace ii::synth

@@ -13,6 +13,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace checkpoint_test {
 
 namespace fs = std::filesystem;
 
@@ -149,5 +151,6 @@ TEST(TrainingCheckpoint, RejectsAnotherModelOrAModelFile) {
                 ": is not a training checkpoint (format 'instainpaint'); to start from a model's weights use --init");
 }
 
+}  // namespace checkpoint_test
 }  // namespace
 }  // namespace ii

@@ -16,6 +16,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace distributed_test {
 
 namespace fs = std::filesystem;
 
@@ -145,5 +147,6 @@ TEST(DataParallel, EnvironmentIsChecked) {
   EXPECT_FALSE(DistributedConfig::from_environment().enabled());
 }
 
+}  // namespace distributed_test
 }  // namespace
 }  // namespace ii

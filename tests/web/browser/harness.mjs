@@ -9,6 +9,10 @@ import { join, resolve } from "node:path";
 
 export const cli = resolve(process.argv[2] ?? "build/instainpaint");
 export const chromiumPath = process.env.CHROMIUM ?? "/usr/bin/chromium";
+// INSTAINPAINT_MEASURE=1: also take the page's timings (load to first frame over an emulated
+// link, frame rates), which the tests only print: a benchmark's work, kept out of CI's runs
+// (scripts/measure-page.sh).
+export const measure = process.env.INSTAINPAINT_MEASURE === "1";
 const require = createRequire(resolve("web/package.json"));
 
 export function skipUnlessReady() {
