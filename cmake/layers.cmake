@@ -11,11 +11,12 @@ set(II_LAYER_SCRIPT ${CMAKE_CURRENT_LIST_DIR}/check_layer.cmake)
 
 # A LibTorch translation unit pays seconds before any code of ours (the precompiled header's
 # 375 MB, LibTorch's templates instantiated again in each file): the LibTorch targets compile
-# their files in batches, one translation unit per batch (CMake's unity build; docs/benchmarks.md,
+# their files in batches, one translation unit per batch (a unity build; docs/benchmarks.md,
 # "CI on a fresh machine"). Files with options of their own (the kernels compiled for an
-# instruction set) stay alone, as CMake leaves them. Off for a quicker rebuild of one file.
+# instruction set) stay alone. Off for a quicker rebuild of one file.
 option(INSTAINPAINT_UNITY_BUILD "Compile the LibTorch targets' files in batches" ON)
 set(INSTAINPAINT_UNITY_BATCH_SIZE 8 CACHE STRING "Files per batch of a LibTorch target's unity build")
+
 #   ii_torch_target(<target>): the shared precompiled LibTorch header and the batches.
 function(ii_torch_target target)
   get_property(pch_owner GLOBAL PROPERTY II_PCH_OWNER)
@@ -25,8 +26,64 @@ function(ii_torch_target target)
     target_precompile_headers(${target} PUBLIC ${PROJECT_SOURCE_DIR}/src/common/torch.h)
     set_property(GLOBAL PROPERTY II_PCH_OWNER ${target})
   endif()
-  if(INSTAINPAINT_UNITY_BUILD)
+  if(NOT INSTAINPAINT_UNITY_BUILD)
+    return()
+  endif()
+  if(CMAKE_VERSION VERSION_LESS 3.19)  # no deferred calls: CMake's own batches
     set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE ${INSTAINPAINT_UNITY_BATCH_SIZE})
+  else()
+    # At the end of the configuration, when every file's own options are known.
+    # (EVAL: a deferred call's arguments are otherwise read when it runs, not now.)
+    cmake_language(EVAL CODE "cmake_language(DEFER DIRECTORY [[${PROJECT_SOURCE_DIR}]] CALL ii_unity_batches [[${target}]])")
+  endif()
+endfunction()
+
+# The batches are written here rather than by CMake's UNITY_BUILD, whose batch files include
+# each source by its absolute path: a clone in another folder (CI's) compiled other text and
+# missed every compiler-cache entry of the first. These include each source relative to the
+# checkout, which is on the batch's include path, a path that ccache's CCACHE_BASEDIR makes
+# relative: every clone compiles the same text. A batch is rewritten only when its files change.
+function(ii_unity_batches target)
+  get_target_property(sources ${target} SOURCES)
+  get_target_property(dir ${target} SOURCE_DIR)
+  set(batched)
+  set(text "")
+  set(count 0)
+  set(index 0)
+  list(APPEND sources "<end>")
+  foreach(source ${sources})
+    if(NOT source STREQUAL "<end>")
+      get_filename_component(path ${source} ABSOLUTE BASE_DIR ${dir})
+      if(NOT path MATCHES "\\.cpp$")
+        continue()
+      endif()
+      set(alone OFF)  # files with options of their own are compiled alone, as CMake's unity build does
+      foreach(property COMPILE_OPTIONS COMPILE_DEFINITIONS COMPILE_FLAGS INCLUDE_DIRECTORIES SKIP_UNITY_BUILD_INCLUSION)
+        get_source_file_property(value ${path} DIRECTORY ${dir} ${property})
+        if(value)
+          set(alone ON)
+        endif()
+      endforeach()
+      if(alone)
+        continue()
+      endif()
+      file(RELATIVE_PATH relative ${PROJECT_SOURCE_DIR} ${path})
+      string(APPEND text "#include \"${relative}\"\n")
+      list(APPEND batched ${path})
+      math(EXPR count "${count} + 1")
+    endif()
+    if(count GREATER 0 AND (count EQUAL INSTAINPAINT_UNITY_BATCH_SIZE OR source STREQUAL "<end>"))
+      set(batch ${CMAKE_BINARY_DIR}/unity/${target}_${index}.cpp)
+      file(CONFIGURE OUTPUT ${batch} CONTENT "// ${target}'s batch ${index} (cmake/layers.cmake)\n${text}" @ONLY)
+      target_sources(${target} PRIVATE ${batch})
+      set_source_files_properties(${batch} DIRECTORY ${dir} PROPERTIES INCLUDE_DIRECTORIES ${PROJECT_SOURCE_DIR})
+      math(EXPR index "${index} + 1")
+      set(text "")
+      set(count 0)
+    endif()
+  endforeach()
+  if(batched)
+    set_source_files_properties(${batched} DIRECTORY ${dir} PROPERTIES HEADER_FILE_ONLY ON)
   endif()
 endfunction()
 
