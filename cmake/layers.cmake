@@ -9,15 +9,16 @@
 # folder uses LibTorch and shares the precompiled LibTorch header of the first such layer.
 set(II_LAYER_SCRIPT ${CMAKE_CURRENT_LIST_DIR}/check_layer.cmake)
 
-# A LibTorch translation unit pays seconds before any code of ours (the precompiled header's
-# 375 MB, LibTorch's templates instantiated again in each file): the LibTorch targets compile
-# their files in batches, one translation unit per batch (a unity build; docs/benchmarks.md,
-# "CI on a fresh machine"). Files with options of their own (the kernels compiled for an
-# instruction set) stay alone. Off for a quicker rebuild of one file.
-option(INSTAINPAINT_UNITY_BUILD "Compile the LibTorch targets' files in batches" ON)
-set(INSTAINPAINT_UNITY_BATCH_SIZE 8 CACHE STRING "Files per batch of a LibTorch target's unity build")
+# A translation unit pays seconds before any code of ours (LibTorch's precompiled header, 375 MB;
+# OpenCV's, Eigen's and the standard library's templates instantiated again in each file): every
+# folder's files compile in batches, one translation unit per batch (a unity build;
+# docs/benchmarks.md, "CI on a fresh machine": two batches of 8 LibTorch test files took 32 s,
+# one of 16 took 22). Files with options of their own (the kernels compiled for an instruction
+# set) stay alone. Off for a quicker rebuild of one file.
+option(INSTAINPAINT_UNITY_BUILD "Compile each folder's files in batches" ON)
+set(INSTAINPAINT_UNITY_BATCH_SIZE 32 CACHE STRING "Files per batch of a unity build")
 
-#   ii_torch_target(<target>): the shared precompiled LibTorch header and the batches.
+#   ii_torch_target(<target>): the shared precompiled LibTorch header, and the batches.
 function(ii_torch_target target)
   get_property(pch_owner GLOBAL PROPERTY II_PCH_OWNER)
   if(pch_owner)
@@ -26,6 +27,11 @@ function(ii_torch_target target)
     target_precompile_headers(${target} PUBLIC ${PROJECT_SOURCE_DIR}/src/common/torch.h)
     set_property(GLOBAL PROPERTY II_PCH_OWNER ${target})
   endif()
+  ii_unity(${target})
+endfunction()
+
+#   ii_unity(<target>): the target's files in batches.
+function(ii_unity target)
   if(NOT INSTAINPAINT_UNITY_BUILD)
     return()
   endif()
@@ -114,6 +120,8 @@ function(ii_add_layer folder)
   set_property(GLOBAL PROPERTY II_LAYER_${folder} ${allowed})
   if(L_PCH AND sources)
     ii_torch_target(${target})
+  elseif(sources)
+    ii_unity(${target})
   endif()
 
   string(REPLACE ";" "," allowed_list "${allowed}")

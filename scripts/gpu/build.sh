@@ -146,7 +146,7 @@ if [ "$run_tests" = 1 ]; then
   # tests excepted: the page and what it asks of the server are the same in both builds).
   if [ "$all_tests" = 1 ]; then selection=(-LE browser); else selection=(-R "$(python3 "$repo/scripts/gpu/tests.py" --regex)"); fi
   cd "$build" && OMP_NUM_THREADS=${OMP_NUM_THREADS:-$(( $(nproc) / jobs > 1 ? $(nproc) / jobs : 1 ))} \
-    "$repo/scripts/timed.sh" "gpu/build: the tests" ctest --output-on-failure -j "$jobs" "${selection[@]}"
+    "$repo/scripts/timed.sh" "gpu/build: the tests" ctest --output-on-failure --no-tests=error -j "$jobs" "${selection[@]}"
   # The Python package against this torch, imported beside it (only in our own environment:
   # a given --python may have no package index to install the build tools from).
   if [ -n "${venv:-}" ]; then

@@ -56,18 +56,37 @@ def check(build_dir):
                         "kernel) but no line names it: add the tests that cover it")
     listed = subprocess.run(["ctest", "-N"], cwd=build_dir, capture_output=True, text=True, check=True).stdout
     tests = re.findall(r"Test +#\d+: (\S+)", listed)
+    def listed_by(prefix):
+        return {test for test in tests if test == prefix or test.startswith(prefix + ".")}
+
+    wanted = set()
     for number, prefix, _ in groups:
-        if not any(test == prefix or test.startswith(prefix + ".") for test in tests):
+        if not listed_by(prefix):
             problems.append(f"{LIST}:{number}: the prefix '{prefix}' matches no test of {build_dir}")
+        wanted |= listed_by(prefix)
+    # What ctest itself selects with the expression build.sh gives it (ctest runs nothing, and
+    # succeeds, when it cannot compile an expression).
+    selected = subprocess.run(["ctest", "-N", "-R", regex()], cwd=build_dir, capture_output=True, text=True,
+                              check=True).stdout
+    selected = set(re.findall(r"Test +#\d+: (\S+)", selected))
+    if selected != wanted:
+        problems.append(f"ctest -R selects {len(selected)} tests, the list names {len(wanted)}: "
+                        f"{sorted(selected ^ wanted)[:5]}")
     for problem in problems:
         print(problem)
     return 1 if problems else 0
 
 
+def regex():
+    # ctest's own regular expressions (no more than 9 groups, so none): a prefix is a whole
+    # name or a name's first parts.
+    names = [prefix.replace(".", "[.]") for _, prefix, _ in read_list()]
+    return "|".join(f"^{name}$|^{name}[.]" for name in names)
+
+
 def main():
     if len(sys.argv) == 2 and sys.argv[1] == "--regex":
-        # ctest's own regular expressions: a prefix is a whole name or a name's first parts.
-        print("|".join(f"^{prefix.replace('.', '[.]')}([.]|$)" for _, prefix, _ in read_list()))
+        print(regex())
         return 0
     if len(sys.argv) == 3 and sys.argv[1] == "--check":
         return check(sys.argv[2])

@@ -46,7 +46,7 @@ std::string shape_text(const std::vector<int64_t>& shape) {
 // The header is a Python dict literal, e.g. {'descr': '<f8', 'fortran_order': False,
 // 'shape': (20, 17), }. numpy writes exactly these three keys; a small strict parser is
 // safer than evaluating or pattern-matching it.
-struct Header {
+struct NpyHeader {
   std::optional<std::string> descr;
   std::optional<bool> fortran;
   std::optional<std::vector<int64_t>> shape;
@@ -56,8 +56,8 @@ class HeaderParser {
  public:
   HeaderParser(std::string_view text, const fs::path& path) : s_(text), path_(path) {}
 
-  Header parse() {
-    Header h;
+  NpyHeader parse() {
+    NpyHeader h;
     skip_ws();
     expect('{');
     while (true) {
@@ -254,7 +254,7 @@ NpyArray read_npy(const fs::path& path) {
     fail_file(path, "unsupported .npy format version {}.{} (1.0, 2.0 and 3.0 are read)", major, minor);
   const size_t header_len = major == 1 ? r.read<uint16_t>("header length") : r.read<uint32_t>("header length");
   const std::string text = r.read_string(header_len, "header");
-  const Header h = HeaderParser(text, path).parse();
+  const NpyHeader h = HeaderParser(text, path).parse();
   if (!h.descr) fail_file(path, "header has no 'descr' entry");
   if (!h.fortran) fail_file(path, "header has no 'fortran_order' entry");
   if (!h.shape) fail_file(path, "header has no 'shape' entry");

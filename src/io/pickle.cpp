@@ -642,7 +642,7 @@ class Unpickler {
   bool ok_ = false;
 };
 
-float half_to_float(uint16_t h) {
+float pickle_half_to_float(uint16_t h) {
   const uint32_t sign = static_cast<uint32_t>(h & 0x8000) << 16;
   const uint32_t exponent = (h >> 10) & 0x1f, mantissa = h & 0x3ff;
   float f;
@@ -776,7 +776,7 @@ std::vector<float> PthTensor::to_float() const {
   for (size_t i = 0; i < n; ++i, p += item) {
     if (dtype == "F32") out[i] = load<float>(p);
     else if (dtype == "F64") out[i] = static_cast<float>(load<double>(p));
-    else if (dtype == "F16") out[i] = half_to_float(load<uint16_t>(p));
+    else if (dtype == "F16") out[i] = pickle_half_to_float(load<uint16_t>(p));
     else if (dtype == "BF16") {
       const uint32_t bits = static_cast<uint32_t>(load<uint16_t>(p)) << 16;
       std::memcpy(&out[i], &bits, sizeof bits);

@@ -97,7 +97,7 @@ struct Element {
   }
 };
 
-struct Header {
+struct PlyHeader {
   bool ascii = false;
   std::vector<Element> elements;
   size_t body_offset = 0;
@@ -109,7 +109,7 @@ struct Header {
   }
 };
 
-// Header lines go into error messages: keep them short and printable.
+// PlyHeader lines go into error messages: keep them short and printable.
 std::string printable(std::string_view s) {
   std::string out;
   for (char c : s.substr(0, 80)) out += (c >= 32 && c < 127) ? c : '?';
@@ -129,14 +129,14 @@ std::vector<std::string> split(std::string_view line) {
   return out;
 }
 
-Header parse_header(const std::vector<uint8_t>& bytes, const fs::path& path) {
+PlyHeader parse_header(const std::vector<uint8_t>& bytes, const fs::path& path) {
   const std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   size_t pos;
   if (text.substr(0, 4) == "ply\n") pos = 4;
   else if (text.substr(0, 5) == "ply\r\n") pos = 5;
   else fail_file(path, "not a PLY file (missing 'ply' magic)");
 
-  Header h;
+  PlyHeader h;
   bool have_format = false;
   while (true) {
     const size_t nl = text.find('\n', pos);
@@ -206,7 +206,7 @@ Header parse_header(const std::vector<uint8_t>& bytes, const fs::path& path) {
 
 // Walks a binary body: records where each fixed-row element starts and checks that every
 // element fits in the file before anything is allocated.
-void walk_binary(Header& h, const std::vector<uint8_t>& bytes, const fs::path& path) {
+void walk_binary(PlyHeader& h, const std::vector<uint8_t>& bytes, const fs::path& path) {
   ByteReader r(bytes.data(), bytes.size(), path);
   r.seek(h.body_offset, "PLY body");
   for (Element& e : h.elements) {
@@ -351,7 +351,7 @@ double unorm(uint32_t v, int bits) {
 double lerp(float a, float b, double t) { return static_cast<double>(a) * (1.0 - t) + static_cast<double>(b) * t; }
 
 
-SplatCloud read_compressed(const Header& h, const Element& vertex, const std::vector<uint8_t>& bytes,
+SplatCloud read_compressed(const PlyHeader& h, const Element& vertex, const std::vector<uint8_t>& bytes,
                            const fs::path& path) {
   const size_t n = vertex.count;
   const std::vector<int> packed = require(vertex, {"packed_position", "packed_rotation", "packed_scale", "packed_color"},
@@ -517,7 +517,7 @@ SplatCloud read_standard(const Element& vertex, const std::vector<uint8_t>& byte
 
 SplatCloud read_splat_ply(const fs::path& path) {
   const std::vector<uint8_t> bytes = read_file_bytes(path);
-  Header h = parse_header(bytes, path);
+  PlyHeader h = parse_header(bytes, path);
   Element* vertex = h.find("vertex");
   if (!vertex) fail_file(path, "PLY file has no vertex element");
   const bool compressed = vertex->index("packed_position") >= 0 || vertex->index("packed_rotation") >= 0 ||

@@ -41,7 +41,7 @@ StorageRef storage_ref(const fs::path& path, const std::string& where, const Pic
 }
 
 // numel * item for messages, where a lying count may not fit 64 bits.
-std::string byte_count(int64_t numel, uint64_t item) {
+std::string byte_count_text(int64_t numel, uint64_t item) {
   const unsigned __int128 n = static_cast<unsigned __int128>(static_cast<uint64_t>(numel)) * item;
   return n > UINT64_MAX ? "more than 2^64" : std::to_string(static_cast<uint64_t>(n));
 }
@@ -96,7 +96,7 @@ PickleValue read_zip(const fs::path& path) {
     const uint64_t bytes = it->second->size(), item = pth_dtype_size(ref.dtype);
     if (bytes % item != 0 || bytes / item != static_cast<uint64_t>(ref.numel))
       fail_file(path, "storage {} holds {} bytes, but {} elements of {} need {}", ref.key, bytes, ref.numel, ref.dtype,
-                byte_count(ref.numel, item));
+                byte_count_text(ref.numel, item));
     return storage_value(ref, it->second);
   };
   const std::vector<uint8_t> bytes = zip.read(pkl);
@@ -156,7 +156,7 @@ PickleValue read_legacy(const fs::path& path) {
     const uint64_t item = pth_dtype_size(s.ref.dtype);
     if (static_cast<uint64_t>(count) > r.remaining() / item)
       fail_file(path, "truncated file: storage {} needs {} bytes at byte {}, only {} left", key.text,
-                byte_count(count, item), r.position(), r.remaining());
+                byte_count_text(count, item), r.position(), r.remaining());
     s.data->resize(static_cast<size_t>(count) * item);
     r.read_bytes(s.data->data(), s.data->size(), "storage data");
   }

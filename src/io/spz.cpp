@@ -102,12 +102,12 @@ std::vector<uint8_t> unzstd(const uint8_t* data, size_t size, uint64_t expected,
   return out;
 }
 
-struct Header {
+struct SpzHeader {
   uint32_t version = 0, points = 0;
   int degree = 0, fractional_bits = 0;
 };
 
-Header check_header(uint32_t magic, uint32_t version, uint32_t points, uint8_t degree, uint8_t fractional_bits,
+SpzHeader check_header(uint32_t magic, uint32_t version, uint32_t points, uint8_t degree, uint8_t fractional_bits,
                     const fs::path& name) {
   if (magic != kMagic) fail_file(name, "not an SPZ file (magic 0x{:08x}, expected 0x{:08x})", magic, kMagic);
   if (version < 1 || version > kLatestVersion)
@@ -117,7 +117,7 @@ Header check_header(uint32_t magic, uint32_t version, uint32_t points, uint8_t d
   return {version, points, degree, fractional_bits};
 }
 
-float half_to_float(uint16_t h) {
+float spz_half_to_float(uint16_t h) {
   const int exponent = (h >> 10) & 0x1f, mantissa = h & 0x3ff;
   const float sign = (h & 0x8000) ? -1.f : 1.f;
   if (exponent == 0) return sign * std::ldexp(static_cast<float>(mantissa), -24);
@@ -126,7 +126,7 @@ float half_to_float(uint16_t h) {
 }
 
 // The splats from the six attribute streams.
-SplatCloud unpack(const Header& h, const std::array<const uint8_t*, 6>& streams, const fs::path& name) {
+SplatCloud unpack(const SpzHeader& h, const std::array<const uint8_t*, 6>& streams, const fs::path& name) {
   const size_t n = h.points;
   const auto [positions, alphas, colours, scales, rotations, sh] = streams;
   const int file_coefficients = sh_coefficients(h.degree);
@@ -139,7 +139,7 @@ SplatCloud unpack(const Header& h, const std::array<const uint8_t*, 6>& streams,
     if (h.version == 1) {
       uint16_t half;
       std::memcpy(&half, positions + i * 2, 2);
-      c.means[i] = half_to_float(half);
+      c.means[i] = spz_half_to_float(half);
       if (!std::isfinite(c.means[i])) fail_file(name, "SPZ splat {} has a position that is not finite", i / 3);
     } else {
       const uint8_t* p = positions + i * 3;
@@ -190,7 +190,7 @@ SplatCloud unpack(const Header& h, const std::array<const uint8_t*, 6>& streams,
 
 SplatCloud decode_gzip(const uint8_t* data, size_t size, const fs::path& name) {
   constexpr size_t kHeaderBytes = 16;
-  Header h;
+  SpzHeader h;
   const std::vector<uint8_t> body = gunzip(
       data, size, kHeaderBytes,
       [&](const std::vector<uint8_t>& head) {
@@ -228,7 +228,7 @@ SplatCloud decode_zstd(const uint8_t* data, size_t size, const fs::path& name) {
   r.skip(1, "flags");
   const uint8_t stream_count = r.read<uint8_t>("stream count");
   const uint32_t toc = r.read<uint32_t>("table of contents offset");
-  const Header h = check_header(magic, version, points, degree, bits, name);
+  const SpzHeader h = check_header(magic, version, points, degree, bits, name);
   if (version < 4) fail_file(name, "SPZ version {} must be gzip-compressed, not a plain header", version);
   if (stream_count < 5 || stream_count > 6)
     fail_file(name, "SPZ file has {} attribute streams, expected 6 (5 without SH)", stream_count);

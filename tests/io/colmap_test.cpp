@@ -15,6 +15,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace colmap_test {
 
 namespace fs = std::filesystem;
 
@@ -470,5 +472,6 @@ TEST(ColmapBad, WriterRefusesWhatWouldNotReadBack) {
   EXPECT_FALSE(fs::exists(dir / "cameras.bin"));
 }
 
+}  // namespace colmap_test
 }  // namespace
 }  // namespace ii

@@ -11,6 +11,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace npy_test {
 
 namespace fs = std::filesystem;
 using test::file_bytes;
@@ -337,5 +339,6 @@ TEST(Npy, WriteRefusesInconsistentArrays) {
   EXPECT_EQ(test::error_message([&] { a.as_float(); }), "npy array: unknown dtype 'x'");
 }
 
+}  // namespace npy_test
 }  // namespace
 }  // namespace ii

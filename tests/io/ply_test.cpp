@@ -16,6 +16,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace ply_test {
 
 namespace fs = std::filesystem;
 using test::file_bytes;
@@ -697,5 +699,6 @@ TEST(Ply, WriteRefusesInconsistentClouds) {
   EXPECT_FALSE(fs::exists(p));
 }
 
+}  // namespace ply_test
 }  // namespace
 }  // namespace ii

@@ -16,6 +16,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace pth_test {
 
 namespace fs = std::filesystem;
 
@@ -406,5 +408,6 @@ TEST(Pickle, PersistentIdNeedsALoader) {
                 ": a persistent id (external storage reference) where none is expected");
 }
 
+}  // namespace pth_test
 }  // namespace
 }  // namespace ii

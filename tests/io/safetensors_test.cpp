@@ -15,6 +15,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace safetensors_test {
 
 namespace fs = std::filesystem;
 using test::file_bytes;
@@ -308,5 +310,6 @@ TEST(Safetensors, WriteRefusesBadTensors) {
   EXPECT_FALSE(fs::exists(p));
 }
 
+}  // namespace safetensors_test
 }  // namespace
 }  // namespace ii

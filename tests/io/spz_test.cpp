@@ -16,6 +16,8 @@
 
 namespace ii {
 namespace {
+// A namespace of its own: the folder's test files are compiled together (CMake's unity build).
+namespace spz_test {
 
 namespace fs = std::filesystem;
 
@@ -274,5 +276,6 @@ TEST(SpzBad, EachProblemHasItsMessage) {
   EXPECT_EQ(error_of("v4-gzip.spz", gzip(header(4, 1, 1, 12) + body)), "SPZ version 4 must not be gzip-compressed");
 }
 
+}  // namespace spz_test
 }  // namespace
 }  // namespace ii
