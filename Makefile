@@ -17,7 +17,7 @@ FUZZ_SECONDS ?= 60
 # Each step says how long it took (CI's log shows where its time went).
 TIMED = $(CURDIR)/scripts/timed.sh
 
-.PHONY: all deps build demo test test-main san-build test-asan test-python python test-gpu-build fuzz bench clean
+.PHONY: all deps build demo test test-main san-configure san-build test-asan test-python python test-gpu-build fuzz bench clean
 
 all: build
 
@@ -31,16 +31,27 @@ build: deps
 demo: build
 	@bash scripts/demo.sh $(BUILD)/instainpaint
 
-test: test-main test-asan test-python
+# The sanitizer build compiles at the lowest priority beside the main tests: they wait on
+# browsers and processes more than they compute, and its compiler takes the cores they leave
+# (docs/benchmarks.md, "CI on a fresh machine"); a test that runs takes a core back at once.
+test: build san-configure
+	@nice -n 19 $(TIMED) "san-build (beside test-main)" cmake --build $(SAN_BUILD) -j $(JOBS) \
+	  > $(SAN_BUILD)/build-beside.log 2>&1 & san=$$!; \
+	  $(MAKE) --no-print-directory test-main; main=$$?; \
+	  if ! wait $$san; then cat $(SAN_BUILD)/build-beside.log; exit 1; fi; \
+	  tail -n 1 $(SAN_BUILD)/build-beside.log; exit $$main
+	@$(MAKE) --no-print-directory test-asan test-python
 
 test-main: build
 	@cd $(BUILD) && OMP_NUM_THREADS=$(TEST_THREADS) $(TIMED) test-main ctest --output-on-failure -j $(JOBS)
 
 # Parsers, cameras and scene readers under AddressSanitizer + UndefinedBehaviorSanitizer,
 # built with clang so that the same build holds the libFuzzer targets (each runs briefly).
-san-build: deps
+san-configure: deps
 	@cmake -S . -B $(SAN_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
 	  -DINSTAINPAINT_SANITIZE=ON > /dev/null
+
+san-build: san-configure
 	@$(TIMED) san-build cmake --build $(SAN_BUILD) -j $(JOBS)
 
 test-asan: san-build
