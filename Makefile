@@ -2,8 +2,9 @@
 #   make demo   build, then run the main job and write demo-out/
 #   make test   build everything and run every test (plus the sanitizer build of the parsers
 #               and the Python package's tests)
-#   make test-gpu-build   the same against PyPI's LibTorch 2.x with the CUDA code compiled
-#               (scripts/gpu/build.sh; tests that need a GPU skip themselves without one)
+#   make test-gpu-build   the same build against PyPI's LibTorch 2.x with the CUDA code compiled,
+#               and the tests whose code can differ between the versions (scripts/gpu/build.sh,
+#               tests/pypi_build.list; tests that need a GPU skip themselves without one)
 JOBS ?= $(shell nproc)
 # Threads per test while JOBS tests run at once: more would oversubscribe the cores, and
 # the tests that keep a time budget would miss it.
@@ -17,7 +18,7 @@ FUZZ_SECONDS ?= 60
 # Each step says how long it took (CI's log shows where its time went).
 TIMED = $(CURDIR)/scripts/timed.sh
 
-.PHONY: all deps build demo test test-main san-configure san-build test-asan test-python python test-gpu-build fuzz bench clean
+.PHONY: all deps build demo test test-main san-build test-asan test-python python test-gpu-build fuzz bench clean
 
 all: build
 
@@ -31,27 +32,16 @@ build: deps
 demo: build
 	@bash scripts/demo.sh $(BUILD)/instainpaint
 
-# The sanitizer build compiles at the lowest priority beside the main tests: they wait on
-# browsers and processes more than they compute, and its compiler takes the cores they leave
-# (docs/benchmarks.md, "CI on a fresh machine"); a test that runs takes a core back at once.
-test: build san-configure
-	@nice -n 19 $(TIMED) "san-build (beside test-main)" cmake --build $(SAN_BUILD) -j $(JOBS) \
-	  > $(SAN_BUILD)/build-beside.log 2>&1 & san=$$!; \
-	  $(MAKE) --no-print-directory test-main; main=$$?; \
-	  if ! wait $$san; then cat $(SAN_BUILD)/build-beside.log; exit 1; fi; \
-	  tail -n 1 $(SAN_BUILD)/build-beside.log; exit $$main
-	@$(MAKE) --no-print-directory test-asan test-python
+test: test-main test-asan test-python
 
 test-main: build
 	@cd $(BUILD) && OMP_NUM_THREADS=$(TEST_THREADS) $(TIMED) test-main ctest --output-on-failure -j $(JOBS)
 
 # Parsers, cameras and scene readers under AddressSanitizer + UndefinedBehaviorSanitizer,
 # built with clang so that the same build holds the libFuzzer targets (each runs briefly).
-san-configure: deps
+san-build: deps
 	@cmake -S . -B $(SAN_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
 	  -DINSTAINPAINT_SANITIZE=ON > /dev/null
-
-san-build: san-configure
 	@$(TIMED) san-build cmake --build $(SAN_BUILD) -j $(JOBS)
 
 test-asan: san-build
@@ -66,7 +56,8 @@ test-python: build
 	@BUILD=$(BUILD) OMP_NUM_THREADS=$(TEST_THREADS) $(TIMED) test-python bash scripts/python-package.sh --test
 
 # PyPI's torch + NVIDIA's CUDA compiler in the project-local .venv-gpu (pinned in
-# scripts/gpu/requirements.txt), the CUDA code compiled, every test run.
+# scripts/gpu/requirements.txt), everything compiled with the CUDA code, the tests whose code can
+# differ between the LibTorch versions run (tests/pypi_build.list) with the Python package's.
 test-gpu-build: deps
 	@JOBS=$(JOBS) $(TIMED) test-gpu-build bash scripts/gpu/build.sh --build $(GPU_BUILD) --test
 
