@@ -56,6 +56,7 @@ def check(build_dir):
                         "kernel) but no line names it: add the tests that cover it")
     listed = subprocess.run(["ctest", "-N"], cwd=build_dir, capture_output=True, text=True, check=True).stdout
     tests = re.findall(r"Test +#\d+: (\S+)", listed)
+
     def listed_by(prefix):
         return {test for test in tests if test == prefix or test.startswith(prefix + ".")}
 

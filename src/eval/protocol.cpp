@@ -44,8 +44,6 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// JSON has no infinity: +inf (identical images' PSNR) is written as the string "inf", NaN
-// (a metric undefined for this view) as null.
 // The metric networks: each either loaded or unavailable with the reason.
 struct MetricNetworks {
   std::optional<Lpips> lpips_vgg, lpips_alex;

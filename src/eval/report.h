@@ -18,7 +18,8 @@ Image error_map(const Image& a, const Image& b);
 Image with_mask_outline(const Image& image, const std::optional<Image>& mask);
 // Panels side by side, each scaled down to 480 pixels wide at most, white gaps.
 Image contact_sheet(const std::vector<Image>& panels);
-// A metric's value as metrics.json holds it: the number, "inf"/"-inf", or null for NaN.
+// A metric's value as metrics.json holds it. JSON has no infinity: +inf (identical images' PSNR)
+// is the string "inf", NaN (a metric undefined for this view) null.
 nlohmann::json metric_json(double value);
 // A metric's value (a number, "inf" or null in metrics.json) as text: `decimals` places, ∞ or –.
 std::string metric_cell(const nlohmann::json& v, int decimals);

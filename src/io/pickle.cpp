@@ -11,6 +11,7 @@
 
 #include "common/error.h"
 #include "io/byte_reader.h"
+#include "io/half.h"
 
 namespace ii {
 
@@ -642,20 +643,6 @@ class Unpickler {
   bool ok_ = false;
 };
 
-float pickle_half_to_float(uint16_t h) {
-  const uint32_t sign = static_cast<uint32_t>(h & 0x8000) << 16;
-  const uint32_t exponent = (h >> 10) & 0x1f, mantissa = h & 0x3ff;
-  float f;
-  if (exponent == 0) {
-    f = std::ldexp(static_cast<float>(mantissa), -24);  // zero and subnormals
-    return sign ? -f : f;
-  }
-  const uint32_t bits = exponent == 31 ? (sign | 0x7f800000u | (mantissa << 13))
-                                       : (sign | ((exponent + 112) << 23) | (mantissa << 13));
-  std::memcpy(&f, &bits, sizeof f);
-  return f;
-}
-
 template <typename T>
 T load(const uint8_t* p) {
   T v;
@@ -776,7 +763,7 @@ std::vector<float> PthTensor::to_float() const {
   for (size_t i = 0; i < n; ++i, p += item) {
     if (dtype == "F32") out[i] = load<float>(p);
     else if (dtype == "F64") out[i] = static_cast<float>(load<double>(p));
-    else if (dtype == "F16") out[i] = pickle_half_to_float(load<uint16_t>(p));
+    else if (dtype == "F16") out[i] = half_to_float(load<uint16_t>(p));
     else if (dtype == "BF16") {
       const uint32_t bits = static_cast<uint32_t>(load<uint16_t>(p)) << 16;
       std::memcpy(&out[i], &bits, sizeof bits);

@@ -109,7 +109,7 @@ struct PlyHeader {
   }
 };
 
-// PlyHeader lines go into error messages: keep them short and printable.
+// Header lines go into error messages: keep them short and printable.
 std::string printable(std::string_view s) {
   std::string out;
   for (char c : s.substr(0, 80)) out += (c >= 32 && c < 127) ? c : '?';

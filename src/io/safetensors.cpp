@@ -13,6 +13,7 @@
 #include "common/error.h"
 #include "common/files.h"
 #include "io/byte_reader.h"
+#include "io/half.h"
 
 namespace ii {
 
@@ -22,31 +23,6 @@ namespace {
 
 // The reference implementation refuses headers above 100 MB; so do we, before allocating.
 constexpr uint64_t kMaxHeaderBytes = 100'000'000;
-
-float half_to_float(uint16_t h) {
-  const uint32_t sign = static_cast<uint32_t>(h & 0x8000u) << 16;
-  const uint32_t exp = (h >> 10) & 0x1fu, man = h & 0x3ffu;
-  uint32_t bits;
-  if (exp == 0) {
-    if (man == 0) {
-      bits = sign;
-    } else {  // subnormal half: shift the mantissa up until it is normalised
-      uint32_t m = man, shifts = 0;
-      while ((m & 0x400u) == 0) {
-        m <<= 1;
-        ++shifts;
-      }
-      bits = sign | ((127 - 15 + 1 - shifts) << 23) | ((m & 0x3ffu) << 13);
-    }
-  } else if (exp == 31) {
-    bits = sign | 0x7f800000u | (man << 13);  // inf / nan
-  } else {
-    bits = sign | ((exp + 127 - 15) << 23) | (man << 13);
-  }
-  float f;
-  std::memcpy(&f, &bits, 4);
-  return f;
-}
 
 template <typename S>
 void convert(const std::vector<uint8_t>& bytes, std::vector<float>& out) {

@@ -14,6 +14,7 @@
 #include "common/files.h"
 #include "io/byte_reader.h"
 #include "io/splat_quantize.h"
+#include "io/half.h"
 
 namespace ii {
 
@@ -117,14 +118,6 @@ SpzHeader check_header(uint32_t magic, uint32_t version, uint32_t points, uint8_
   return {version, points, degree, fractional_bits};
 }
 
-float spz_half_to_float(uint16_t h) {
-  const int exponent = (h >> 10) & 0x1f, mantissa = h & 0x3ff;
-  const float sign = (h & 0x8000) ? -1.f : 1.f;
-  if (exponent == 0) return sign * std::ldexp(static_cast<float>(mantissa), -24);
-  if (exponent == 31) return mantissa ? NAN : sign * INFINITY;
-  return sign * std::ldexp(static_cast<float>(mantissa | 0x400), exponent - 25);
-}
-
 // The splats from the six attribute streams.
 SplatCloud unpack(const SpzHeader& h, const std::array<const uint8_t*, 6>& streams, const fs::path& name) {
   const size_t n = h.points;
@@ -139,7 +132,7 @@ SplatCloud unpack(const SpzHeader& h, const std::array<const uint8_t*, 6>& strea
     if (h.version == 1) {
       uint16_t half;
       std::memcpy(&half, positions + i * 2, 2);
-      c.means[i] = spz_half_to_float(half);
+      c.means[i] = half_to_float(half);
       if (!std::isfinite(c.means[i])) fail_file(name, "SPZ splat {} has a position that is not finite", i / 3);
     } else {
       const uint8_t* p = positions + i * 3;
