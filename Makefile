@@ -1,7 +1,8 @@
 # The two commands of the README. Both install missing Debian packages first.
 #   make demo   build, then run the main job and write demo-out/
-#   make test   build everything and run every test (plus the sanitizer build of the parsers
-#               and the Python package's tests)
+#   make test   build everything and run every test and the Python package's tests
+#   make test-asan   the parsers, cameras and scene readers and their tests under ASan + UBSan
+#               with the fuzz targets run briefly (a second build, with clang; CI runs it)
 #   make test-gpu-build   the same build against PyPI's LibTorch 2.x with the CUDA code compiled,
 #               and the tests whose code can differ between the versions (scripts/gpu/build.sh,
 #               tests/pypi_build.list; tests that need a GPU skip themselves without one)
@@ -32,7 +33,10 @@ build: deps
 demo: build
 	@bash scripts/demo.sh $(BUILD)/instainpaint
 
-test: test-main test-asan test-python
+# The sanitizer build is not part of it: a second build of the torch-free code (3 minutes on 2
+# cores) whose tests are the same as the main build's, under the sanitizers. CI runs it
+# (.ci/run); a user's first `make test` is spared it (docs/benchmarks.md, "CI on a fresh machine").
+test: test-main test-python
 
 test-main: build
 	@cd $(BUILD) && OMP_NUM_THREADS=$(TEST_THREADS) $(TIMED) test-main ctest --output-on-failure -j $(JOBS)

@@ -100,14 +100,17 @@ export async function frames(page, count) {
 // A screenshot of `locator` once the viewer's picture has settled: batches of `count` frames, a
 // pause between them, until two screenshots in a row are the same (at most `tries` batches). Spark
 // sorts in a worker; on a loaded machine a fixed number of frames was once not enough (CI, the
-// edit's masked PSNR measured on a half-drawn picture).
+// edit's masked PSNR measured on a half-drawn picture). The frame-rate line over the canvas is
+// hidden in them: its number changes with every batch, and no two screenshots were ever the
+// same (the fill test waited all ten batches, twice, 50-60 s).
 export async function settledScreenshot(page, locator, count = 10, tries = 10) {
+  const shoot = () => locator.screenshot({ style: "#hud { visibility: hidden !important; }" });
   await frames(page, count);
-  let shot = await locator.screenshot();
+  let shot = await shoot();
   for (let i = 0; i < tries; ++i) {
     await new Promise((resolve) => setTimeout(resolve, 250));
     await frames(page, count);
-    const next = await locator.screenshot();
+    const next = await shoot();
     if (next.equals(shot)) return next;
     shot = next;
   }
@@ -126,11 +129,15 @@ export function drawnFraction() {
   return drawn / (d.length / 4);
 }
 
+// Each line says when it was checked (seconds since the test started): a slow test's log
+// shows where its time went.
+const started = performance.now();
+const elapsed = () => `${((performance.now() - started) / 1000).toFixed(1)} s`;
 export function check(condition, message) {
   if (!condition) {
-    console.error(`FAILED: ${message}`);
+    console.error(`FAILED (${elapsed()}): ${message}`);
     process.exitCode = 1;
   } else {
-    console.log(`ok: ${message}`);
+    console.log(`ok (${elapsed()}): ${message}`);
   }
 }
