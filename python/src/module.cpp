@@ -34,7 +34,7 @@
 #include "io/image.h"
 #include "io/splat_file.h"
 #include "model/device.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 #include "refine/refine.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"

@@ -17,7 +17,7 @@
 #include "io/image.h"
 #include "io/splat_file.h"
 #include "model/default_model.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 #include "render/rasterizer.h"
 #include "render/visualize.h"
 

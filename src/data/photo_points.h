@@ -5,7 +5,7 @@
 // the scene's own cameras. The poses are known, so no bundle adjustment: a match is kept when
 // the point lies in front of both cameras, reprojects within a pixel or two into both, and is
 // seen under a useful angle. Enough for what the points are for here: the median ratio that
-// scales a view's predicted depth (model/depth_alignment.h).
+// scales a view's predicted depth (geometry/depth_alignment.h).
 #include <memory>
 #include <string>
 #include <vector>

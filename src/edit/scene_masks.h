@@ -20,7 +20,7 @@
 #include "data/scene.h"
 #include "common/stage_times.h"
 #include "edit/propagate.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 
 namespace ii {
 

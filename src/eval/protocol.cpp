@@ -31,7 +31,7 @@
 #include "io/splat_file.h"
 #include "model/default_model.h"
 #include "model/device.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
 

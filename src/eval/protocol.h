@@ -32,7 +32,7 @@
 #include "edit/scene_masks.h"
 #include "eval/metrics.h"
 #include "model/network.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 
 namespace ii {
 

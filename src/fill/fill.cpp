@@ -14,7 +14,7 @@
 #include "fill/surface.h"
 #include "gaussians/gaussians.h"
 #include "model/device.h"
-#include "model/surface_splats.h"
+#include "geometry/surface_splats.h"
 #include "render/projection.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"

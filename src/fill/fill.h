@@ -15,7 +15,7 @@
 #include "fill/cameras.h"
 #include "fill/region.h"
 #include "io/image.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 #include "refine/refine.h"
 
 namespace ii {

@@ -3,7 +3,7 @@
 // around the hole, where a network's depth of a real capture is off. The kept scene's depth on
 // the pixels around a view's hole is continued inward (harmonic in inverse depth, so a plane
 // stays a plane), and every hole pixel becomes one flat Gaussian of a picture's colour on that
-// surface, sized to tile the view without gaps (model/surface_splats.h).
+// surface, sized to tile the view without gaps (geometry/surface_splats.h).
 #include <optional>
 
 #include "camera/camera.h"

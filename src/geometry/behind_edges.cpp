@@ -1,10 +1,10 @@
-#include "model/behind_edges.h"
+#include "geometry/behind_edges.h"
 
 #include <algorithm>
 #include <cmath>
 
 #include "common/error.h"
-#include "model/floaters.h"
+#include "geometry/floaters.h"
 
 namespace ii {
 

@@ -5,7 +5,7 @@
 // beside make demo's table once the views' surfaces became sharp, opaque splats). The far side of
 // each depth edge is continued under the near side: each near pixel within a few pixels of an
 // edge gets a Gaussian on its own ray at the far side's depth, with the far side's attributes;
-// those another context view sees through are then dropped (model/frame_margin.h's test).
+// those another context view sees through are then dropped (geometry/frame_margin.h's test).
 #include <cstdint>
 #include <vector>
 

@@ -1,4 +1,4 @@
-#include "model/depth_alignment.h"
+#include "geometry/depth_alignment.h"
 
 #include <algorithm>
 #include <cmath>

@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 
 #include "gaussians/gaussians.h"
+#include "geometry/options.h"
 #include "model/scene_input.h"
 
 namespace ii {

@@ -1,4 +1,4 @@
-#include "model/floaters.h"
+#include "geometry/floaters.h"
 
 #include "common/error.h"
 #include "tensor/camera_projection.h"

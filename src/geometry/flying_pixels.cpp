@@ -1,4 +1,4 @@
-#include "model/flying_pixels.h"
+#include "geometry/flying_pixels.h"
 
 #include <limits>
 #include <utility>

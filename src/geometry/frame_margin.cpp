@@ -1,10 +1,10 @@
-#include "model/frame_margin.h"
+#include "geometry/frame_margin.h"
 
 #include <algorithm>
 #include <cmath>
 
 #include "common/error.h"
-#include "model/floaters.h"
+#include "geometry/floaters.h"
 
 namespace ii {
 

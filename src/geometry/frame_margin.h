@@ -51,7 +51,7 @@ GaussianSet gaussians_beyond_frame(const GaussianMaps& maps, const ModelInput& i
                                    const FrameMarginOptions& options);
 
 // `margin` (Gaussians added where no view saw: gaussians_beyond_frame's or gaussians_behind_edges'
-// for `maps`) without those a context view sees through (model/floaters.h: `views` their masks,
+// for `maps`) without those a context view sees through (geometry/floaters.h: `views` their masks,
 // `cameras` in the maps' frame).
 GaussianSet without_seen_through(const GaussianSet& margin, const GaussianMaps& maps,
                                  const std::vector<PreparedView>& views, const std::vector<Camera>& cameras);

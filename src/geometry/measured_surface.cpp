@@ -1,4 +1,4 @@
-#include "model/measured_surface.h"
+#include "geometry/measured_surface.h"
 
 #include <optional>
 #include <vector>
@@ -6,7 +6,7 @@
 #include "data/masks.h"
 #include "data/preprocess.h"
 #include "model/scene_input.h"
-#include "model/surface_splats.h"
+#include "geometry/surface_splats.h"
 #include "tensor/camera_projection.h"
 #include "tensor/image_tensor.h"
 

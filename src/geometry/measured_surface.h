@@ -2,9 +2,9 @@
 // The surface a depth camera measured, used where a capture has it. A view with its own depth map
 // (`<scene>/depth/<view>.npy`: a depth camera's, a synthetic scene's) knows each pixel's depth
 // exactly, which the network and the alignment to points only approach. Without depth maps, the
-// context photos measure it where they are textured and agree (model/stereo_depth.h). Outside
+// context photos measure it where they are textured and agree (geometry/stereo_depth.h). Outside
 // the view's mask its Gaussians are put at that depth and made flat splats along the measured surface
-// (model/surface_splats.h), opaque: the default model's Gaussians are needles along their rays
+// (geometry/surface_splats.h), opaque: the default model's Gaussians are needles along their rays
 // of opacity ~0.4, which from another camera draw `make demo`'s table as a brown smear on the
 // floor even at the exact depth; lying on the surface they draw the table, its pedestal and the
 // floor's planks. Inside the mask the object stood: the network's Gaussians stay.
@@ -16,8 +16,8 @@
 #include "data/preprocess.h"
 #include "data/scene.h"
 #include "gaussians/gaussians.h"
-#include "model/flying_pixels.h"
-#include "model/stereo_depth.h"
+#include "geometry/flying_pixels.h"
+#include "geometry/stereo_depth.h"
 
 namespace ii {
 
@@ -47,12 +47,12 @@ struct MeasuredSurfaceOptions {
   bool beside_object = true;
   int cone_margin = 10;
   // Where no context view has a depth map: each view's depth measured from the context photos
-  // themselves (model/stereo_depth.h), used where it is known (SPIn-NeRF scene 1 +0.55 dB whole
+  // themselves (geometry/stereo_depth.h), used where it is known (SPIn-NeRF scene 1 +0.55 dB whole
   // image with the official reference, +0.83 with the true photo; the statue +0.46, the fern
   // +0.95; 0.15-0.2 s on 2 cores at any working size).
   bool from_photos = true;
   StereoOptions stereo;
-  // A depth map's pixels that straddle an edge, moved to its far side (model/flying_pixels.h;
+  // A depth map's pixels that straddle an edge, moved to its far side (geometry/flying_pixels.h;
   // false: where they were measured). The held-out rooms +0.35 / +0.26 dB masked (128² / 256²),
   // make demo's room +0.33 (docs/benchmarks.md, session 37).
   bool far_side = true;

@@ -1,7 +1,7 @@
-#include "model/region_cover.h"
+#include "geometry/region_cover.h"
 
 #include "common/error.h"
-#include "model/surface_splats.h"
+#include "geometry/surface_splats.h"
 
 namespace ii {
 

@@ -4,7 +4,7 @@
 // its one layer of per-pixel Gaussians alone carries the hole, and from a camera elsewhere the
 // background shows between them: white streaks where the object stood (SPIn-NeRF scene 1: 8 % of
 // the region's colour was the background, 0.5 % elsewhere). Beside the network's Gaussians, each
-// of the reference's region pixels gets one flat splat on its depth (model/surface_splats.h) in
+// of the reference's region pixels gets one flat splat on its depth (geometry/surface_splats.h) in
 // the reference's colour, faint enough that the network's own Gaussians still decide the look.
 #include <nlohmann/json.hpp>
 

@@ -1,4 +1,4 @@
-#include "model/region_surface.h"
+#include "geometry/region_surface.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,10 +6,10 @@
 #include "common/cpu_features.h"
 #include "common/error.h"
 #include "common/parallel.h"
-#include "model/flying_pixels.h"
-#include "model/region_weights.h"
+#include "geometry/flying_pixels.h"
+#include "geometry/region_weights.h"
 #include "model/scene_input.h"
-#include "model/surface_splats.h"
+#include "geometry/surface_splats.h"
 
 namespace ii {
 

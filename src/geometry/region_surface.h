@@ -7,9 +7,9 @@
 // looks like it: a mean over the ring's pixels weighted by distance and by colour, in inverse
 // depth, so that the bench's grey continues the bench and the hedge's green the hedge. Where the
 // measured depth is a depth map, each ring pixel continues its local plane (a table top seen
-// obliquely keeps its slope); a plane sweep's depth (model/stereo_depth.h) holds each patch
+// obliquely keeps its slope); a plane sweep's depth (geometry/stereo_depth.h) holds each patch
 // facing the camera, so its slopes are steps and the ring's depth is continued flat. The region's
-// pixels then become flat, opaque splats on that depth (model/surface_splats.h) in the
+// pixels then become flat, opaque splats on that depth (geometry/surface_splats.h) in the
 // reference's colours, as the measured surface does outside the mask.
 #include <cstdint>
 
@@ -17,7 +17,7 @@
 
 #include "common/torch.h"
 #include "gaussians/gaussians.h"
-#include "model/measured_surface.h"
+#include "geometry/measured_surface.h"
 
 namespace ii {
 
@@ -41,7 +41,7 @@ struct RegionSurfaceOptions {
   double slope_window = 1.0 / 32;
   double slope_fit = 0.02;
   // Where the weighted mean lands between two surfaces (a flying pixel of the region's depth with
-  // the measured depth around it, model/flying_pixels.h), the pixel goes to the far one: a splat
+  // the measured depth around it, geometry/flying_pixels.h), the pixel goes to the far one: a splat
   // between a table's edge and the floor is a speck from elsewhere (session 37: the held-out rooms
   // +0.04 / +0.44 dB masked at 128² / 256², make demo's room -0.6 masked, +0.2 whole and fewer
   // specks; scene 1's region -0.03, the statue unchanged; to the side whose colour the pixel
@@ -62,7 +62,7 @@ struct RegionSurface {
 
 // Each region pixel's plane weighted by the softmax over the ring of 2 a.b - |b|^2, a its row of
 // `pixels` (n, 5) and b the ring pixel's row of `ring` (m, 5), over the ring's `planes` (m, 3):
-// (n, 3). `fused`: model/region_weights.h's kernel where the CPU has AVX2; else, and with false,
+// (n, 3). `fused`: geometry/region_weights.h's kernel where the CPU has AVX2; else, and with false,
 // LibTorch's softmax and products.
 torch::Tensor ring_weighted_planes(const torch::Tensor& pixels, const torch::Tensor& ring, const torch::Tensor& planes,
                                    bool fused = true);

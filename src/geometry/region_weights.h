@@ -1,5 +1,5 @@
 #pragma once
-// The reference's region takes its depth from the ring around it (model/region_surface.h): for
+// The reference's region takes its depth from the ring around it (geometry/region_surface.h): for
 // each region pixel a softmax over the ring pixels of 2 a.b - |b|^2 (a, b their features) and the
 // ring's planes weighted by it. In LibTorch that is a (region x ring) matrix written and read five
 // times: scene 1 at 512 rows, 30,417 x 2,757, 176 ms on 2 cores, all of it memory traffic. Here

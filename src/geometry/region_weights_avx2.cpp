@@ -1,7 +1,7 @@
 // region_weights.h's softmax-weighted planes, eight ring pixels at a time: a first pass for the
 // largest logit, a second for the exponentials (common/simd_float.h's 2^x, degree 5) and their
 // sums. Compiled with -mavx2 -mfma.
-#include "model/region_weights.h"
+#include "geometry/region_weights.h"
 
 #include <immintrin.h>
 

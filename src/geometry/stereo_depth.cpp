@@ -1,4 +1,4 @@
-#include "model/stereo_depth.h"
+#include "geometry/stereo_depth.h"
 
 #include <algorithm>
 #include <cmath>

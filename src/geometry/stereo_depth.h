@@ -7,7 +7,7 @@
 // between phone photos cancel) against every other view, the best two kept (the third may see
 // something else in front); a depth stays only where it is distinct and another view's own sweep
 // agrees with it. Where nothing is textured or the views disagree, the depth is unknown (0) and
-// the network's Gaussians stay (model/measured_surface.h).
+// the network's Gaussians stay (geometry/measured_surface.h).
 #include <utility>
 #include <vector>
 

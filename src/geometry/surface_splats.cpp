@@ -1,4 +1,4 @@
-#include "model/surface_splats.h"
+#include "geometry/surface_splats.h"
 
 #include <Eigen/Geometry>
 

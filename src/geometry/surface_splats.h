@@ -2,7 +2,7 @@
 // Flat splats that tile a view's pixels on a surface given by its depth: one Gaussian per pixel,
 // lying on the surface and sized to reach its neighbours, so that a camera elsewhere sees no gap
 // between them. `fill` places its hole's content this way; a prediction covers the reference's
-// region with them (model/region_cover.h).
+// region with them (geometry/region_cover.h).
 #include "camera/camera.h"
 #include "common/torch.h"
 #include "gaussians/gaussians.h"

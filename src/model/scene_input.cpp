@@ -37,7 +37,7 @@ Image mask_at_working_size(const Image& mask, const View& view, const Preprocess
 }  // namespace
 
 std::vector<PreparedView> prepare_masked_views(const Scene& scene, const std::vector<int>& indices,
-                                               const SceneInputOptions& options, const std::string& role) {
+                                               const InputOptions& options, const std::string& role) {
   for (size_t i = 1; i < indices.size() && !options.keep_object; ++i) {
     const View& view = scene.views.at(static_cast<size_t>(indices[i]));
     if (!view.mask_path && !view.mask_from_alpha && !options.masks.count(view.name))
@@ -61,42 +61,14 @@ std::vector<PreparedView> prepare_masked_views(const Scene& scene, const std::ve
 }
 
 Image classical_reference(const Scene& scene, const std::string& view, const Image& mask,
-                          const SceneInputOptions& options) {
+                          const InputOptions& options) {
   const View& v = scene.views.at(static_cast<size_t>(input_view_index(scene, view, "reference view")));
   const PreparedView prepared =
       options.view_cache ? options.view_cache->get(v, options.preprocess) : prepare_view(v, options.preprocess);
   return inpaint_classical(prepared.rgb, mask_at_working_size(mask, v, options.preprocess), options.inpainter);
 }
 
-const char* depth_points_name(DepthPoints points) {
-  switch (points) {
-    case DepthPoints::none: return "none";
-    case DepthPoints::depth_maps: return "depth-maps";
-    case DepthPoints::photos: return "photos";
-    case DepthPoints::any: return "any";
-  }
-  return "?";
-}
-
-DepthPoints parse_depth_points(const std::string& name) {
-  for (DepthPoints p : {DepthPoints::none, DepthPoints::depth_maps, DepthPoints::photos, DepthPoints::any})
-    if (name == depth_points_name(p)) return p;
-  fail("--align-depth '{}': none, depth-maps, photos or any", name);
-}
-
-GeometryOptions GeometryOptions::papers() {
-  GeometryOptions none;
-  none.align_depth = DepthPoints::none;
-  none.floaters.fade = 1;
-  none.measured_surface.opacity = 0;
-  none.frame_margin.fraction = 0;
-  none.behind_edges.fraction = 0;
-  none.region_cover.opacity = 0;
-  none.region_surface.opacity = 0;
-  return none;
-}
-
-SceneInput prepare_scene_input(const Scene& scene, const SceneInputOptions& options, StageTimes* stages) {
+SceneInput prepare_scene_input(const Scene& scene, const InputOptions& options, StageTimes* stages) {
   StageTimes unrecorded;
   StageTimes& times = stages ? *stages : unrecorded;
   times.restart_lap();

@@ -1,4 +1,4 @@
-#include "model/predictor.h"
+#include "predict/predictor.h"
 
 #include <future>
 

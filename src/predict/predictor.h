@@ -1,7 +1,8 @@
 #pragma once
 // The library's one path from a scene to Gaussians: load a model once, predict many times
-// (the shape of llama.cpp's load-once, call-many API). `infer` and `eval` call it; anything
-// that edits, refines or serves scenes does too.
+// (the shape of llama.cpp's load-once, call-many API). It composes the scene's input and the
+// network (src/model) with the geometry's steps after it (src/geometry). `infer` and `eval` call
+// it; anything that edits, refines or serves scenes does too.
 //
 //   const Predictor predictor("release.pth", device, precision);   // reads and uploads the weights
 //   SceneInputOptions input;                                       // context views, reference, masks
@@ -15,16 +16,20 @@
 #include "common/stage_times.h"
 #include "data/masks.h"
 #include "gaussians/gaussians.h"
+#include "geometry/depth_alignment.h"
+#include "geometry/options.h"
 #include "model/config.h"
 #include "model/network.h"
-#include "model/depth_alignment.h"
-#include "model/floaters.h"
-#include "model/measured_surface.h"
-#include "model/frame_margin.h"
-#include "model/region_cover.h"
 #include "model/scene_input.h"
 
 namespace ii {
+
+// A prediction's options: the network's input (model/scene_input.h) and what the geometry does
+// with its output (geometry/options.h).
+struct SceneInputOptions : InputOptions {
+  // What Predictor::predict does with the network's Gaussians before it returns them.
+  GeometryOptions geometry;
+};
 
 struct Prediction {
   SceneInput input;   // what the network saw: context views (reference first), normalisation
@@ -49,17 +54,17 @@ struct Prediction {
   nlohmann::json floaters;
 
   // With GeometryOptions::frame_margin: each view's Gaussians past the edges of its picture
-  // (model/frame_margin.h), an empty set without.
+  // (geometry/frame_margin.h), an empty set without.
   GaussianSet beyond_frame;
   nlohmann::json frame_margin;  // what run.json and metrics.json record of it
 
   // With GeometryOptions::behind_edges: the far side of each view's depth edges continued under
-  // the near side (model/behind_edges.h), an empty set without.
+  // the near side (geometry/behind_edges.h), an empty set without.
   GaussianSet behind_edges;
   nlohmann::json behind_edges_record;  // what run.json and metrics.json record of it
 
   // With GeometryOptions::region_cover: flat splats over the reference's region
-  // (model/region_cover.h), an empty set without.
+  // (geometry/region_cover.h), an empty set without.
   GaussianSet region_cover;
   nlohmann::json region_cover_record;  // what run.json and metrics.json record of it
 

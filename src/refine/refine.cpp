@@ -461,8 +461,8 @@ nlohmann::json refinement_report(const RefineResult& r, const RefineOptions& opt
 
 GaussianSet thinned_prediction(const GaussianSet& gaussians, const Prediction& prediction, int stride) {
   // The network's Gaussians are per pixel, in the order view, row, column; those past the frames
-  // (model/frame_margin.h), behind the depth edges (model/behind_edges.h) and the region's cover
-  // (model/region_cover.h) follow them and are left out: refinement starts from what the context
+  // (geometry/frame_margin.h), behind the depth edges (geometry/behind_edges.h) and the region's cover
+  // (geometry/region_cover.h) follow them and are left out: refinement starts from what the context
   // views saw, and its densification grows the rest from the views it fits.
   int64_t pixels = 0;
   for (const PreparedView& v : prediction.input.views) pixels += int64_t(v.rgb.width) * v.rgb.height;
@@ -472,7 +472,7 @@ GaussianSet thinned_prediction(const GaussianSet& gaussians, const Prediction& p
     fail("refine: {} Gaussians do not match the prediction's {} pixels", gaussians.size(), pixels);
   GaussianSet g = gaussians;
   // The reference's region as the network made it: refinement from the region's opaque splats
-  // (model/region_surface.h) lost make demo's refined room 2.6 dB.
+  // (geometry/region_surface.h) lost make demo's refined room 2.6 dB.
   if (prediction.region_surface_pixels.defined() && prediction.region_surface_pixels.numel() > 0) {
     const torch::Tensor at = prediction.region_surface_pixels.to(g.means.device());
     const GaussianSet& network = prediction.region_surface_replaced;

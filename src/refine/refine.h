@@ -19,7 +19,7 @@
 #include "data/preprocess.h"
 #include "gaussians/gaussians.h"
 #include "io/image.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 #include "refine/densify.h"
 
 namespace ii {

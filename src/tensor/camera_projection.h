@@ -1,7 +1,7 @@
 #pragma once
 // A camera's rigid transform and pinhole projection on tensors of points (OpenCV axes, pixel
 // centres at +0.5, as render() draws them): for the renderer's culling, fill and refinement, and
-// for the model's check of one view's Gaussians against another view (model/floaters.h).
+// for the model's check of one view's Gaussians against another view (geometry/floaters.h).
 #include <utility>
 
 #include "common/torch.h"

@@ -44,7 +44,7 @@
 #include <vector>
 
 #include "data/scene.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 
 namespace ii {
 

@@ -1,14 +1,14 @@
 // The surface placement's steps: depth continued into a hole (a plane stays the plane it was, in
 // inverse depth; fill/surface.h), one flat splat per pixel that tiles the view without gaps, and a
 // backing that shows through where a seam in the depth opens a gap in another view
-// (model/surface_splats.h).
+// (geometry/surface_splats.h).
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "camera/trajectory.h"
 #include "fill/surface.h"
-#include "model/surface_splats.h"
+#include "geometry/surface_splats.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
 

@@ -9,10 +9,10 @@
 #include <set>
 
 #include "camera/trajectory.h"
-#include "model/behind_edges.h"
+#include "geometry/behind_edges.h"
 #include "model/default_model.h"
 #include "model/model_input.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 #include "synthetic_room.h"
 #include "test_support.h"
 

@@ -10,8 +10,8 @@
 
 #include "camera/trajectory.h"
 #include "data/masks.h"
-#include "model/depth_alignment.h"
-#include "model/predictor.h"
+#include "geometry/depth_alignment.h"
+#include "predict/predictor.h"
 #include "synthetic_room.h"
 #include "test_support.h"
 

@@ -9,9 +9,9 @@
 #include "camera/trajectory.h"
 #include "data/scene.h"
 #include "model/default_model.h"
-#include "model/floaters.h"
+#include "geometry/floaters.h"
 #include "model/model_input.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 #include "synthetic_room.h"
 #include "test_support.h"
 

@@ -6,7 +6,7 @@
 #include <string>
 
 #include "common/error.h"
-#include "model/flying_pixels.h"
+#include "geometry/flying_pixels.h"
 
 namespace ii {
 namespace {

@@ -10,9 +10,9 @@
 
 #include "camera/trajectory.h"
 #include "model/default_model.h"
-#include "model/frame_margin.h"
+#include "geometry/frame_margin.h"
 #include "model/model_input.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 #include "synthetic_room.h"
 #include "test_support.h"
 

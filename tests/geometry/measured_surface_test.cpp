@@ -13,8 +13,8 @@
 #include "eval/metrics.h"
 #include "gaussians/gaussians.h"
 #include "model/default_model.h"
-#include "model/flying_pixels.h"
-#include "model/predictor.h"
+#include "geometry/flying_pixels.h"
+#include "predict/predictor.h"
 #include "render/rasterizer.h"
 #include "synthetic_room.h"
 #include "tensor/camera_projection.h"
@@ -171,7 +171,7 @@ TEST(MeasuredSurface, NothingWithoutDepthMapsOrWithoutAlignment) {
   const Prediction raw = predictor.predict(scene, options);
   EXPECT_EQ(raw.describe_geometry()["measured_surface"], nlohmann::json::object());
   // A scene without depth maps, and the photos' own depth not asked for: nothing to put the
-  // Gaussians on (with it: tests/model/stereo_depth_test.cpp).
+  // Gaussians on (with it: tests/geometry/stereo_depth_test.cpp).
   std::filesystem::remove_all(dir / "depth");
   options.geometry.align_depth = DepthPoints::depth_maps;
   options.geometry.measured_surface.from_photos = false;

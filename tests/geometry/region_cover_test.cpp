@@ -9,8 +9,8 @@
 #include "camera/trajectory.h"
 #include "data/scene.h"
 #include "model/default_model.h"
-#include "model/predictor.h"
-#include "model/region_cover.h"
+#include "predict/predictor.h"
+#include "geometry/region_cover.h"
 #include "synthetic_room.h"
 #include "test_support.h"
 

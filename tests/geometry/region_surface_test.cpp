@@ -10,8 +10,8 @@
 
 #include "common/cpu_features.h"
 #include "model/default_model.h"
-#include "model/predictor.h"
-#include "model/region_surface.h"
+#include "predict/predictor.h"
+#include "geometry/region_surface.h"
 #include "synthetic_room.h"
 #include "test_support.h"
 
@@ -32,7 +32,7 @@ torch::Tensor square_region() {
   return region;
 }
 
-// The fused kernel (model/region_weights.h) against LibTorch's softmax and product: ring sizes
+// The fused kernel (geometry/region_weights.h) against LibTorch's softmax and product: ring sizes
 // that are and are not whole vectors, features as wide as a 512-row picture's (logits in the
 // thousands: the row's largest must be taken out before the exponentials).
 TEST(RegionSurface, TheFusedRingWeightsAreLibTorchsSoftmax) {

@@ -12,8 +12,8 @@ namespace {
 namespace fs = std::filesystem;
 
 // Four of the statue's views, IMG_2720 the reference, at `height` rows.
-SceneInputOptions statue_context(int height) {
-  SceneInputOptions opts;
+InputOptions statue_context(int height) {
+  InputOptions opts;
   opts.context = {"IMG_2720", "IMG_2707", "IMG_2715", "IMG_2730"};
   opts.preprocess.height = height;
   return opts;
@@ -22,7 +22,7 @@ SceneInputOptions statue_context(int height) {
 TEST(SceneInput, StatueBuildsOfficialInputs) {
   II_REQUIRE_SHARED(dir, "data/statue");
   const Scene scene = load_scene(dir);
-  const SceneInputOptions opts = statue_context(128);
+  const InputOptions opts = statue_context(128);
   const SceneInput si = prepare_scene_input(scene, opts);
   ASSERT_EQ(si.input.images.sizes(), (std::vector<int64_t>{4, 4, 128, 168}));
   EXPECT_EQ(si.reference_source, "telea");
@@ -41,11 +41,11 @@ TEST(SceneInput, StatueBuildsOfficialInputs) {
 TEST(SceneInput, CachedViewsAndAReferenceMadeAheadGiveTheSameInput) {
   II_REQUIRE_SHARED(dir, "data/statue");
   const Scene scene = load_scene(dir);
-  const SceneInputOptions opts = statue_context(64);
+  const InputOptions opts = statue_context(64);
   const SceneInput fresh = prepare_scene_input(scene, opts);
 
   PreparedViewCache cache;
-  SceneInputOptions cached = opts;
+  InputOptions cached = opts;
   cached.view_cache = &cache;
   const Image region = *load_view_mask(*scene.find("IMG_2720"));
   cached.reference_image = classical_reference(scene, "IMG_2720", region, cached);
@@ -71,7 +71,7 @@ TEST(SceneInput, KeepObjectFeedsThePhotosUnmasked) {
   II_REQUIRE_SHARED(dir, "data/statue");
   Scene scene = load_scene(dir);
   for (View& v : scene.views) v.mask_path.reset();  // no masks needed
-  SceneInputOptions opts;
+  InputOptions opts;
   opts.context = {"IMG_2720", "IMG_2707"};
   opts.preprocess.height = 64;
   opts.keep_object = true;
@@ -87,7 +87,7 @@ TEST(SceneInput, KeepObjectFeedsThePhotosUnmasked) {
 TEST(SceneInput, UserErrorsAreClear) {
   II_REQUIRE_SHARED(dir, "data/statue");
   const Scene scene = load_scene(dir);
-  SceneInputOptions opts;
+  InputOptions opts;
   opts.preprocess.height = 64;
   opts.context = {"IMG_2720", "IMG_9999"};
   EXPECT_EQ(test::error_message([&] { prepare_scene_input(scene, opts); }).rfind("unknown context view 'IMG_9999' (views: IMG_2707, ", 0), 0u);

@@ -6,7 +6,7 @@
 #include "model/cpu/dispatch.h"
 #include "model/default_model.h"
 #include "model/inference.h"
-#include "model/predictor.h"
+#include "predict/predictor.h"
 #include "test_support.h"
 
 namespace ii {
