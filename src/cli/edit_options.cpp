@@ -178,8 +178,7 @@ void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
   options.inpainter = parse_inpainter(args.inpainter);
   options.geometry = args.geometry;
-  // An inserted object is not the surface around it.
-  if (args.mode == "insert") options.geometry.region_surface.opacity = 0;
+  if (args.mode == "insert") options.geometry = options.geometry.for_insertion();
 }
 
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene) {

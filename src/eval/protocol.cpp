@@ -148,9 +148,8 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   opts.reference_view = o.reference_view;
   opts.keep_object = o.keep_object;
   opts.geometry = o.geometry;
-  // An inserted object is not the surface around it.
   if (scene_task(scene) == "insert" || (o.edit && o.edit->propagation.mode == EditMode::Insert))
-    opts.geometry.region_surface.opacity = 0;
+    opts.geometry = opts.geometry.for_insertion();
   if (o.edit) {
     spdlog::info("masks for every view from the region on {}", o.edit->view);
     const SceneMasks masks =

@@ -20,6 +20,12 @@ DepthPoints parse_depth_points(const std::string& name) {
   fail("--align-depth '{}': none, depth-maps, photos or any", name);
 }
 
+GeometryOptions GeometryOptions::for_insertion() const {
+  GeometryOptions insertion = *this;
+  insertion.region_surface.opacity = 0;
+  return insertion;
+}
+
 GeometryOptions GeometryOptions::papers() {
   GeometryOptions none;
   none.align_depth = DepthPoints::none;

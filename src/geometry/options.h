@@ -72,6 +72,9 @@ struct GeometryOptions {
 
   // Every step off: the network's Gaussians as the paper's code makes them.
   static GeometryOptions papers();
+  // For an insertion: the region holds a new object, not the surface around it, so the region
+  // surface is off (the one rule for the commands, eval and the server).
+  GeometryOptions for_insertion() const;
 };
 
 }  // namespace ii

@@ -643,7 +643,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.num_views = options.views;
   input.view_cache = &views;
   input.geometry = options.geometry;
-  if (edit.mode == EditMode::Insert) input.geometry.region_surface.opacity = 0;  // a new object, not the ground
+  if (edit.mode == EditMode::Insert) input.geometry = input.geometry.for_insertion();
   OneMask request;
   request.view = view.name;
   request.region = edit.region;
