@@ -33,8 +33,8 @@ build: deps
 demo: build
 	@bash scripts/demo.sh $(BUILD)/instainpaint
 
-# The sanitizer build is not part of it: a second build of the torch-free code (3 minutes on 2
-# cores) whose tests are the same as the main build's, under the sanitizers. CI runs it
+# The sanitizer build is not part of it: a second build of the torch-free code (2-3 minutes on
+# 2 cores) whose tests are the same as the main build's, under the sanitizers. CI runs it
 # (.ci/run); a user's first `make test` is spared it (docs/benchmarks.md, "CI on a fresh machine").
 test: test-main test-python
 
