@@ -4,6 +4,7 @@
 extern "C" {
 extern const char ii_web_index_begin[], ii_web_index_end[];
 extern const char ii_web_app_begin[], ii_web_app_end[];
+extern const char ii_web_app_gz_begin[], ii_web_app_gz_end[];
 }
 #endif
 
@@ -13,9 +14,11 @@ const std::vector<WebAsset>& web_assets() {
   static const std::vector<WebAsset> assets = {
 #ifdef INSTAINPAINT_WEB_PAGE
       {"/", "text/html; charset=utf-8",
-       std::string_view(ii_web_index_begin, static_cast<size_t>(ii_web_index_end - ii_web_index_begin))},
+       std::string_view(ii_web_index_begin, static_cast<size_t>(ii_web_index_end - ii_web_index_begin)),
+       {}},
       {"/app.js", "text/javascript; charset=utf-8",
-       std::string_view(ii_web_app_begin, static_cast<size_t>(ii_web_app_end - ii_web_app_begin))},
+       std::string_view(ii_web_app_begin, static_cast<size_t>(ii_web_app_end - ii_web_app_begin)),
+       std::string_view(ii_web_app_gz_begin, static_cast<size_t>(ii_web_app_gz_end - ii_web_app_gz_begin))},
 #endif
   };
   return assets;

@@ -11,6 +11,7 @@ struct WebAsset {
   std::string_view path;          // as requested, e.g. "/app.js"
   std::string_view content_type;
   std::string_view body;
+  std::string_view gzip_body;     // the body gzipped at build time, or empty (small assets)
 };
 
 // Empty when the library was built without the bundle (no web/node_modules: `make deps` runs

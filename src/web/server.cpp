@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <condition_variable>
 #include <fstream>
@@ -65,6 +66,13 @@ void reply(httplib::Response& res, int status, const json& body) {
 }
 
 void refuse(httplib::Response& res, const Refusal& r) { reply(res, r.status, {{"error", r.message}}); }
+
+// Whether an Accept-Encoding header lists gzip (as httplib decides it, without weights).
+bool accepts_gzip(std::string accept_encoding) {
+  std::transform(accept_encoding.begin(), accept_encoding.end(), accept_encoding.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  return accept_encoding.find("gzip") != std::string::npos;
+}
 
 // The host name of a Host header or of an origin's authority ("[::1]:8080" -> "[::1]").
 std::string host_name(std::string_view authority) {
@@ -1022,7 +1030,19 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
 
   auto asset = [](const httplib::Request& req, httplib::Response& res) {
     if (const WebAsset* a = find_web_asset(req.path)) {
-      res.set_content(std::string(a->body), std::string(a->content_type));
+      if (!a->gzip_body.empty() && accepts_gzip(req.get_header_value("Accept-Encoding"))) {
+        // Sent as gzipped at build time, through a content provider of known length: httplib
+        // compresses only a plain body, so it neither compresses it again nor with Brotli.
+        res.set_header("Content-Encoding", "gzip");
+        res.set_header("Vary", "Accept-Encoding");
+        const std::string_view body = a->gzip_body;
+        res.set_content_provider(body.size(), std::string(a->content_type),
+                                 [body](size_t offset, size_t length, httplib::DataSink& sink) {
+                                   return sink.write(body.data() + offset, length);
+                                 });
+      } else {
+        res.set_content(std::string(a->body), std::string(a->content_type));
+      }
       return;
     }
     if (req.path == "/" && web_assets().empty()) {

@@ -111,7 +111,7 @@ try {
   h.check(stroke?.state === "done" && stroke.result.fill.removed > 0 && stroke.result.fill.added > 0,
     `the stroke's splats were removed and filled (${JSON.stringify(stroke?.result?.fill ?? await page.locator("#status").textContent())})`);
   // Seen from the same view, the hole shows the reference's colours.
-  await h.frames(page, 10);
+  await h.settled(page);
   const pixel = await page.evaluate(([x, y]) => {
     const c = document.querySelector("#viewer canvas");
     const ctx = Object.assign(document.createElement("canvas"), { width: c.width, height: c.height }).getContext("2d");

@@ -97,19 +97,24 @@ export async function frames(page, count) {
   await page.waitForFunction((n) => window.instainpaint.frames >= n, target, { timeout: 120000 });
 }
 
-// A screenshot of `locator` once the viewer's picture has settled: batches of `count` frames, a
-// pause between them, until two screenshots in a row are the same (at most `tries` batches). Spark
-// sorts in a worker; on a loaded machine a fixed number of frames was once not enough (CI, the
-// edit's masked PSNR measured on a half-drawn picture). The frame-rate line over the canvas is
-// hidden in them: its number changes with every batch, and no two screenshots were ever the
-// same (the fill test waited all ten batches, twice, 50-60 s).
-export async function settledScreenshot(page, locator, count = 10, tries = 10) {
+// Waits until the viewer's picture is final (window.instainpaint.settled): at least one frame
+// drawn, Spark's sort of it done (in a worker) and its order drawn (the page asks for that frame
+// itself). On a loaded machine a fixed number of frames was once not enough (CI, the edit's
+// masked PSNR measured on a half-drawn picture); with software WebGL each frame is about 0.5 s.
+export async function settled(page) {
+  await frames(page, 1);
+  await page.waitForFunction(() => window.instainpaint.settled(), null, { timeout: 120000, polling: 50 });
+}
+
+// A screenshot of `locator` once the picture has settled, checked: one more frame and its
+// screenshot must be the same (at most `tries` times). The frame-rate line over the canvas is
+// hidden in them: its number changes with every frame.
+export async function settledScreenshot(page, locator, tries = 10) {
   const shoot = () => locator.screenshot({ style: "#hud { visibility: hidden !important; }" });
-  await frames(page, count);
+  await settled(page);
   let shot = await shoot();
   for (let i = 0; i < tries; ++i) {
-    await new Promise((resolve) => setTimeout(resolve, 250));
-    await frames(page, count);
+    await settled(page);
     const next = await shoot();
     if (next.equals(shot)) return next;
     shot = next;

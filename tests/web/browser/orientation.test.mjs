@@ -59,7 +59,7 @@ try {
     const errors = h.collectErrors(page);
     await page.goto(server.url);
     await page.evaluate(() => window.instainpaint.ready);
-    await h.frames(page, 10);
+    await h.settled(page);
     writeFileSync(join(dir, `page-${ups.length}.png`), await page.screenshot());
     const { views, pose, sceneUp } = await page.evaluate(() =>
       ({ views: window.instainpaint.info.scene.views, pose: window.instainpaint.pose(), sceneUp: window.instainpaint.sceneUp }));

@@ -67,7 +67,7 @@ try {
     const gerrors = h.collectErrors(gpage);
     await gpage.goto(other.url);
     await gpage.evaluate(() => window.instainpaint.ready);
-    await h.frames(gpage, 10);
+    await h.settled(gpage);
     writeFileSync(join(dir, "page-guitar.png"), await gpage.locator("#viewer canvas").screenshot());
     const drawn = await gpage.evaluate(h.drawnFraction);
     h.check(drawn > 0.05, `the shared compressed PLY is drawn (${(100 * drawn).toFixed(0)} % of pixels)`);
@@ -107,7 +107,7 @@ try {
   const berrors = h.collectErrors(bpage);
   await bpage.goto(bare.url);
   await bpage.evaluate(() => window.instainpaint.ready);
-  await h.frames(bpage, 10);
+  await h.settled(bpage);
   writeFileSync(join(dir, "page-scene-alone.png"), await bpage.screenshot());
   const shown = await bpage.evaluate(() => ({ url: window.instainpaint.loadedUrl, hud: document.getElementById("hud").textContent,
     editing: !document.getElementById("edit-panel").hidden, view: document.getElementById("edit-view").textContent }));
