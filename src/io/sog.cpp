@@ -13,10 +13,12 @@
 #include <random>
 #include <string>
 
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include "common/error.h"
 #include "common/files.h"
+#include "common/parallel.h"
 #include "io/splat_quantize.h"
 #include "io/zip_archive.h"
 
@@ -251,6 +253,31 @@ std::pair<std::vector<float>, std::vector<uint8_t>> codebook(const std::vector<f
   return {centres, labels};
 }
 
+using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Each row of `points`' nearest row of `centres` (squared distance), as ||c||^2 - 2 x.c: one
+// matrix product per block of rows (Eigen's), the blocks over the cores. The brute-force loop it
+// replaced made the SH palette of a 90k-splat capture in 14 s.
+std::vector<uint16_t> nearest_centres(const Eigen::Ref<const RowMatrix>& points, const RowMatrix& centres) {
+  const Eigen::VectorXf norms = centres.rowwise().squaredNorm();
+  std::vector<uint16_t> out(static_cast<size_t>(points.rows()));
+  constexpr int64_t kBlock = 128;
+  const int64_t blocks = (points.rows() + kBlock - 1) / kBlock;
+  parallel_range(blocks, 1, thread_plan().cores, [&](int64_t b0, int64_t b1) {
+    Eigen::MatrixXf dots;
+    for (int64_t b = b0; b < b1; ++b) {
+      const int64_t r0 = b * kBlock, rows = std::min(kBlock, points.rows() - r0);
+      dots.noalias() = centres * points.middleRows(r0, rows).transpose();  // entries x rows
+      for (int64_t r = 0; r < rows; ++r) {
+        Eigen::Index best = 0;
+        (norms - 2 * dots.col(r)).minCoeff(&best);
+        out[static_cast<size_t>(r0 + r)] = static_cast<uint16_t>(best);
+      }
+    }
+  });
+  return out;
+}
+
 // The SH palette: k-means (squared distance) fitted on a seeded sample, then every splat's
 // nearest entry.
 std::pair<std::vector<float>, std::vector<uint16_t>> sh_palette(const std::vector<float>& rest, size_t n, int dims,
@@ -260,38 +287,25 @@ std::pair<std::vector<float>, std::vector<uint16_t>> sh_palette(const std::vecto
   std::iota(sample.begin(), sample.end(), 0);
   std::shuffle(sample.begin(), sample.end(), rng);
   sample.resize(std::min<size_t>(n, 8 * entries));
-  std::vector<float> centres(entries * dims);
-  for (size_t k = 0; k < entries; ++k)
-    std::copy_n(&rest[sample[k % sample.size()] * dims], dims, &centres[k * dims]);
-  auto nearest = [&](const float* x) {
-    size_t best = 0;
-    float best_d = INFINITY;
-    for (size_t k = 0; k < entries; ++k) {
-      const float* c = &centres[k * dims];
-      float d = 0;
-      for (int j = 0; j < dims; ++j) d += (x[j] - c[j]) * (x[j] - c[j]);
-      if (d < best_d) {
-        best_d = d;
-        best = k;
-      }
-    }
-    return best;
-  };
+  const Eigen::Map<const RowMatrix> all(rest.data(), static_cast<Eigen::Index>(n), dims);
+  RowMatrix sampled(static_cast<Eigen::Index>(sample.size()), dims);
+  for (size_t s = 0; s < sample.size(); ++s) sampled.row(static_cast<Eigen::Index>(s)) = all.row(static_cast<Eigen::Index>(sample[s]));
+  RowMatrix centres(static_cast<Eigen::Index>(entries), dims);
+  for (size_t k = 0; k < entries; ++k) centres.row(static_cast<Eigen::Index>(k)) = sampled.row(static_cast<Eigen::Index>(k % sample.size()));
   for (int iteration = 0; iteration < 5; ++iteration) {
-    std::vector<double> sum(entries * dims, 0.0);
+    const std::vector<uint16_t> nearest = nearest_centres(sampled, centres);
+    Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(entries), dims);
     std::vector<size_t> members(entries, 0);
-    for (size_t i : sample) {
-      const size_t k = nearest(&rest[i * dims]);
-      ++members[k];
-      for (int j = 0; j < dims; ++j) sum[k * dims + j] += rest[i * dims + j];
+    for (size_t s = 0; s < sample.size(); ++s) {
+      ++members[nearest[s]];
+      sum.row(nearest[s]) += sampled.row(static_cast<Eigen::Index>(s)).cast<double>();
     }
     for (size_t k = 0; k < entries; ++k)
       if (members[k] > 0)
-        for (int j = 0; j < dims; ++j) centres[k * dims + j] = static_cast<float>(sum[k * dims + j] / members[k]);
+        centres.row(static_cast<Eigen::Index>(k)) = (sum.row(static_cast<Eigen::Index>(k)) / double(members[k])).cast<float>();
   }
-  std::vector<uint16_t> labels(n);
-  for (size_t i = 0; i < n; ++i) labels[i] = static_cast<uint16_t>(nearest(&rest[i * dims]));
-  return {centres, labels};
+  std::vector<float> flat(centres.data(), centres.data() + centres.size());
+  return {flat, nearest_centres(all, centres)};
 }
 
 std::vector<uint8_t> encode_webp(const std::vector<uint8_t>& rgba, int width, int height, const fs::path& path) {
