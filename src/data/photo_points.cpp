@@ -112,7 +112,7 @@ class RecentValues {
 
 // Photos' features by file and matching size: a server's edits of one scene match the same
 // photos again and again, and it detects them all while the page is painted on
-// (prepare_photo_features). 256 photos of 1,500 features: about 60 MB.
+// (prepare_photo_points). 256 photos of 1,500 features: about 60 MB.
 std::shared_ptr<const Features> cached_features(const View& view, const PhotoPointsOptions& options) {
   static RecentValues<Features> cache(256);
   return cache.get(fmt::format("{}\n{} {}", view_key(view, false), options.height, options.max_features),
@@ -214,10 +214,6 @@ std::map<int, PosedFeatures> features_of(const Scene& scene, const std::set<int>
 
 }  // namespace
 
-void prepare_photo_features(const Scene& scene, const std::vector<int>& views, const PhotoPointsOptions& options) {
-  features_of(scene, std::set<int>(views.begin(), views.end()), options);
-}
-
 PhotoPoints triangulate_photo_points(const Scene& scene, const std::vector<int>& views, const PhotoPointsOptions& options) {
   const Stopwatch clock;
   PhotoPoints out;
@@ -235,11 +231,48 @@ PhotoPoints triangulate_photo_points(const Scene& scene, const std::vector<int>&
   return out;
 }
 
+namespace {
+
+// One view's points with its neighbours (the default options), by the keys of the view and of
+// its neighbours: points of a set of views are their views' points one after the other (as
+// triangulate_photo_points makes them), so a server triangulates each view once, while its page is
+// painted on (prepare_photo_points), and every edit's context only gathers them. 1024 views.
+std::shared_ptr<const PhotoPoints> cached_view_points(const Scene& scene, int view) {
+  static RecentValues<PhotoPoints> cache(1024);
+  const PhotoPointsOptions options;
+  std::string key = view_key(scene.views.at(static_cast<size_t>(view)), true);
+  for (int n : triangulation_neighbours(scene, view, options.neighbours, options.max_view_angle_deg))
+    key += "\n" + view_key(scene.views.at(static_cast<size_t>(n)), true);
+  return cache.get(key, [&] { return triangulate_photo_points(scene, {view}, options); });
+}
+
+// `views` and the neighbours they are matched with.
+std::set<int> with_neighbours(const Scene& scene, const std::set<int>& views) {
+  const PhotoPointsOptions options;
+  std::set<int> photos = views;
+  for (int v : views)
+    for (int n : triangulation_neighbours(scene, v, options.neighbours, options.max_view_angle_deg)) photos.insert(n);
+  return photos;
+}
+
+}  // namespace
+
 std::shared_ptr<const PhotoPoints> cached_photo_points(const Scene& scene, const std::vector<int>& views) {
-  static RecentValues<PhotoPoints> cache(8);
-  std::string key;
-  for (int v : views) key += view_key(scene.views.at(static_cast<size_t>(v)), true) + "\n";
-  return cache.get(key, [&] { return triangulate_photo_points(scene, views); });
+  const std::set<int> unique(views.begin(), views.end());
+  features_of(scene, with_neighbours(scene, unique), PhotoPointsOptions{});  // every photo at once, one per thread
+  auto all = std::make_shared<PhotoPoints>();
+  for (int v : unique) {
+    const auto own = cached_view_points(scene, v);
+    all->points.insert(all->points.end(), own->points.begin(), own->points.end());
+    all->pairs += own->pairs;
+    all->matches += own->matches;
+    all->seconds += own->seconds;
+  }
+  return all;
+}
+
+void prepare_photo_points(const Scene& scene, const std::vector<int>& views) {
+  cached_photo_points(scene, views);
 }
 
 std::shared_ptr<const std::vector<std::vector<Eigen::Vector3d>>> photo_points_of_every_view(const Scene& scene) {
@@ -250,7 +283,7 @@ std::shared_ptr<const std::vector<std::vector<Eigen::Vector3d>>> photo_points_of
   return cache.get(key, [&] {
     ByView by_view;
     for (size_t v = 0; v < scene.views.size(); ++v)
-      by_view.push_back(triangulate_photo_points(scene, {static_cast<int>(v)}).points);
+      by_view.push_back(cached_view_points(scene, static_cast<int>(v))->points);
     return by_view;
   });
 }

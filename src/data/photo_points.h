@@ -44,8 +44,10 @@ std::vector<int> triangulation_neighbours(const Scene& scene, int view, int coun
 PhotoPoints triangulate_photo_points(const Scene& scene, const std::vector<int>& views,
                                      const PhotoPointsOptions& options = {});
 
-// triangulate_photo_points with the default options, kept for the last 8 sets of views asked
-// (by file, intrinsics and pose): the page's edits of one scene ask again and again.
+// triangulate_photo_points with the default options, each view's points kept (the last 1024
+// views asked, by file, intrinsics and pose of the view and its neighbours): the page's edits of
+// one scene ask for a few views' points again and again. `seconds` is the views' triangulation
+// time when they were made.
 std::shared_ptr<const PhotoPoints> cached_photo_points(const Scene& scene, const std::vector<int>& views);
 
 // Each view's own points (triangulated from its features with its neighbours, so that it sees
@@ -53,8 +55,8 @@ std::shared_ptr<const PhotoPoints> cached_photo_points(const Scene& scene, const
 // 1024 scenes asked (by file, intrinsics and pose of every view).
 std::shared_ptr<const std::vector<std::vector<Eigen::Vector3d>>> photo_points_of_every_view(const Scene& scene);
 
-// Detects the features of `views` now (a server, while its page is painted on), so that a later
-// triangulate_photo_points of them only matches.
-void prepare_photo_features(const Scene& scene, const std::vector<int>& views, const PhotoPointsOptions& options = {});
+// Detects the features of `views` and triangulates their points now (a server, while its page is
+// painted on), so that a later cached_photo_points of any of them only gathers them.
+void prepare_photo_points(const Scene& scene, const std::vector<int>& views);
 
 }  // namespace ii

@@ -1,6 +1,6 @@
 // Points triangulated from a capture's photos with its own cameras: on the fern they lie where
-// its COLMAP reconstruction put the scene, the neighbours chosen look the same way, features
-// detected beforehand give the same points, and an unreadable photo is an error naming the file.
+// its COLMAP reconstruction put the scene, the neighbours chosen look the same way, points
+// prepared view by view are those of one triangulation, and an unreadable photo is an error naming the file.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -73,16 +73,22 @@ Scene fern_copy(const fs::path& dir, const std::string& tag) {
   return load_scene(copy);
 }
 
-TEST(PhotoPoints, FeaturesPreparedBeforehandGiveTheSamePoints) {
+// A server prepares every view's points while its page is painted on; an edit's context then
+// gathers them: the same points, in the same order, as one triangulation of that set of views.
+TEST(PhotoPoints, PointsPreparedBeforehandAreThoseOfTheSetsTriangulation) {
   II_REQUIRE_SHARED(dir, "data/fern");
   const Scene prepared = fern_copy(dir, "photo-points-prepared"), fresh = fern_copy(dir, "photo-points-fresh");
   std::vector<int> all(prepared.views.size());
   for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
-  prepare_photo_features(prepared, all);
-  const PhotoPoints a = triangulate_photo_points(prepared, {3}), b = triangulate_photo_points(fresh, {3});
-  ASSERT_GT(a.points.size(), 100u);
-  EXPECT_EQ(a.points, b.points);
-  EXPECT_EQ(a.matches, b.matches);
+  prepare_photo_points(prepared, all);
+  const auto gathered = cached_photo_points(prepared, {7, 3, 12});
+  const PhotoPoints made = triangulate_photo_points(fresh, {3, 7, 12});
+  ASSERT_GT(made.points.size(), 300u);
+  EXPECT_EQ(gathered->points, made.points);
+  EXPECT_EQ(gathered->matches, made.matches);
+  EXPECT_EQ(gathered->pairs, made.pairs);
+  // and a view asked again is the same again
+  EXPECT_EQ(cached_photo_points(prepared, {3})->points, triangulate_photo_points(fresh, {3}).points);
 }
 
 TEST(PhotoPoints, AnUnreadablePhotoIsAnErrorNamingIt) {
