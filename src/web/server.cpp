@@ -363,6 +363,12 @@ struct WebServer::State {
   // The scene's reconstruction with the object kept (the first job when it opens without
   // splats), on the rasterizer's device, pose-normalised frame: later edits' depth comes from it.
   std::optional<GaussianSet> reconstruction;
+  // Its depth at each view's working camera (the edits' masks start from the marked view's):
+  // drawn once per view (statue at 256 rows: 0.12 s that a second edit or preview of the view,
+  // the page's usual course, does not wait for).
+  std::mutex reconstruction_depth_mutex;
+  std::map<size_t, torch::Tensor> reconstruction_depth;
+  torch::Tensor reconstruction_depth_in(size_t view);
 
   ~State() { stop_worker(); }
   void worker_loop();
@@ -659,11 +665,8 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   // The marked view's depth from the scene's reconstruction (made when the page opened): drawn
   // at its working camera, in place of a second network call (issue 54).
   if (reconstruction) {
-    request.working_depth = stages.time("masks: depth from the scene's reconstruction", [&] {
-      RenderCamera camera;
-      camera.camera = normalization.apply(views.get(view, input.preprocess).camera);
-      return render(*reconstruction, camera).depth.squeeze(2).to(torch::kCPU);
-    });
+    request.working_depth = stages.time("masks: depth from the scene's reconstruction",
+                                        [&] { return reconstruction_depth_in(static_cast<size_t>(edit.view)); });
     request.working_depth_source = "the scene's reconstruction";
   }
   stage("propagating the mask to every view", 0.05);
@@ -739,6 +742,19 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   return result;
 }
 
+torch::Tensor WebServer::State::reconstruction_depth_in(size_t view) {
+  std::lock_guard<std::mutex> lock(reconstruction_depth_mutex);
+  torch::Tensor& depth = reconstruction_depth[view];
+  if (!depth.defined()) {
+    PreprocessOptions working;
+    working.height = options.height;
+    RenderCamera camera;
+    camera.camera = normalization.apply(views.get(scene->views.at(view), working).camera);
+    depth = render(*reconstruction, camera).depth.squeeze(2).to(torch::kCPU);
+  }
+  return depth;
+}
+
 json WebServer::State::write_splats_of(const GaussianSet& gaussians, const fs::path& dir, int id, StageTimes& stages,
                                        BehindSteps& behind) {
   // In the scene's frame, as infer writes them: the downloads line up with the capture.
@@ -783,6 +799,10 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   for (torch::Tensor* t : {&kept.means, &kept.quats, &kept.scales, &kept.opacities, &kept.colors})
     *t = t->to(render_device(predictor->device()), torch::kFloat32);
   reconstruction = std::move(kept);
+  {
+    std::lock_guard<std::mutex> lock(reconstruction_depth_mutex);
+    reconstruction_depth.clear();
+  }
   stage("writing the Gaussians", 0.9);
   json result = write_splats_of(predicted, dir, id, stages, behind);
   result["reference_view"] = p.input.views.front().name;
@@ -797,6 +817,7 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
       stages.time("every view's points from the photos (behind)", [&] { prepare_photo_points(*scene, all); }, true);
     });
   }
+
   return result;
 }
 
