@@ -460,16 +460,16 @@ TEST(Serve, AScenesReconstructionIsTheFirstJob) {
 }
 
 // A capture without depth maps or points: its reconstruction scales the depth to points
-// triangulated from the photos, and every photo's features are detected behind the answer, so
-// that the first edit only matches them; with --align-depth none neither happens.
-TEST(Serve, ACapturesPhotosFeaturesAreDetectedBehindItsReconstruction) {
+// triangulated from the photos, and every view's points are made behind the answer, so that an
+// edit only gathers its context views'; with --align-depth none neither happens.
+TEST(Serve, ACapturesPhotoPointsAreMadeBehindItsReconstruction) {
   II_REQUIRE_SHARED(dir, "data/statue");
   auto stage_names = [](const json& job) {
     std::vector<std::string> names;
     for (const json& st : job["stages"]) names.push_back(st["stage"].get<std::string>());
     return names;
   };
-  const std::string behind = "detect every photo's features (behind)";
+  const std::string behind = "every view's points from the photos (behind)";
   ServeOptions o;
   o.scene_dir = dir;
   o.height = 64;
