@@ -983,10 +983,11 @@ void WebServer::State::write_files_behind(int id, BehindSteps steps, std::shared
   spdlog::info("job {}: writing its files behind the answer", id);
 }
 
-WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(std::make_unique<State>()) {
-  State& s = *state_;
-  s.options = std::move(options);
-  s.predictor = predictor;
+namespace {
+
+// The options checked, the scene read and the output folder taken over: job numbers go on from a
+// previous run, whose half-written files are removed.
+void open_state(WebServer::State& s) {
   if (s.options.token.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_") !=
       std::string::npos)
     fail("serve --token: only letters, digits, '-' and '_' (it goes into addresses and a cookie)");
@@ -1012,7 +1013,10 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
   for (const fs::path& p : leftovers) fs::remove(p);
   if (!leftovers.empty())
     spdlog::info("removed {} half-written file(s) of an earlier run from {}", leftovers.size(), s.out.string());
+}
 
+// What every request passes: the host and token checks, limits, and errors answered as JSON.
+void guard_requests(WebServer::State& s) {
   httplib::Server& http = s.http;
   http.set_payload_max_length(s.options.max_upload_bytes);
   // httplib drops a client that sends nothing for 5 s, not one that trickles a byte a second;
@@ -1049,7 +1053,10 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
                        : res.status == 405 ? "method not allowed"
                                            : "bad request"}});
   });
+}
 
+// The page itself: index.html and its bundle.
+void serve_page(httplib::Server& http) {
   auto asset = [](const httplib::Request& req, httplib::Response& res) {
     if (const WebAsset* a = find_web_asset(req.path)) {
       if (!a->gzip_body.empty() && accepts_gzip(req.get_header_value("Accept-Encoding"))) {
@@ -1080,7 +1087,11 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
   http.Get("/", asset);
   http.Get("/index.html", asset);
   http.Get("/app.js", asset);
+}
 
+// What the page reads: the server's state, the scene's views, the PLYs and what jobs wrote.
+void serve_reads(WebServer::State& s) {
+  httplib::Server& http = s.http;
   http.Get("/api/info", [&s](const httplib::Request&, httplib::Response& res) {
     json info = s.info();
     std::lock_guard<std::mutex> lock(s.mutex);
@@ -1143,7 +1154,11 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
     }
     send_file(req, res, sog, "application/octet-stream");
   });
+}
 
+// What the page starts: masks, edits, videos, evaluations and fills, one job at a time.
+void serve_jobs(WebServer::State& s) {
+  httplib::Server& http = s.http;
   auto start_job = [&s](const std::string& kind) {
     return [&s, kind](const httplib::Request& req, httplib::Response& res) {
       if (!s.scene && kind != "fill") return refuse(res, {400, "the server was started without --scene: nothing to edit"});
@@ -1180,7 +1195,19 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
     };
   };
   for (const char* kind : {"masks", "edit", "video", "eval", "fill"}) http.Post(std::string("/api/") + kind, start_job(kind));
+}
 
+}  // namespace
+
+WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.options = std::move(options);
+  s.predictor = predictor;
+  open_state(s);
+  guard_requests(s);
+  serve_page(s.http);
+  serve_reads(s);
+  serve_jobs(s);
   // Last: nothing after it may throw while the job's thread runs.
   if (s.options.reconstruct_at_start && s.scene && s.predictor && s.options.plys.empty()) {
     JobRequest request;

@@ -86,8 +86,10 @@ class WebServer {
   // Waits for a running job to end (tests).
   void wait_for_job();
 
- private:
+  // Opaque: defined in server.cpp, where the steps that build the server take it.
   struct State;
+
+ private:
   std::unique_ptr<State> state_;
 };
 
