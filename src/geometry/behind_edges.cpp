@@ -5,6 +5,7 @@
 
 #include "common/error.h"
 #include "geometry/floaters.h"
+#include "tensor/window_max.h"
 
 namespace ii {
 
@@ -62,8 +63,8 @@ GaussianSet gaussians_behind_edges(const GaussianMaps& maps, const ModelInput& i
     // Each pixel's farthest far-side pixel within `reach`, and where it lies deeper than the pixel.
     const torch::Tensor sources =
         torch::where(usable.logical_and(far_side_of_edges(depth, options.jump)), depth, torch::zeros_like(depth));
-    const auto [far, from] = torch::max_pool2d_with_indices(sources.view({1, 1, H, W}), {2 * reach + 1, 2 * reach + 1},
-                                                            {1, 1}, {reach, reach});
+    const WindowMax nearby = window_max_with_index(sources, reach);
+    const torch::Tensor &far = nearby.value, &from = nearby.index;
     const torch::Tensor far_depth = far.view({H * W});
     const torch::Tensor under =
         far_depth.gt(depth.view({H * W}) * (1 + options.jump)).logical_and(usable.view({H * W}));
