@@ -817,7 +817,6 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
       stages.time("every view's points from the photos (behind)", [&] { prepare_photo_points(*scene, all); }, true);
     });
   }
-
   return result;
 }
 
