@@ -154,71 +154,80 @@ double DetailMap::spacing_sphere_points(const std::vector<Eigen::Vector3d>& poin
   return std::clamp(best, min_, max_);
 }
 
-SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
-  check_options(options);
-  SynthScene scene;
-  scene.seed = seed;
-  SynthRng plan_rng(mix_seed(seed, kPlanStream));
+namespace {
 
-  // ---- the object: where it comes from and how big it is --------------------------------
+// The object: a captured splat or a procedural one, its height and footprint (of the largest of
+// several), and the radius that bounds it.
+struct ObjectPlan {
+  const GaussianSet* splat = nullptr;
+  std::filesystem::path splat_file;
+  double height = 0, footprint = 0, bounding = 0;
+};
+
+ObjectPlan plan_object(const SynthOptions& options, SynthRng& plan_rng) {
+  ObjectPlan o;
   const bool want_splat =
       options.object == ObjectSource::splat || (options.object == ObjectSource::mixed && plan_rng.chance(1.0 / 3.0));
   const auto splat_files = list_splat_objects(options.splat_dir);
-  const GaussianSet* splat = nullptr;
-  std::filesystem::path splat_file;
   if (want_splat && !splat_files.empty() && options.objects == 1) {
-    splat_file = plan_rng.pick(splat_files);
-    splat = &normalized_splat_object(splat_file);
+    o.splat_file = plan_rng.pick(splat_files);
+    o.splat = &normalized_splat_object(o.splat_file);
   } else if (options.object == ObjectSource::splat) {
     fail("synth: --object splat needs captured splats (*.ply) in '{}'", options.splat_dir.string());
   }
-  double height, footprint;  // of the object, or of the largest of several
-  if (splat) {
-    height = plan_rng.uniform(0.45, 0.9);
-    footprint = splat_footprint(*splat) * height;
+  if (o.splat) {
+    o.height = plan_rng.uniform(0.45, 0.9);
+    o.footprint = splat_footprint(*o.splat) * o.height;
   } else {
-    height = plan_rng.uniform(0.22, 0.6);
-    footprint = height * plan_rng.uniform(0.3, 0.65);
+    o.height = plan_rng.uniform(0.22, 0.6);
+    o.footprint = o.height * plan_rng.uniform(0.3, 0.65);
   }
-  double bounding = std::hypot(height / 2, footprint);
+  o.bounding = std::hypot(o.height / 2, o.footprint);
+  return o;
+}
 
-  RoomPlan plan;
-  plan.object_footprint = footprint;
+// Where the object stands (on the floor or on a support) or, with several, where each stands:
+// on the floor, evenly around the centre and far enough apart that their masks are separate
+// regions in most views. Widens object.bounding to all of them.
+std::vector<ObjectSlot> place_objects(const SynthOptions& options, uint64_t seed, SynthRng& plan_rng,
+                                      ObjectPlan& object, RoomPlan& plan) {
+  plan.object_footprint = object.footprint;
   plan.support = plan_rng.weighted({0.5, 0.17, 0.17, 0.16});
   double support_top = 0;
   if (plan.support != 0) {
     support_top = plan.support == 3 ? plan_rng.uniform(0.3, 0.8) : plan_rng.uniform(0.45, 0.75);
-    plan.support_size = std::min(footprint + plan_rng.uniform(0.05, 0.25), std::max(0.45, footprint + 0.05));
+    plan.support_size =
+        std::min(object.footprint + plan_rng.uniform(0.05, 0.25), std::max(0.45, object.footprint + 0.05));
   }
   plan.object_base = Vector3d(0, support_top, 0);
-  std::vector<ObjectSlot> slots = {{plan.object_base, height, footprint}};
-  if (options.objects > 1) {
-    // On the floor, evenly around the centre and far enough apart that their masks are
-    // separate regions in most views.
-    SynthRng layout_rng(mix_seed(seed, kLayoutStream));
-    plan.support = 0;
-    plan.support_size = 0;
-    plan.object_base = Vector3d::Zero();
-    const double spread = 1.6 * footprint + 0.15, turn = layout_rng.uniform(0, 2 * M_PI);
-    slots.clear();
-    for (int i = 0; i < options.objects; ++i) {
-      const double angle = turn + 2 * M_PI * i / options.objects;
-      slots.push_back({Vector3d(spread * std::cos(angle), 0, spread * std::sin(angle)),
-                       height * layout_rng.uniform(0.7, 1.0), footprint * layout_rng.uniform(0.7, 1.0)});
-    }
-    bounding = spread + bounding;
-    plan.object_footprint = spread + footprint;
+  std::vector<ObjectSlot> slots = {{plan.object_base, object.height, object.footprint}};
+  if (options.objects == 1) return slots;
+  SynthRng layout_rng(mix_seed(seed, kLayoutStream));
+  plan.support = 0;
+  plan.support_size = 0;
+  plan.object_base = Vector3d::Zero();
+  const double spread = 1.6 * object.footprint + 0.15, turn = layout_rng.uniform(0, 2 * M_PI);
+  slots.clear();
+  for (int i = 0; i < options.objects; ++i) {
+    const double angle = turn + 2 * M_PI * i / options.objects;
+    slots.push_back({Vector3d(spread * std::cos(angle), 0, spread * std::sin(angle)),
+                     object.height * layout_rng.uniform(0.7, 1.0), object.footprint * layout_rng.uniform(0.7, 1.0)});
   }
+  object.bounding = spread + object.bounding;
+  plan.object_footprint = spread + object.footprint;
+  return slots;
+}
 
-  // ---- cameras ---------------------------------------------------------------------------
-  SynthRng camera_rng(mix_seed(seed, kCameraStream));
+// The cameras' path around (arc) or in front of (forward) the object, and their intrinsics.
+CameraPath draw_camera_path(const SynthOptions& options, const RoomPlan& plan, const ObjectPlan& object,
+                            SynthRng& camera_rng, double& fov_y) {
   CameraPath path;
   path.arc = camera_rng.chance(0.65);
-  path.target = plan.object_base + Vector3d(0, height / 2, 0);
-  path.object_radius = bounding;
+  path.target = plan.object_base + Vector3d(0, object.height / 2, 0);
+  path.object_radius = object.bounding;
   const double coverage = camera_rng.uniform(0.17, 0.3);  // bounding radius / camera distance
-  path.distance = std::clamp(bounding / coverage, std::max(bounding + 0.4, plan.support_size + 0.5), 4.0);
-  const double fov_y = camera_rng.uniform(45, 62) * kDeg;
+  path.distance = std::clamp(object.bounding / coverage, std::max(object.bounding + 0.4, plan.support_size + 0.5), 4.0);
+  fov_y = camera_rng.uniform(45, 62) * kDeg;
   path.K.width = options.width;
   path.K.height = options.height;
   path.K.fy = options.height / (2.0 * std::tan(fov_y / 2));
@@ -238,8 +247,11 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
   path.p2 = camera_rng.uniform(0, 2 * M_PI);
   path.p3 = camera_rng.uniform(0, 2 * M_PI);
   path.roll = camera_rng.uniform(0, 2.5) * kDeg;
+  return path;
+}
 
-  // The room leaves the cameras' ring free for the object alone.
+// The room's walls: the cameras' ring stays free for the object alone. Bounds the path's heights.
+void plan_room(RoomPlan& plan, CameraPath& path, SynthRng& plan_rng) {
   plan.keep_out = path.distance * 1.2 + 0.3;
   const double room_height = plan_rng.uniform(2.5, 3.2);
   plan.room_min =
@@ -248,7 +260,13 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
       Vector3d(plan.keep_out + plan_rng.uniform(0.7, 2.0), room_height, plan.keep_out + plan_rng.uniform(0.7, 2.0));
   path.min_height = 0.25;
   path.max_height = room_height - 0.3;
+}
 
+// The input and test views along the path, and the reference and context as the official
+// training recipe picks them from a clip of 15: inputs at 0, 4, 9, 14 with 4 or 9 as the
+// reference, moved to the front. Returns every camera.
+std::vector<Camera> place_cameras(const SynthOptions& options, const CameraPath& path, SynthRng& camera_rng,
+                                  SynthScene& scene) {
   std::vector<Camera> all;
   const int v = options.views, t = options.test_views;
   // Zero-padded so that name order is path order (and test_* sorts before view_*).
@@ -266,15 +284,15 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
     scene.test_views.push_back({fmt::format("test_{:0{}d}", k, digits), path.at(s, scale, lift)});
     all.push_back(scene.test_views.back().camera);
   }
-  // Reference and context as the official training recipe picks them from a clip of 15:
-  // inputs at 0, 4, 9, 14 with 4 or 9 as the reference, moved to the front.
   const auto at_fraction = [&](double f) { return static_cast<int>(std::lround(f * (v - 1))); };
   const int a = at_fraction(4.0 / 14), b = at_fraction(9.0 / 14);
   scene.reference = camera_rng.chance(0.5) ? a : b;
   scene.context = {scene.reference, 0, scene.reference == a ? b : a, v - 1};
+  return all;
+}
 
-  // ---- Gaussians ---------------------------------------------------------------------------
-  const DetailMap detail(all, 2.5 / options.detail, 0.003, 0.3);
+// A key light, an ambient share, a lamp under the ceiling and a tint.
+Lighting draw_lighting(const RoomPlan& plan, SynthRng& plan_rng) {
   Lighting lighting;
   lighting.room_min = plan.room_min;
   lighting.room_max = plan.room_max;
@@ -283,41 +301,71 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
                                     std::sin(key_azimuth) * std::cos(key_elevation));
   lighting.ambient = plan_rng.uniform(0.5, 0.7);
   lighting.key = 1.0 - lighting.ambient + plan_rng.uniform(-0.1, 0.1);
-  lighting.lamp = Vector3d(plan_rng.uniform(plan.room_min.x(), plan.room_max.x()) * 0.5, room_height - 0.02,
+  lighting.lamp = Vector3d(plan_rng.uniform(plan.room_min.x(), plan.room_max.x()) * 0.5, plan.room_max.y() - 0.02,
                            plan_rng.uniform(plan.room_min.z(), plan.room_max.z()) * 0.5);
   lighting.lamp_gain = plan_rng.uniform(0.15, 0.35);
   lighting.tint = hsv(plan_rng.chance(0.6) ? 0.1 : 0.6, plan_rng.uniform(0, 0.12), 1.0);
+  return lighting;
+}
 
-  nlohmann::json description;
-  GaussianBuilder background;
-  SynthRng room_rng(mix_seed(seed, kRoomStream));
-  build_room(plan, detail, lighting, room_rng, background, description);
-  scene.background = background.build();
-
+// The object's Gaussians (the splat placed, or each slot's procedural object) and what
+// scene.json says of it; sets the scene's object centre and radius.
+nlohmann::json build_object(const ObjectPlan& object, const RoomPlan& plan, const std::vector<ObjectSlot>& slots,
+                            const DetailMap& detail, const Lighting& lighting, uint64_t seed, SynthScene& scene) {
   SynthRng object_rng(mix_seed(seed, kObjectStream));
   nlohmann::json object_json;
-  if (splat) {
-    scene.object = place_splat_object(*splat, plan.object_base, height, object_rng.uniform(0, 2 * M_PI));
-    object_json = {
-        {"kind", "splat"}, {"file", splat_file.filename().string()}, {"height", height}, {"footprint", footprint}};
+  if (object.splat) {
+    scene.object = place_splat_object(*object.splat, plan.object_base, object.height, object_rng.uniform(0, 2 * M_PI));
+    object_json = {{"kind", "splat"},
+                   {"file", object.splat_file.filename().string()},
+                   {"height", object.height},
+                   {"footprint", object.footprint}};
   } else {
-    GaussianBuilder object;
+    GaussianBuilder builder;
     for (const ObjectSlot& slot : slots) {
       nlohmann::json part;
-      build_procedural_object(slot.base, slot.height, slot.footprint, detail, lighting, object_rng, object, part);
+      build_procedural_object(slot.base, slot.height, slot.footprint, detail, lighting, object_rng, builder, part);
       if (slots.size() == 1) object_json = part;
       else object_json["parts"].push_back(part);
     }
-    scene.object = object.build();
+    scene.object = builder.build();
   }
   const torch::Tensor lo = std::get<0>(scene.object.means.min(0)), hi = std::get<0>(scene.object.means.max(0));
   const torch::Tensor centre = (lo + hi) / 2;
   scene.object_centre = Vector3d(centre[0].item<double>(), centre[1].item<double>(), centre[2].item<double>());
   const double reach = (scene.object.means - centre).norm(2, 1).max().item<double>();
   scene.object_radius = reach + 3.0 * scene.object.scales.max().item<double>();
-
   object_json["gaussians"] = scene.object.size();
-  description["object"] = object_json;
+  return object_json;
+}
+
+}  // namespace
+
+// The plan's draws come from one stream in a fixed order (object, support, room, lighting), the
+// cameras' from another: the steps below keep that order.
+SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
+  check_options(options);
+  SynthScene scene;
+  scene.seed = seed;
+  SynthRng plan_rng(mix_seed(seed, kPlanStream));
+  ObjectPlan object = plan_object(options, plan_rng);
+  RoomPlan plan;
+  const std::vector<ObjectSlot> slots = place_objects(options, seed, plan_rng, object, plan);
+
+  SynthRng camera_rng(mix_seed(seed, kCameraStream));
+  double fov_y = 0;
+  CameraPath path = draw_camera_path(options, plan, object, camera_rng, fov_y);
+  plan_room(plan, path, plan_rng);
+  const std::vector<Camera> all = place_cameras(options, path, camera_rng, scene);
+
+  const DetailMap detail(all, 2.5 / options.detail, 0.003, 0.3);
+  Lighting lighting = draw_lighting(plan, plan_rng);  // build_room adds the contact shadows
+  nlohmann::json description;
+  GaussianBuilder background;
+  SynthRng room_rng(mix_seed(seed, kRoomStream));
+  build_room(plan, detail, lighting, room_rng, background, description);
+  scene.background = background.build();
+  description["object"] = build_object(object, plan, slots, detail, lighting, seed, scene);
   description["camera_path"] = {{"kind", path.arc ? "arc" : "forward"},
                                 {"distance", path.distance},
                                 {"fov_y_deg", fov_y / kDeg},
