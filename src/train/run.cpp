@@ -146,6 +146,159 @@ Network initial_network(const TrainRunOptions& options, StateDict* weight_norm) 
   return network_from_checkpoint(ck, options.init->string());
 }
 
+namespace {
+
+struct RunFiles {
+  fs::path checkpoint, model, log;
+};
+
+// The run's folder: a new run needs one without a checkpoint, --resume one with it.
+RunFiles prepare_run_folder(const TrainRunOptions& options, bool lead) {
+  const RunFiles files{options.out / "checkpoint.safetensors", options.out / "model.safetensors",
+                       options.out / "log.jsonl"};
+  if (options.resume && !fs::exists(files.checkpoint))
+    fail("--resume: {} does not exist (no run to continue in {})", files.checkpoint.string(), options.out.string());
+  if (!options.resume && fs::exists(files.checkpoint))
+    fail("--out {} already holds a training run; pass --resume to continue it or choose another folder",
+         options.out.string());
+  if (lead) {
+    fs::create_directories(options.out / "val");
+    remove_stale_temporaries(options.out);
+  }
+  return files;
+}
+
+// The model to train: on resume, of the checkpoint's architecture (the weights come with
+// resume_run); else a new one or --init's (its weight-norm split in `init_weight_norm`).
+Network network_to_train(const TrainRunOptions& options, const RunFiles& files,
+                         std::optional<SafetensorsFile>& resume_file, StateDict& init_weight_norm) {
+  if (!options.resume) return initial_network(options, &init_weight_norm);
+  resume_file = read_safetensors(files.checkpoint);
+  return Network(training_checkpoint_config(*resume_file, files.checkpoint), /*initialise=*/false);
+}
+
+// The checkpoint's state into the trainer; returns the sampler's next sample index.
+int64_t resume_run(Trainer& trainer, const TrainRunOptions& options, const RunFiles& files, const SafetensorsFile& file,
+                   bool lead, int world) {
+  const nlohmann::json state = trainer.load(file, files.checkpoint);
+  const int64_t first_index = state.value("sampler_next_index", int64_t{0});
+  // Sample indices are global, so only the global batch must stay the same.
+  const int64_t saved_batch = state.value("batch_per_process", int64_t{0}) * state.value("processes", int64_t{0});
+  if (lead && saved_batch != int64_t{options.batch} * world)
+    spdlog::warn("resuming with a global batch of {} ({} x {} processes), the run had {}: the steps differ from an "
+                 "uninterrupted run",
+                 int64_t{options.batch} * world, options.batch, world, saved_batch);
+  if (lead) truncate_log(files.log, trainer.steps_done());
+  if (lead) spdlog::info("resumed {} at step {}", files.checkpoint.string(), trainer.steps_done());
+  return first_index;
+}
+
+// The progress line on a terminal: ended before anything else is logged.
+struct ProgressLine {
+  bool open = false;
+  void end() {
+    if (open) std::fputc('\n', stderr);
+    open = false;
+  }
+};
+
+// Loss and PSNR over the validation samples, fixed for the whole run (each process its share),
+// into a log line; rank 0 writes the images of its first val_images samples.
+class Validation {
+ public:
+  Validation(Trainer& trainer, const TrainRunOptions& options, std::shared_ptr<ProcessGroup> group, int world,
+             bool lead, ProgressLine& progress, std::vector<std::pair<int, TrainingSample>> samples)
+      : trainer_(trainer), options_(options), group_(std::move(group)), world_(world), lead_(lead),
+        progress_(progress), samples_(std::move(samples)) {}
+
+  void run(int64_t step, nlohmann::json& line) {
+    std::vector<double> sums(8, 0.0);  // loss, mse, perceptual, psnr, count, depth, depth count, own-view PSNR
+    int images_written = 0;
+    for (const auto& [index, sample] : samples_) {
+      torch::Tensor renders;
+      const bool image = lead_ && images_written++ < options_.val_images;
+      const EvalStats e = trainer_.evaluate(sample, image ? &renders : nullptr);
+      sums[0] += e.loss;
+      sums[1] += e.mse;
+      sums[2] += e.perceptual;
+      sums[3] += e.psnr;
+      sums[4] += 1;
+      sums[7] += e.own_psnr;
+      if (e.depth) {
+        sums[5] += *e.depth;
+        sums[6] += 1;
+      }
+      if (renders.defined())
+        write_png(options_.out / "val" / fmt::format("step_{:06}_{}.png", step, index),
+                  comparison_image(sample.target_images, renders));
+    }
+    if (group_) {
+      const torch::Tensor t = torch::tensor(sums, torch::kFloat64).to(options_.trainer.device);
+      group_->allreduce_mean({t}, "the validation allreduce");
+      const torch::Tensor c = t.cpu() * world_;
+      for (size_t k = 0; k < sums.size(); ++k) sums[k] = c[static_cast<int64_t>(k)].item<double>();
+    }
+    if (sums[4] == 0) return;
+    const double n = sums[4];
+    line["val_loss"] = sums[0] / n;
+    line["val_mse"] = sums[1] / n;
+    line["val_perceptual"] = sums[2] / n;
+    line["val_psnr"] = sums[3] / n;
+    line["val_own_psnr"] = sums[7] / n;
+    if (sums[6] > 0) line["val_depth"] = sums[5] / sums[6];
+    if (lead_) {
+      progress_.end();
+      spdlog::info("step {}: validation loss {:.4f}, PSNR {:.2f} dB{}, own views {:.2f} dB ({} samples)", step,
+                   sums[0] / n, sums[3] / n, sums[6] > 0 ? fmt::format(", depth error {:.3f}", sums[5] / sums[6]) : "",
+                   sums[7] / n, static_cast<int>(n));
+    }
+  }
+
+ private:
+  Trainer& trainer_;
+  const TrainRunOptions& options_;
+  std::shared_ptr<ProcessGroup> group_;
+  int world_;
+  bool lead_;
+  ProgressLine& progress_;
+  std::vector<std::pair<int, TrainingSample>> samples_;
+};
+
+// A training step's line of log.jsonl.
+nlohmann::json step_line(const StepStats& s, double step_ms, double cpu_ms, double data_ms) {
+  return {{"step", s.step},
+          {"loss", s.loss},
+          {"mse", s.mse},
+          {"perceptual", s.perceptual},
+          {"depth", s.depth},
+          {"own_view", s.own_view},
+          {"lr", s.lr},
+          {"grad_norm", s.grad_norm},
+          {"clipped_tensors", s.clipped_tensors},
+          {"nonfinite_tensors", s.nonfinite_tensors},
+          {"ms", step_ms},
+          {"cpu_ms", cpu_ms},
+          {"data_wait_ms", data_ms},
+          {"forward_ms", s.forward_ms},
+          {"render_ms", s.render_ms},
+          {"backward_ms", s.backward_ms},
+          {"update_ms", s.update_ms},
+          {"samples_per_s", 1000.0 * s.samples / step_ms}};
+}
+
+// "step 12/300 (4%) loss ... | 840 ms/step, 1.19 samples/s | ETA 4 min".
+std::string progress_text(const TrainRunOptions& options, const StepStats& s, double step_ms, double eta_s) {
+  const std::string depth_text =
+      (options.trainer.loss.depth_weight > 0 ? fmt::format(", depth {:.4f}", s.depth) : std::string()) +
+      (options.trainer.loss.own_view_weight > 0 ? fmt::format(", own views {:.4f}", s.own_view) : std::string());
+  return fmt::format("step {}/{} ({:.0f}%) loss {:.4f} (mse {:.4f}, perceptual {:.4f}{}) lr {:.2e} | {:.0f} ms/step, "
+                     "{:.2f} samples/s | ETA {}",
+                     s.step, options.steps, 100.0 * s.step / options.steps, s.loss, s.mse, s.perceptual, depth_text,
+                     s.lr, step_ms, 1000.0 * s.samples / step_ms, duration_text(eta_s));
+}
+
+}  // namespace
+
 void run_training(const TrainRunOptions& options, const DistributedConfig& distributed) {
   if (options.batch < 1) fail("--batch must be at least 1, got {}", options.batch);
   if (options.scene_dirs.empty()) fail("--scenes: give at least one scene folder");
@@ -153,55 +306,26 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
   if (distributed.enabled()) group = std::make_shared<ProcessGroup>(distributed, options.trainer.device);
   const int rank = distributed.rank, world = distributed.world_size;
   const bool lead = rank == 0;
+  const RunFiles files = prepare_run_folder(options, lead);
 
-  const fs::path checkpoint = options.out / "checkpoint.safetensors";
-  const fs::path model_file = options.out / "model.safetensors";
-  const fs::path log_file = options.out / "log.jsonl";
-  if (options.resume && !fs::exists(checkpoint))
-    fail("--resume: {} does not exist (no run to continue in {})", checkpoint.string(), options.out.string());
-  if (!options.resume && fs::exists(checkpoint))
-    fail("--out {} already holds a training run; pass --resume to continue it or choose another folder",
-         options.out.string());
-  if (lead) {
-    fs::create_directories(options.out / "val");
-    remove_stale_temporaries(options.out);
-  }
-
-  // The model: on resume, of the checkpoint's architecture (the weights come in load()).
-  std::optional<Network> network;
   std::optional<SafetensorsFile> resume_file;
   StateDict init_weight_norm;
-  if (options.resume) {
-    resume_file = read_safetensors(checkpoint);
-    network.emplace(training_checkpoint_config(*resume_file, checkpoint), /*initialise=*/false);
-  } else {
-    network.emplace(initial_network(options, &init_weight_norm));
-  }
-  const ModelConfig config = network->config();
+  Network network = network_to_train(options, files, resume_file, init_weight_norm);
+  const ModelConfig config = network.config();
   if (options.sampler.stage == TrainStage::Inpaint && config.image_channels != 4)
     fail("the inpainting stage needs a 4-channel (RGB + mask) model, this one has {}", config.image_channels);
-
   TrainerOptions trainer_options = options.trainer;
   trainer_options.schedule.total_steps = options.steps;
-  Trainer trainer(std::move(*network), trainer_options, group);
+  Trainer trainer(std::move(network), trainer_options, group);
   if (!init_weight_norm.empty()) {
     const int layers = trainer.load_weight_norm(init_weight_norm, options.init->string());
     init_weight_norm.clear();
     spdlog::debug("{}: continuing in its weight-norm split for {} layers", options.init->string(), layers);
   }
   int64_t first_index = 0;
-  if (options.resume) {
-    const nlohmann::json state = trainer.load(*resume_file, checkpoint);
+  if (resume_file) {
+    first_index = resume_run(trainer, options, files, *resume_file, lead, world);
     resume_file.reset();
-    first_index = state.value("sampler_next_index", int64_t{0});
-    // Sample indices are global, so only the global batch must stay the same.
-    const int64_t saved_batch = state.value("batch_per_process", int64_t{0}) * state.value("processes", int64_t{0});
-    if (lead && saved_batch != int64_t{options.batch} * world)
-      spdlog::warn("resuming with a global batch of {} ({} x {} processes), the run had {}: the steps differ from an "
-                   "uninterrupted run",
-                   int64_t{options.batch} * world, options.batch, world, saved_batch);
-    if (lead) truncate_log(log_file, trainer.steps_done());
-    if (lead) spdlog::info("resumed {} at step {}", checkpoint.string(), trainer.steps_done());
   }
   if (trainer.steps_done() >= options.steps) {
     if (lead) spdlog::info("the run already has {} steps (--steps {}): nothing to do", trainer.steps_done(), options.steps);
@@ -220,12 +344,11 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
                  config.preset, config.blocks, config.embed_dim, config.image_channels, scenes.size(),
                  stage_name(options.sampler.stage), options.batch, world, trainer.loss().perceptual_name());
 
-  // Validation samples: fixed for the whole run, from another random stream than training
-  // (and from other scenes when --val-scenes is given); each process evaluates its share.
+  // Validation samples from another random stream than training (and from other scenes when
+  // --val-scenes is given). With a size cycle, each training step takes one size (every sample
+  // of the global batch) and the validation samples take them in turn.
   const uint64_t val_seed = options.seed ^ 0x76616c6964617465ULL;
   std::vector<std::pair<int, TrainingSample>> val_set;
-  // With a size cycle, each training step takes one size (every sample of the global batch) and the
-  // validation samples take them in turn.
   SamplerOptions sampler = options.sampler, val_sampler = options.sampler;
   sampler.step_samples = options.batch * world;
   val_sampler.step_samples = 1;
@@ -236,75 +359,31 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
   SampleStream stream(std::move(scenes), sampler, options.seed, first_index, rank, world, options.workers);
   std::ofstream log;
   if (lead) {
-    log.open(log_file, std::ios::app);
-    if (!log) fail_file(log_file, "cannot open for writing");
+    log.open(files.log, std::ios::app);
+    if (!log) fail_file(files.log, "cannot open for writing");
   }
   const bool tty = ::isatty(::fileno(stderr));
   const int64_t start_step = trainer.steps_done();
   Stopwatch run_clock;
-  bool progress_open = false;
+  ProgressLine progress;
+  Validation validation(trainer, options, group, world, lead, progress, std::move(val_set));
   double timed_ms = 0, timed_cpu_ms = 0, timed_samples = 0;  // throughput without the first (warm-up) step
   int64_t timed_steps = 0;
 
-  // Loss and PSNR over the validation samples (each process its share), into `line`.
-  auto validate = [&](int64_t step, nlohmann::json& line) {
-    std::vector<double> sums(8, 0.0);  // loss, mse, perceptual, psnr, count, depth, depth count, own-view PSNR
-    int images_written = 0;  // rank 0 writes the images of its first val_images samples
-    for (const auto& [index, sample] : val_set) {
-      torch::Tensor renders;
-      const bool image = lead && images_written++ < options.val_images;
-      const EvalStats e = trainer.evaluate(sample, image ? &renders : nullptr);
-      sums[0] += e.loss;
-      sums[1] += e.mse;
-      sums[2] += e.perceptual;
-      sums[3] += e.psnr;
-      sums[4] += 1;
-      sums[7] += e.own_psnr;
-      if (e.depth) {
-        sums[5] += *e.depth;
-        sums[6] += 1;
-      }
-      if (renders.defined())
-        write_png(options.out / "val" / fmt::format("step_{:06}_{}.png", step, index),
-                  comparison_image(sample.target_images, renders));
-    }
-    if (group) {
-      const torch::Tensor t = torch::tensor(sums, torch::kFloat64).to(options.trainer.device);
-      group->allreduce_mean({t}, "the validation allreduce");
-      const torch::Tensor c = t.cpu() * world;
-      for (size_t k = 0; k < sums.size(); ++k) sums[k] = c[static_cast<int64_t>(k)].item<double>();
-    }
-    if (sums[4] == 0) return;
-    const double n = sums[4];
-    line["val_loss"] = sums[0] / n;
-    line["val_mse"] = sums[1] / n;
-    line["val_perceptual"] = sums[2] / n;
-    line["val_psnr"] = sums[3] / n;
-    line["val_own_psnr"] = sums[7] / n;
-    if (sums[6] > 0) line["val_depth"] = sums[5] / sums[6];
-    if (lead) {
-      if (progress_open) std::fputc('\n', stderr);
-      progress_open = false;
-      spdlog::info("step {}: validation loss {:.4f}, PSNR {:.2f} dB{}, own views {:.2f} dB ({} samples)", step,
-                   sums[0] / n, sums[3] / n, sums[6] > 0 ? fmt::format(", depth error {:.3f}", sums[5] / sums[6]) : "",
-                   sums[7] / n, static_cast<int>(n));
-    }
-  };
   // The starting point, as step 0 of the log.
   if (options.val_every > 0 && start_step == 0) {
     nlohmann::json line = {{"step", 0}};
-    validate(0, line);
+    validation.run(0, line);
     if (lead) log << line.dump() << "\n" << std::flush;
   }
-
   auto save = [&](int64_t step) {
     if (!lead) return;
     const nlohmann::json state = {{"sampler_next_index", stream.next_index()},
                                   {"batch_per_process", options.batch},
                                   {"processes", world},
                                   {"seed", options.seed}};
-    trainer.save(checkpoint, state);
-    trainer.export_model(model_file, {{"step", step}, {"stage", stage_name(options.sampler.stage)}});
+    trainer.save(files.checkpoint, state);
+    trainer.export_model(files.model, {{"step", step}, {"stage", stage_name(options.sampler.stage)}});
   };
 
   const int64_t end_step =
@@ -327,31 +406,14 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
       timed_samples += s.samples;
       ++timed_steps;
     }
-    nlohmann::json line = {{"step", step},
-                           {"loss", s.loss},
-                           {"mse", s.mse},
-                           {"perceptual", s.perceptual},
-                           {"depth", s.depth},
-                           {"own_view", s.own_view},
-                           {"lr", s.lr},
-                           {"grad_norm", s.grad_norm},
-                           {"clipped_tensors", s.clipped_tensors},
-                           {"nonfinite_tensors", s.nonfinite_tensors},
-                           {"ms", step_ms},
-                           {"cpu_ms", cpu_ms},
-                           {"data_wait_ms", data_ms},
-                           {"forward_ms", s.forward_ms},
-                           {"render_ms", s.render_ms},
-                           {"backward_ms", s.backward_ms},
-                           {"update_ms", s.update_ms},
-                           {"samples_per_s", 1000.0 * s.samples / step_ms}};
+    nlohmann::json line = step_line(s, step_ms, cpu_ms, data_ms);
     if (!options.sampler.size_cycle.empty())
       line["size"] = {batch.front().input.images.size(3), batch.front().input.images.size(2)};
     if (s.nonfinite_tensors > 0 && lead)
       spdlog::warn("step {}: {} gradient tensor(s) held NaN/Inf values (set to 0)", step, s.nonfinite_tensors);
 
     const bool last = step == end_step;
-    if (options.val_every > 0 && (step % options.val_every == 0 || step == options.steps)) validate(step, line);
+    if (options.val_every > 0 && (step % options.val_every == 0 || step == options.steps)) validation.run(step, line);
     if (lead) {
       log << line.dump() << "\n";
       log.flush();
@@ -361,25 +423,17 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
     if (lead) {
       const double done = static_cast<double>(step - start_step);
       const double eta = run_clock.ms() / 1000.0 / done * static_cast<double>(end_step - step);
-      const std::string depth_text =
-          (options.trainer.loss.depth_weight > 0 ? fmt::format(", depth {:.4f}", s.depth) : std::string()) +
-          (options.trainer.loss.own_view_weight > 0 ? fmt::format(", own views {:.4f}", s.own_view) : std::string());
-      const std::string text =
-          fmt::format("step {}/{} ({:.0f}%) loss {:.4f} (mse {:.4f}, perceptual {:.4f}{}) lr {:.2e} | {:.0f} ms/step, "
-                      "{:.2f} samples/s | ETA {}",
-                      step, options.steps, 100.0 * step / options.steps, s.loss, s.mse, s.perceptual, depth_text, s.lr,
-                      step_ms,
-                      1000.0 * s.samples / step_ms, duration_text(eta));
+      const std::string text = progress_text(options, s, step_ms, eta);
       if (tty) {
         std::fprintf(stderr, "\r%s\033[K", text.c_str());
         std::fflush(stderr);
-        progress_open = true;
+        progress.open = true;
       } else if (options.log_every > 0 && (step % options.log_every == 0 || step == start_step + 1 || last)) {
         spdlog::info("{}", text);
       }
     }
   }
-  if (progress_open) std::fputc('\n', stderr);
+  progress.end();
   save(trainer.steps_done());
   if (lead && timed_steps > 0)
     spdlog::info("throughput: {:.0f} ms/step, {:.2f} samples/s, {:.0f} ms CPU time/step (mean of steps {}-{}, "
@@ -388,7 +442,7 @@ void run_training(const TrainRunOptions& options, const DistributedConfig& distr
                  start_step + 2, trainer.steps_done());
   if (lead)
     spdlog::info("done: {} steps in {}; checkpoint {}, model {}", trainer.steps_done() - start_step,
-                 duration_text(run_clock.ms() / 1000.0), checkpoint.string(), model_file.string());
+                 duration_text(run_clock.ms() / 1000.0), files.checkpoint.string(), files.model.string());
 }
 
 }  // namespace ii
