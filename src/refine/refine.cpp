@@ -172,16 +172,20 @@ GaussianSet with_fixed(const GaussianSet& g, const GaussianSet& fixed) {
 
 }  // namespace
 
-RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<RefineView>& views,
-                              const RefineOptions& options) {
-  const Stopwatch clock;
+namespace {
+
+void check_refine_options(const GaussianSet& start_set, const std::vector<RefineView>& views,
+                          const RefineOptions& options) {
   if (views.empty()) fail("refine: no views to refine against");
   if (options.steps < 0) fail("refine: the number of steps must be 0 or more, got {}", options.steps);
   if (!(options.time_budget_s >= 0)) fail("refine: the time budget must be 0 or more seconds, got {}", options.time_budget_s);
   if (start_set.sh_degree >= 0) fail("refine: the Gaussians must have RGB colours (as the network predicts them)");
   if (options.sh_degree < 0 || options.sh_degree > 3)
     fail("refine: the SH degree must be 0 to 3, got {}", options.sh_degree);
-  const torch::Device device = start_set.means.device();
+}
+
+// Each view with something to supervise, at full, half and quarter size; masked pixels weigh 0.
+std::vector<Target> refinement_targets(const std::vector<RefineView>& views, const torch::Device& device) {
   std::vector<Target> targets;
   for (const RefineView& v : views) {
     if (v.mask && (v.mask->width != v.rgb.width || v.mask->height != v.rgb.height || v.mask->channels != 1))
@@ -201,6 +205,103 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
     targets.push_back(std::move(t));
   }
   if (targets.empty()) fail("refine: every view is masked everywhere");
+  return targets;
+}
+
+// 3DGS's parametrisation of the Gaussians being optimised: raw positions, log scales, raw
+// quaternions, opacity logits, colours (RGB, or SH DC with the higher coefficients beside).
+struct Parameters {
+  torch::Tensor means, log_scales, quats, logits, colours, sh_rest;
+  bool sh = false;
+
+  // Degree 0 keeps the network's RGB colours; higher degrees start from the same colour (the
+  // DC term) with zero view dependence.
+  Parameters(const GaussianSet& start, int sh_degree, const torch::TensorOptions& f32) : sh(sh_degree > 0) {
+    means = start.means.to(f32).detach().clone().requires_grad_(true);
+    log_scales = start.scales.to(f32).clamp_min(1e-12).log().detach().requires_grad_(true);
+    quats = start.quats.to(f32).detach().clone().requires_grad_(true);
+    logits = torch::logit(start.opacities.to(f32).reshape({-1}).clamp(1e-6, 1 - 1e-6)).detach().requires_grad_(true);
+    colours = sh ? sh_dc_from_rgb(start.colors.to(f32)).unsqueeze(1).detach().requires_grad_(true)
+                 : start.colors.to(f32).detach().clone().requires_grad_(true);
+    if (sh) {
+      const int64_t rest = (sh_degree + 1) * (sh_degree + 1) - 1;
+      sh_rest = torch::zeros({start.size(), rest, 3}, f32).requires_grad_(true);
+    }
+  }
+
+  GaussianSet gaussians(int degree) const {
+    GaussianSet g;
+    g.means = means;
+    g.scales = log_scales.exp();
+    g.quats = quats;
+    g.opacities = torch::sigmoid(logits);
+    g.colors = sh ? torch::cat({colours, sh_rest}, 1) : colours;
+    g.sh_degree = sh ? degree : -1;
+    return g;
+  }
+};
+
+// Clones, splits and prunes as `decision` says, in the parameters and the optimiser's rows.
+void densify(Parameters& p, RowAdam& adam, const DensifyDecision& d, RefineResult& result) {
+  torch::NoGradGuard no_grad;
+  result.cloned += d.clone.sum().item<int64_t>();
+  result.split += d.split.sum().item<int64_t>();
+  result.pruned += d.prune.sum().item<int64_t>();
+  // New rows: the clones; each split Gaussian's two children, smaller. A clone and its
+  // parent share the parent's opacity o: both get 1 − √(1 − o), so that the pair in one
+  // place is as opaque as the parent was (as 3DGS-MCMC does; 3DGS keeps o and the image jumps).
+  const torch::Tensor shared = torch::logit(1 - (1 - torch::sigmoid(p.logits)).sqrt(), 1e-6);
+  p.logits.data().copy_(torch::where(d.clone, shared, p.logits));
+  const auto [first, second] = split_centres(p.means.index({d.split}), p.log_scales.index({d.split}).exp(),
+                                             p.quats.index({d.split}));
+  const torch::Tensor smaller = split_log_scales(p.log_scales.index({d.split}));
+  auto rows = [&](const torch::Tensor& t) {
+    return torch::cat({t.index({d.clone}), t.index({d.split}), t.index({d.split})});
+  };
+  std::vector<torch::Tensor> added = {torch::cat({p.means.index({d.clone}), first, second}),
+                                      torch::cat({p.log_scales.index({d.clone}), smaller, smaller}), rows(p.quats),
+                                      rows(p.logits), rows(p.colours)};
+  if (p.sh) added.push_back(rows(p.sh_rest));
+  // Parents of splits and pruned ones go; the new rows come after the kept ones.
+  adam.keep_rows(d.split.logical_or(d.prune).logical_not());
+  adam.append_rows(added);
+}
+
+// Each view's learned colour map (gains and offsets; the first view's is the identity).
+std::vector<std::pair<std::string, std::array<double, 6>>> exposure_record(const torch::Tensor& exposure,
+                                                                           const std::vector<Target>& targets) {
+  std::vector<std::pair<std::string, std::array<double, 6>>> out = {{targets[0].name, {1, 1, 1, 0, 0, 0}}};
+  const torch::Tensor maps = exposure.detach().to(torch::kCPU);
+  for (int64_t v = 0; v < maps.size(0); ++v) {
+    std::array<double, 6> e;
+    for (int c = 0; c < 3; ++c) {
+      e[c] = maps[v][c][c].item<double>();
+      e[3 + c] = maps[v][c][3].item<double>();
+    }
+    out.push_back({targets[static_cast<size_t>(v) + 1].name, e});
+  }
+  return out;
+}
+
+// The picture size a step renders at: coarse to fine by the run's fraction, the finest the
+// view can give.
+int step_level(const Target& target, double fraction, const RefineOptions& options) {
+  int level = !options.coarse_to_fine                ? 0
+              : fraction < options.quarter_until ? 2
+              : fraction < options.half_until    ? 1
+                                                 : 0;
+  while (level > 0 && !target.levels[level].usable()) --level;
+  return level;
+}
+
+}  // namespace
+
+RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<RefineView>& views,
+                              const RefineOptions& options) {
+  const Stopwatch clock;
+  check_refine_options(start_set, views, options);
+  const torch::Device device = start_set.means.device();
+  const std::vector<Target> targets = refinement_targets(views, device);
   RefineResult result;
   for (const Target& t : targets) result.views.push_back(t.name);
 
@@ -218,33 +319,17 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
     }
   }
 
-  // 3DGS's parametrisation: raw positions, log scales, raw quaternions, opacity logits, colours.
   const torch::TensorOptions f32 = torch::TensorOptions(device).dtype(torch::kFloat32);
-  torch::Tensor means = start.means.to(f32).detach().clone().requires_grad_(true);
-  torch::Tensor log_scales = start.scales.to(f32).clamp_min(1e-12).log().detach().requires_grad_(true);
-  torch::Tensor quats = start.quats.to(f32).detach().clone().requires_grad_(true);
-  torch::Tensor logits =
-      torch::logit(start.opacities.to(f32).reshape({-1}).clamp(1e-6, 1 - 1e-6)).detach().requires_grad_(true);
-  // Degree 0 keeps the network's RGB colours; higher degrees start from the same colour (the
-  // DC term) with zero view dependence.
-  const bool sh = options.sh_degree > 0;
-  torch::Tensor colours = sh ? sh_dc_from_rgb(start.colors.to(f32)).unsqueeze(1).detach().requires_grad_(true)
-                             : start.colors.to(f32).detach().clone().requires_grad_(true);
-  torch::Tensor sh_rest;
-  if (sh) {
-    const int64_t rest = (options.sh_degree + 1) * (options.sh_degree + 1) - 1;
-    sh_rest = torch::zeros({start.size(), rest, 3}, f32).requires_grad_(true);
-  }
-
+  Parameters p(start, options.sh_degree, f32);
   const double extent = std::max(visible_bounds(start).radius, 1e-6);
   RowAdam adam;
-  adam.add(&means, options.position_lr * extent);
-  adam.add(&log_scales, options.scale_lr);
-  adam.add(&quats, options.rotation_lr);
+  adam.add(&p.means, options.position_lr * extent);
+  adam.add(&p.log_scales, options.scale_lr);
+  adam.add(&p.quats, options.rotation_lr);
   constexpr size_t kOpacitySlot = 3;
-  adam.add(&logits, options.opacity_lr);
-  adam.add(&colours, options.colour_lr);
-  if (sh) adam.add(&sh_rest, options.colour_lr / 20);
+  adam.add(&p.logits, options.opacity_lr);
+  adam.add(&p.colours, options.colour_lr);
+  if (p.sh) adam.add(&p.sh_rest, options.colour_lr / 20);
 
   // Per-view colour maps (3 x 4: gains and offsets) for every view but the first.
   torch::Tensor exposure;
@@ -255,57 +340,15 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
                    .requires_grad_(true);
     exposure_adam.add(&exposure, options.exposure_lr);
   }
-
-  auto current = [&](int degree) {
-    GaussianSet g;
-    g.means = means;
-    g.scales = log_scales.exp();
-    g.quats = quats;
-    g.opacities = torch::sigmoid(logits);
-    g.colors = sh ? torch::cat({colours, sh_rest}, 1) : colours;
-    g.sh_degree = sh ? degree : -1;
-    return g;
-  };
   // What a step draws: the optimised Gaussians and the fixed ones.
   auto drawn = [&](int degree) {
-    return options.fixed.size() > 0 ? with_fixed(current(degree), options.fixed) : current(degree);
+    return options.fixed.size() > 0 ? with_fixed(p.gaussians(degree), options.fixed) : p.gaussians(degree);
   };
 
   const int64_t max_gaussians = options.densify.max_gaussians > 0
                                     ? options.densify.max_gaussians
                                     : static_cast<int64_t>(start.size() * (1 + options.densify.max_growth));
   torch::Tensor grad_sum = torch::zeros({start.size()}, f32), seen = torch::zeros({start.size()}, f32);
-  auto densify = [&] {
-    torch::NoGradGuard no_grad;
-    const DensifyDecision d = decide_densification(grad_sum / seen.clamp_min(1), log_scales.exp().amax(1),
-                                                   torch::sigmoid(logits), extent, max_gaussians, options.densify);
-    result.cloned += d.clone.sum().item<int64_t>();
-    result.split += d.split.sum().item<int64_t>();
-    result.pruned += d.prune.sum().item<int64_t>();
-    // New rows: the clones; each split Gaussian's two children, smaller. A clone and its
-    // parent share the parent's opacity o: both get 1 − √(1 − o), so that the pair in one
-    // place is as opaque as the parent was (as 3DGS-MCMC does; 3DGS keeps o and the image jumps).
-    const torch::Tensor shared = torch::logit(1 - (1 - torch::sigmoid(logits)).sqrt(), 1e-6);
-    logits.data().copy_(torch::where(d.clone, shared, logits));
-    const auto [first, second] = split_centres(means.index({d.split}), log_scales.index({d.split}).exp(),
-                                               quats.index({d.split}));
-    const torch::Tensor smaller = split_log_scales(log_scales.index({d.split}));
-    auto rows = [&](const torch::Tensor& t) {
-      return torch::cat({t.index({d.clone}), t.index({d.split}), t.index({d.split})});
-    };
-    std::vector<torch::Tensor> added = {
-        torch::cat({means.index({d.clone}), first, second}),
-        torch::cat({log_scales.index({d.clone}), smaller, smaller}),
-        rows(quats),
-        rows(logits),
-        rows(colours)};
-    if (sh) added.push_back(rows(sh_rest));
-    // Parents of splits and pruned ones go; the new rows come after the kept ones.
-    adam.keep_rows(d.split.logical_or(d.prune).logical_not());
-    adam.append_rows(added);
-    grad_sum = torch::zeros({means.size(0)}, f32);
-    seen = torch::zeros({means.size(0)}, f32);
-  };
 
   // Views in a seeded order, each once per pass.
   MaskRng rng(options.seed);
@@ -327,12 +370,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
     }
     const size_t view = order.back();
     order.pop_back();
-    const int wanted_level = !options.coarse_to_fine                ? 0
-                             : fraction < options.quarter_until ? 2
-                             : fraction < options.half_until    ? 1
-                                                                : 0;
-    int level = wanted_level;
-    while (level > 0 && !targets[view].levels[level].usable()) --level;
+    const int level = step_level(targets[view], fraction, options);
     const Level& t = targets[view].levels[level];
     const int degree = std::min(options.sh_degree, static_cast<int>(fraction * 10));
     const double decayed = options.position_decay_views > 0 ? std::max(fraction, views_seen / options.position_decay_views)
@@ -357,17 +395,27 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
     const bool densifying = options.densify.enabled && fraction >= 0.05 && fraction < 0.6;
     if (densifying) {
       torch::NoGradGuard no_grad;
-      const torch::Tensor g = view_space_gradient(means.detach(), means.grad(), t.camera.camera);
+      const torch::Tensor g = view_space_gradient(p.means.detach(), p.means.grad(), t.camera.camera);
       grad_sum += g;
-      seen += (means.grad().abs().sum(1) > 0).to(torch::kFloat32);
+      seen += (p.means.grad().abs().sum(1) > 0).to(torch::kFloat32);
     }
     adam.step();
     if (exposure.defined()) exposure_adam.step();
-    if (densifying && (step + 1) % options.densify_every == 0) densify();
+    if (densifying && (step + 1) % options.densify_every == 0) {
+      DensifyDecision d;
+      {
+        torch::NoGradGuard no_grad;
+        d = decide_densification(grad_sum / seen.clamp_min(1), p.log_scales.exp().amax(1), torch::sigmoid(p.logits),
+                                 extent, max_gaussians, options.densify);
+      }
+      densify(p, adam, d, result);
+      grad_sum = torch::zeros({p.means.size(0)}, f32);
+      seen = torch::zeros({p.means.size(0)}, f32);
+    }
     if (options.densify.enabled && next_reset < options.opacity_resets.size() &&
         fraction >= options.opacity_resets[next_reset]) {
       torch::NoGradGuard no_grad;
-      logits.clamp_max_(std::log(options.reset_opacity / (1 - options.reset_opacity)));
+      p.logits.clamp_max_(std::log(options.reset_opacity / (1 - options.reset_opacity)));
       adam.restart(kOpacitySlot);
       ++next_reset;
       ++result.opacity_resets;
@@ -377,38 +425,27 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
     result.losses.push_back(loss.item<double>());
     result.steps = step + 1;
     if (options.progress) {
-      RefineProgress p;
-      p.step = step + 1;
-      p.elapsed_s = elapsed_s(clock);
-      p.fraction = budget > 0 ? std::min(1.0, p.elapsed_s / budget) : double(step + 1) / options.steps;
-      p.loss = result.losses.back();
-      p.eta_s = budget > 0 ? std::max(0.0, budget - p.elapsed_s)
-                           : (p.elapsed_s - loop_start) / (step + 1) * (options.steps - step - 1);
-      p.gaussians = means.size(0);
-      options.progress(p);
+      RefineProgress progress;
+      progress.step = step + 1;
+      progress.elapsed_s = elapsed_s(clock);
+      progress.fraction = budget > 0 ? std::min(1.0, progress.elapsed_s / budget) : double(step + 1) / options.steps;
+      progress.loss = result.losses.back();
+      progress.eta_s = budget > 0 ? std::max(0.0, budget - progress.elapsed_s)
+                                  : (progress.elapsed_s - loop_start) / (step + 1) * (options.steps - step - 1);
+      progress.gaussians = p.means.size(0);
+      options.progress(progress);
     }
   }
   result.ms_per_step = result.steps > 0 ? loop_clock.ms() / result.steps : 0;
 
   torch::NoGradGuard no_grad;
-  GaussianSet refined = current(options.sh_degree);
+  GaussianSet refined = p.gaussians(options.sh_degree);
   const torch::Tensor keep = refined.opacities >= 1.0 / 255;
   result.dropped = refined.size() - keep.sum().item<int64_t>();
   for (torch::Tensor* t : {&refined.means, &refined.scales, &refined.quats, &refined.opacities, &refined.colors})
     *t = t->index({keep}).detach();
   result.gaussians = refined;
-  if (exposure.defined()) {
-    result.exposure.push_back({targets[0].name, {1, 1, 1, 0, 0, 0}});
-    const torch::Tensor maps = exposure.detach().to(torch::kCPU);
-    for (int64_t v = 0; v < maps.size(0); ++v) {
-      std::array<double, 6> e;
-      for (int c = 0; c < 3; ++c) {
-        e[c] = maps[v][c][c].item<double>();
-        e[3 + c] = maps[v][c][3].item<double>();
-      }
-      result.exposure.push_back({targets[v + 1].name, e});
-    }
-  }
+  if (exposure.defined()) result.exposure = exposure_record(exposure, targets);
   result.seconds = elapsed_s(clock);
   return result;
 }
