@@ -30,7 +30,8 @@ const api = {
   jumpToView,
   invalidate,
   // True when the picture on screen is final: no frames queued, no sort running or due, and the
-  // last sort's order drawn (what tests wait for before a screenshot).
+  // last sort's order drawn (what tests wait for before a screenshot). Spark 2.2's renderer state
+  // (public fields in its types; the version is pinned in web/package-lock.json).
   settled: () => framesToDraw <= 0 && !spark.sorting && !spark.sortDirty && spark.sortTimeoutId === -1 && !spark.dirty,
   setFillBox,
   screenPoint,
