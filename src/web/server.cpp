@@ -368,7 +368,7 @@ struct WebServer::State {
   // the page's usual course, does not wait for).
   std::mutex reconstruction_depth_mutex;
   std::map<size_t, torch::Tensor> reconstruction_depth;
-  torch::Tensor reconstruction_depth_in(size_t view);
+  torch::Tensor reconstruction_depth_in(size_t view, const PreprocessOptions& working);
 
   ~State() { stop_worker(); }
   void worker_loop();
@@ -666,7 +666,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   // at its working camera, in place of a second network call (issue 54).
   if (reconstruction) {
     request.working_depth = stages.time("masks: depth from the scene's reconstruction",
-                                        [&] { return reconstruction_depth_in(static_cast<size_t>(edit.view)); });
+                                        [&] { return reconstruction_depth_in(static_cast<size_t>(edit.view), input.preprocess); });
     request.working_depth_source = "the scene's reconstruction";
   }
   stage("propagating the mask to every view", 0.05);
@@ -742,12 +742,11 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   return result;
 }
 
-torch::Tensor WebServer::State::reconstruction_depth_in(size_t view) {
+// `working`: the edits' preprocessing, the same for every edit of this server (its --height).
+torch::Tensor WebServer::State::reconstruction_depth_in(size_t view, const PreprocessOptions& working) {
   std::lock_guard<std::mutex> lock(reconstruction_depth_mutex);
   torch::Tensor& depth = reconstruction_depth[view];
   if (!depth.defined()) {
-    PreprocessOptions working;
-    working.height = options.height;
     RenderCamera camera;
     camera.camera = normalization.apply(views.get(scene->views.at(view), working).camera);
     depth = render(*reconstruction, camera).depth.squeeze(2).to(torch::kCPU);
