@@ -42,9 +42,9 @@ void add_refine_options(CLI::App* cmd, RefineArgs& args) {
                 "With --refine: correct each view's colours (an affine colour map per view, reported in the run's "
                 "JSON), for phone captures whose exposure or white balance changes between photos");
   cmd->add_option("--refine-position-rate", args.position_rate,
-                  "With --refine: the position learning rate at the start, in multiples of 3DGS's (default 300, for "
-                  "real captures, where the network's geometry is off; about 10 suits scenes like its synthetic "
-                  "training rooms, where the geometry is right and a high rate only blurs)")
+                  "With --refine: the position learning rate at the start, in multiples of 3DGS's (default 30: the "
+                  "prediction's surfaces are near; about 10 suits scenes like its synthetic training rooms, where "
+                  "the geometry is right and a high rate only blurs; 300 suited the network's raw depth)")
       ->check(CLI::Range(0.01, 10000.0));
   cmd->add_option("--refine-without", args.without,
                   "With --refine: parts of the optimisation to switch off: cover (new Gaussians where no Gaussian "

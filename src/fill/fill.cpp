@@ -453,6 +453,9 @@ GaussianSet refine_new(const GaussianSet& added, const SceneSets& sets, const st
   refine.fixed = sets.kept;
   refine.cover = false;           // the rest of the scene covers what the views see
   refine.opacity_resets.clear();  // they would fade the new splats to let the views' holes decide
+  // Held-out views would score outside their holes, where the new splats hardly draw: every view
+  // fits the hole instead.
+  refine.hold_out_every = 0;
   const RefineResult refined = refine_gaussians(added.to(device), targets, refine);
   result.refine_report = refinement_report(refined, refine);
   GaussianSet out = refined.gaussians.to(torch::kCPU);

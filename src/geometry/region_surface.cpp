@@ -202,16 +202,6 @@ RegionSurface put_region_on_surface(GaussianMaps& maps, const SceneInput& input,
   const GaussianSet splats = surface_gaussians(input.input.view_cameras.front(), surface, take, rgb,
                                                static_cast<float>(options.opacity), /*width=*/0.25);
   done.pixels = take.flatten().nonzero().squeeze(1);
-  const torch::Tensor at = done.pixels.to(maps.xyz.device());
-  auto rows = [&](const torch::Tensor& map) {  // (1, V, C, H, W) -> the reference's (N, C) at the pixels
-    return map[0][0].reshape({map.size(2), H * W}).index_select(1, at).t().clone();
-  };
-  done.replaced.means = rows(maps.xyz);
-  done.replaced.quats = rows(maps.rotation);
-  done.replaced.scales = rows(maps.scale);
-  done.replaced.opacities = rows(maps.opacity).reshape({-1});
-  done.replaced.colors = rows(maps.rgb);
-  done.replaced.sh_degree = -1;
   write_splats(maps, 0, done.pixels, splats, surface.index({take}), /*colours=*/true);
   done.gaussians = splats.size();
   return done;

@@ -54,9 +54,8 @@ struct RegionSurface {
   int64_t ring = 0;       // the ring pixels that weighed in
   bool slopes = false;    // whether the ring's planes were continued (a depth map) or held flat
   int64_t far_side = 0;   // the region pixels moved to the far side of the surfaces they fell between
-  // The network's Gaussians those splats replaced, and their pixels (flat indices of the
-  // reference's maps): refinement starts from them (it lost make demo 2.6 dB from the splats).
-  GaussianSet replaced;
+  // The pixels put on the surface (flat indices of the reference's maps): refinement keeps
+  // their splats as they are.
   torch::Tensor pixels;
 };
 

@@ -80,7 +80,6 @@ void after_the_network(Prediction& p, const Scene& scene, const SceneInputOption
     const RegionSurface region = put_region_on_surface(p.maps, p.input, measured,
                                                        geometry.measured_surface.mask_margin, geometry.region_surface);
     p.region_surface = describe_region_surface(geometry.region_surface, region);
-    p.region_surface_replaced = region.replaced;
     p.region_surface_pixels = region.pixels;
     if (region.gaussians > 0) p.stages.lap("the region on the surface around it");
   }

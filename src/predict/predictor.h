@@ -45,9 +45,8 @@ struct Prediction {
   // With GeometryOptions::measured_surface: what run.json and metrics.json record of it.
   nlohmann::json measured_surface = nlohmann::json::object();
   // With GeometryOptions::region_surface: what run.json and metrics.json record of it, and the
-  // network's Gaussians it replaced in the reference's maps (refinement starts from those).
+  // reference's pixels it put on the surface (flat indices; refinement keeps them as they are).
   nlohmann::json region_surface = nlohmann::json::object();
-  GaussianSet region_surface_replaced;
   torch::Tensor region_surface_pixels;
 
   // With GeometryOptions::floaters: what run.json and metrics.json record of them.

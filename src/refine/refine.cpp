@@ -1,5 +1,6 @@
 #include "refine/refine.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/LU>
@@ -34,6 +35,7 @@ struct Level {
 struct Target {
   std::string name;
   std::array<Level, 3> levels;
+  bool may_hold_out = true;  // RefineView::may_hold_out
 };
 
 Level half_of(const Level& fine) {
@@ -192,6 +194,7 @@ std::vector<Target> refinement_targets(const std::vector<RefineView>& views, con
       fail("refine: the mask of view {} does not fit its {}x{} image", v.name, v.rgb.width, v.rgb.height);
     Target t;
     t.name = v.name;
+    t.may_hold_out = v.may_hold_out;
     Level& full = t.levels[0];
     full.camera.camera = v.camera;
     full.rgb = image_to_tensor(v.rgb).to(device);
@@ -294,6 +297,57 @@ int step_level(const Target& target, double fraction, const RefineOptions& optio
   return level;
 }
 
+// Every n-th view after the first that may be held out leaves `targets` to score the iterates
+// (RefineOptions::hold_out_every); none when fewer than 3 would be left to fit.
+std::vector<Target> take_held_out(std::vector<Target>& targets, int every) {
+  std::vector<Target> held, fitted;
+  if (every <= 0) return held;
+  int candidates = 0;
+  for (size_t i = 0; i < targets.size(); ++i) {
+    const bool may = i > 0 && targets[i].may_hold_out;
+    (may && candidates++ % every == every / 2 ? held : fitted).push_back(targets[i]);
+  }
+  if (fitted.size() < 3 || held.empty()) return {};
+  targets = std::move(fitted);
+  return held;
+}
+
+// PSNR of `drawn` over the supervised pixels of every held-out view at full size, pooled.
+double held_out_psnr(const GaussianSet& drawn, const std::vector<Target>& held) {
+  torch::NoGradGuard no_grad;
+  double squared = 0, count = 0;
+  for (const Target& t : held) {
+    const Level& l = t.levels[0];
+    const torch::Tensor rgb = render(drawn, l.camera).rgb.permute({2, 0, 1}).unsqueeze(0) * l.weight;
+    squared += (rgb - l.rgb).square().sum().item<double>();
+    count += 3 * l.weight.sum().item<double>();
+  }
+  return -10 * std::log10(std::max(squared / std::max(count, 1.0), 1e-12));
+}
+
+// A detached copy of the Gaussians being optimised, as the result gives them.
+GaussianSet snapshot(const GaussianSet& g) {
+  GaussianSet s = g;
+  for (torch::Tensor* t : {&s.means, &s.scales, &s.quats, &s.opacities, &s.colors}) *t = t->detach().clone();
+  return s;
+}
+
+// `g` (RGB colours) in the colour form of a result of `sh_degree`: RGB for 0, else SH of that
+// degree with no view dependence.
+GaussianSet in_result_form(GaussianSet g, int sh_degree) {
+  g.means = g.means.to(torch::kFloat32);
+  g.scales = g.scales.to(torch::kFloat32);
+  g.quats = g.quats.to(torch::kFloat32);
+  g.opacities = g.opacities.to(torch::kFloat32).reshape({-1});
+  g.colors = g.colors.to(torch::kFloat32);
+  if (sh_degree > 0) {
+    const int64_t k = (sh_degree + 1) * (sh_degree + 1);
+    g.colors = torch::cat({sh_dc_from_rgb(g.colors).unsqueeze(1), torch::zeros({g.size(), k - 1, 3}, g.colors.options())}, 1);
+    g.sh_degree = sh_degree;
+  }
+  return g;
+}
+
 }  // namespace
 
 RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<RefineView>& views,
@@ -301,13 +355,22 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   const Stopwatch clock;
   check_refine_options(start_set, views, options);
   const torch::Device device = start_set.means.device();
-  const std::vector<Target> targets = refinement_targets(views, device);
+  std::vector<Target> targets = refinement_targets(views, device);
+  const bool optimise = refine_requested(options);
+  const std::vector<Target> held = optimise ? take_held_out(targets, options.hold_out_every) : std::vector<Target>{};
   RefineResult result;
   for (const Target& t : targets) result.views.push_back(t.name);
+  for (const Target& t : held) result.held_out.push_back(t.name);
 
-  const bool optimise = refine_requested(options);
   result.start_count = start_set.size();
   GaussianSet start = start_set.to(device);
+  if (!held.empty()) {
+    const GaussianSet& whole = options.whole_start.size() > 0 ? options.whole_start : start;
+    result.start_psnr = held_out_psnr(options.fixed.size() > 0 && options.whole_start.size() == 0
+                                          ? with_fixed(whole, options.fixed)
+                                          : whole,
+                                      held);
+  }
   if (optimise && options.cover) {
     const GaussianSet added = cover_uncovered(start, targets);
     result.covered = added.size();
@@ -358,10 +421,26 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   double loop_start = 0;
   double views_seen = 0;  // full-resolution views' worth of pixels visited
   size_t next_reset = 0;  // into options.opacity_resets
+  // The best scored so far on the held-out views: the start, then iterates that beat it.
+  GaussianSet best;
+  double best_psnr = result.start_psnr;
+  auto score = [&](int step) {
+    const GaussianSet now = snapshot(p.gaussians(options.sh_degree));
+    const double psnr = held_out_psnr(options.fixed.size() > 0 ? with_fixed(now, options.fixed) : now, held);
+    result.iterates.push_back({step, psnr});
+    if (psnr > best_psnr) {
+      best_psnr = psnr;
+      best = now;
+      result.chosen_step = step;
+    }
+  };
+  size_t next_score = 0;  // into options.score_at
   Stopwatch loop_clock;
   for (int step = 0;; ++step) {
     const double now = elapsed_s(clock);
     const double fraction = budget > 0 ? now / budget : options.steps > 0 ? double(step) / options.steps : 1;
+    for (; next_score < options.score_at.size() && fraction >= options.score_at[next_score]; ++next_score)
+      if (!held.empty() && step > 0 && fraction < 1) score(step);
     if (fraction >= 1) break;
     if (step == 0) loop_start = now;
     if (order.empty()) {
@@ -440,6 +519,17 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
 
   torch::NoGradGuard no_grad;
   GaussianSet refined = p.gaussians(options.sh_degree);
+  if (!held.empty()) {
+    if (result.iterates.empty() || result.iterates.back().first != result.steps) score(result.steps);
+    if (best.size() == 0) {  // nothing beat the start
+      result.kept_start = true;
+      result.gaussians = in_result_form(start_set.to(device), options.sh_degree);
+      if (exposure.defined()) result.exposure = exposure_record(exposure, targets);
+      result.seconds = elapsed_s(clock);
+      return result;
+    }
+    refined = best;
+  }
   const torch::Tensor keep = refined.opacities >= 1.0 / 255;
   result.dropped = refined.size() - keep.sum().item<int64_t>();
   for (torch::Tensor* t : {&refined.means, &refined.scales, &refined.quats, &refined.opacities, &refined.colors})
@@ -465,10 +555,27 @@ std::vector<RefineView> refinement_views(const Scene& scene, const Prediction& p
     v.rgb = i == 0 ? prediction.input.views[0].rgb : std::move(pv.rgb);
     if (i > 0 && !options.keep_object) v.mask = std::move(pv.mask);
     v.camera = prediction.input.normalization.apply(pv.camera);
+    v.may_hold_out = std::find(prediction.input.context.begin(), prediction.input.context.end(), indices[i]) ==
+                     prediction.input.context.end();
     views.push_back(std::move(v));
   }
   return views;
 }
+
+namespace {
+
+// Which views chose the result, what each candidate scored there and which won.
+nlohmann::json held_out_record(const RefineResult& r) {
+  if (r.held_out.empty()) return nullptr;
+  nlohmann::json iterates = nlohmann::json::array();
+  for (const auto& [step, psnr] : r.iterates) iterates.push_back({{"step", step}, {"psnr", psnr}});
+  return {{"views", r.held_out},
+          {"start_psnr", r.start_psnr},
+          {"iterates", iterates},
+          {"chosen", r.kept_start ? nlohmann::json("start") : nlohmann::json(r.chosen_step)}};
+}
+
+}  // namespace
 
 nlohmann::json refinement_report(const RefineResult& r, const RefineOptions& options) {
   nlohmann::json exposure = nlohmann::json::object();
@@ -493,55 +600,103 @@ nlohmann::json refinement_report(const RefineResult& r, const RefineOptions& opt
           {"position_rate", options.position_lr / kGaussianSplattingPositionLr},  // × 3DGS's
           {"coarse_to_fine", options.coarse_to_fine},
           {"densify", options.densify.enabled},
-          {"exposure", options.exposure ? exposure : nlohmann::json()}};
+          {"exposure", options.exposure ? exposure : nlohmann::json()},
+          {"held_out", held_out_record(r)}};
 }
 
-GaussianSet thinned_prediction(const GaussianSet& gaussians, const Prediction& prediction, int stride) {
-  // The network's Gaussians are per pixel, in the order view, row, column; those past the frames
-  // (geometry/frame_margin.h), behind the depth edges (geometry/behind_edges.h) and the region's cover
-  // (geometry/region_cover.h) follow them and are left out: refinement starts from what the context
-  // views saw, and its densification grows the rest from the views it fits.
+namespace {
+
+// Which of `means` (N, 3) lie in front of `camera` and inside `region` (H, W bool) of its picture.
+torch::Tensor seen_in(const torch::Tensor& means, const Camera& camera, const torch::Tensor& region) {
+  const auto [R, t] = rotation_and_translation(camera.w2c_opencv(), means.options());
+  const torch::Tensor local = means.matmul(R.t()) + t;
+  const torch::Tensor z = local.select(1, 2);
+  const torch::Tensor u = (local.select(1, 0) / z * camera.K.fx + camera.K.cx).floor();
+  const torch::Tensor v = (local.select(1, 1) / z * camera.K.fy + camera.K.cy).floor();
+  const torch::Tensor inside = (z > 0) & (u >= 0) & (u < region.size(1)) & (v >= 0) & (v < region.size(0));
+  torch::Tensor seen = torch::zeros({means.size(0)}, torch::kBool);
+  const torch::Tensor at = inside.nonzero().squeeze(1);
+  seen.index_put_({at}, region.index({v.index({at}).to(torch::kInt64), u.index({at}).to(torch::kInt64)}));
+  return seen;
+}
+
+GaussianSet rows_of(const GaussianSet& g, const torch::Tensor& rows) {
+  GaussianSet out = g;
+  for (torch::Tensor* t : {&out.means, &out.scales, &out.quats, &out.opacities, &out.colors})
+    *t = t->index_select(0, rows.to(t->device()));
+  return out;
+}
+
+}  // namespace
+
+// What the reference sees in its region (the region surface's pixels, else its mask), whichever
+// view or layer made it, and the region's cover are kept as they are: the other views' masks hide
+// the region, so nothing but the reference would move them, and it would slide them along its own
+// rays (scene 1, object-free reference: from the network's Gaussians there the region lost 4 dB;
+// keeping the reference's region pixels alone lost 0.4 more; also keeping what no other view sees
+// outside its mask gained nothing). Prediction::gaussians()'s order: one per pixel of each context
+// view, then those past the frames, behind the depth edges and the region's cover.
+RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction& prediction, bool keep_object,
+                                 int stride) {
   int64_t pixels = 0;
   for (const PreparedView& v : prediction.input.views) pixels += int64_t(v.rgb.width) * v.rgb.height;
-  const int64_t extra =
-      prediction.beyond_frame.size() + prediction.behind_edges.size() + prediction.region_cover.size();
-  if (gaussians.size() != pixels && gaussians.size() != pixels + extra)
+  const int64_t beyond = prediction.beyond_frame.size(), behind = prediction.behind_edges.size(),
+                cover = prediction.region_cover.size();
+  const bool layers = gaussians.size() == pixels + beyond + behind + cover;
+  if (gaussians.size() != pixels && !layers)
     fail("refine: {} Gaussians do not match the prediction's {} pixels", gaussians.size(), pixels);
-  GaussianSet g = gaussians;
-  // The reference's region as the network made it: refinement from the region's opaque splats
-  // (geometry/region_surface.h) lost make demo's refined room 2.6 dB.
-  if (prediction.region_surface_pixels.defined() && prediction.region_surface_pixels.numel() > 0) {
-    const torch::Tensor at = prediction.region_surface_pixels.to(g.means.device());
-    const GaussianSet& network = prediction.region_surface_replaced;
-    for (auto member : {&GaussianSet::means, &GaussianSet::scales, &GaussianSet::quats, &GaussianSet::opacities,
-                        &GaussianSet::colors}) {
-      torch::Tensor& all = g.*member;
-      all = all.index_copy(0, at, (network.*member).to(all.device(), all.scalar_type()));
-    }
+  stride = std::max(stride, 1);
+
+  // The region: the reference's pixels it covers, as an (H, W) mask of the reference.
+  const PreparedView& reference = prediction.input.views.front();
+  torch::Tensor region = torch::zeros({reference.rgb.height, reference.rgb.width}, torch::kBool);
+  if (!keep_object) {
+    if (prediction.region_surface_pixels.defined() && prediction.region_surface_pixels.numel() > 0)
+      region.view({-1}).index_fill_(0, prediction.region_surface_pixels.to(torch::kCPU, torch::kInt64), true);
+    else if (reference.mask)
+      region = image_to_tensor(*reference.mask)[0][0] > 0.5;
   }
-  if (stride <= 1) {
-    for (torch::Tensor* t : {&g.means, &g.scales, &g.quats, &g.opacities, &g.colors}) *t = t->narrow(0, 0, pixels);
-    return g;
+  const int64_t region_pixels = region.sum().item<int64_t>();
+  // Every Gaussian that the reference sees in its region, whichever view or layer it came from.
+  torch::Tensor kept = torch::zeros({gaussians.size()}, torch::kBool);
+  if (region_pixels > 0) {
+    kept.narrow(0, 0, region.numel()).copy_(region.flatten());
+    if (!prediction.input.input.view_cameras.empty())
+      kept.logical_or_(seen_in(gaussians.means.to(torch::kCPU, torch::kFloat32), prediction.input.input.view_cameras.front(), region));
   }
-  std::vector<int64_t> rows;
+  if (layers) kept.narrow(0, pixels + beyond + behind, cover).fill_(true);
+  // The rest moves, thinned.
+  torch::Tensor thinned = torch::zeros({gaussians.size()}, torch::kBool);
   int64_t first = 0;
   for (const PreparedView& v : prediction.input.views) {
-    for (int y = 0; y < v.rgb.height; y += stride)
-      for (int x = 0; x < v.rgb.width; x += stride) rows.push_back(first + int64_t(y) * v.rgb.width + x);
+    thinned.narrow(0, first, int64_t(v.rgb.width) * v.rgb.height)
+        .view({v.rgb.height, v.rgb.width})
+        .slice(0, 0, v.rgb.height, stride)
+        .slice(1, 0, v.rgb.width, stride)
+        .fill_(true);
     first += int64_t(v.rgb.width) * v.rgb.height;
   }
-  const torch::Tensor index = torch::tensor(rows, torch::kInt64).to(gaussians.means.device());
-  for (torch::Tensor* t : {&g.means, &g.scales, &g.quats, &g.opacities, &g.colors}) *t = t->index_select(0, index);
-  g.scales = g.scales * stride;
-  return g;
+  if (layers) thinned.narrow(0, pixels, beyond + behind).slice(0, 0, beyond + behind, int64_t(stride) * stride).fill_(true);
+  const torch::Tensor moving_rows = thinned.logical_and(kept.logical_not()).nonzero().squeeze(1);
+  const torch::Tensor kept_rows = kept.nonzero().squeeze(1);
+  RefinementStart s;
+  s.moving = rows_of(gaussians, moving_rows);
+  s.moving.scales = s.moving.scales * stride;
+  s.kept = rows_of(gaussians, kept_rows);
+  return s;
 }
 
 GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, const SceneInputOptions& options,
                               const GaussianSet& start, const RefineOptions& refine, nlohmann::json& report) {
-  RefineResult r = refine_gaussians(thinned_prediction(start, prediction, refine.start_stride),
-                                    refinement_views(scene, prediction, options), refine);
+  const std::vector<RefineView> views = refinement_views(scene, prediction, options);
+  const RefinementStart parts = refinement_start(start, prediction, options.keep_object, refine.start_stride);
+  RefineOptions o = refine;
+  o.fixed = refine.fixed.size() > 0 ? with_fixed(parts.kept, refine.fixed) : parts.kept;
+  o.whole_start = start;
+  RefineResult r = refine_gaussians(parts.moving, views, o);
   report = refinement_report(r, refine);
-  return std::move(r.gaussians);
+  if (r.kept_start) return in_result_form(start, refine.sh_degree);
+  return o.fixed.size() > 0 ? with_fixed(r.gaussians, o.fixed) : std::move(r.gaussians);
 }
 
 }  // namespace ii

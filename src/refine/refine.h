@@ -29,6 +29,9 @@ struct RefineView {
   Image rgb;                  // 3 channels, [0,1]
   std::optional<Image> mask;  // 1 channel at the image's size; > 0.5 = not supervised
   Camera camera;              // for `rgb`, in the Gaussians' frame
+  // Whether it may be held out to score the iterates (RefineOptions::hold_out_every): not a view
+  // the start was made from, which it reproduces better than any other.
+  bool may_hold_out = true;
 };
 
 // Where a refinement stands, after each step.
@@ -54,12 +57,12 @@ struct RefineOptions {
   // more at each tenth of the run, as 3DGS raises it over its first 3000 of 30000 steps.
   int sh_degree = 0;
   // Adam learning rates, 3DGS's but for positions: scaled by the set's extent, starting at
-  // 300 times 3DGS's and decaying exponentially to position_lr_final (over the run, or sooner:
-  // position_decay_views). The network's geometry of a real capture is off by a good part of
-  // the scene, and 3DGS's rate is made for positions that are right already
-  // (docs/benchmarks.md: in 2 minutes, fern held out 20.6 dB at 3DGS's rate, 25.7 at 300x;
-  // the synthetic rooms the model was trained on would rather have 10x).
-  double position_lr = 300 * kGaussianSplattingPositionLr, position_lr_final = kGaussianSplattingPositionLr,
+  // 30 times 3DGS's and decaying exponentially to position_lr_final (over the run, or sooner:
+  // position_decay_views). From the network's raw depth (off by a good part of a real scene)
+  // 300x was best; from the whole prediction, on the measured surfaces, 300x shakes what is
+  // right (docs/benchmarks.md, session 43: `fast` on the fern 26.6 dB at 300x, 28.1 at 30x; the
+  // statue 22.6 / 24.7; scene 1 whole 22.2 / 23.3; 10x 22.9; the synthetic rooms like 10x).
+  double position_lr = 30 * kGaussianSplattingPositionLr, position_lr_final = kGaussianSplattingPositionLr,
          scale_lr = 5e-3, rotation_lr = 1e-3, opacity_lr = 5e-2, colour_lr = 2.5e-3;
   // The position rate's decay ends by the end of the run or after this many views' worth of
   // pixels (a quarter-resolution view counts 1/16), whichever comes first (0: the run alone).
@@ -81,9 +84,10 @@ struct RefineOptions {
   // start set (opacity < 0.5): one per pixel of the quarter-resolution view, at the median depth
   // of what that view does see, in the photo's colour.
   bool cover = true;
-  // refine_prediction only: start from the network's Gaussians of every n-th pixel row and
-  // column of each context view, scales x n (n² times fewer: cheaper steps; densification
-  // adds detail where the views ask for it).
+  // refine_prediction only: start from the prediction's Gaussians of every n-th pixel row and
+  // column of each context view (and every n²-th of the layers past the frames and behind the
+  // depth edges), scales x n (n² times fewer: cheaper steps; densification adds detail where
+  // the views ask for it).
   int start_stride = 3;
   DensifyOptions densify;  // between 5 % and 60 % of the run, every densify_every steps
   int densify_every = 50;
@@ -93,10 +97,23 @@ struct RefineOptions {
   // are pruned at the next densification. Empty: none.
   std::vector<double> opacity_resets = {0.2, 0.4};
   double reset_opacity = 0.01;
+  // The result is the best of the start and the run's iterates on held-out views: every n-th
+  // view after the first (the reference) is not fitted but scores them (0: none held out, the
+  // last iterate is the result). Only with at least 3 views left to fit. Refinement then never
+  // returns worse than it started, as those views see it.
+  int hold_out_every = 8;
+  // The run's iterates scored there, at these fractions of the run (the end is always one): after
+  // the opacity resets and the densification, while the position rate has decayed.
+  std::vector<double> score_at = {0.7, 0.85};
   std::function<void(const RefineProgress&)> progress;  // after each step
   // Gaussians drawn with the optimised ones and never changed (a fill optimises its new
-  // Gaussians alone in front of the rest of the scene); on the start set's device.
+  // Gaussians alone in front of the rest of the scene; refine_prediction keeps the reference's
+  // region as it was given); on the start set's device.
   GaussianSet fixed;
+  // The whole scene the run stands for at its start, scored as the start on the held-out views
+  // (refine_prediction: the prediction itself, every layer, before it was thinned); empty: the
+  // start set drawn with the fixed ones.
+  GaussianSet whole_start;
 };
 
 // `--refine`'s settings by name: "fast" (1 minute), "balanced" (5 minutes, what a user gets by
@@ -122,6 +139,15 @@ struct RefineResult {
   std::vector<std::string> views;  // that supervised (views masked everywhere say nothing)
   // Per view, with exposure: the colour map's diagonal gains and offsets (R, G, B).
   std::vector<std::pair<std::string, std::array<double, 6>>> exposure;
+  // The held-out views (RefineOptions::hold_out_every) and the PSNR over their supervised pixels
+  // of the start (-1 without) and of each scored iterate (step, PSNR).
+  std::vector<std::string> held_out;
+  double start_psnr = -1;
+  std::vector<std::pair<int, double>> iterates;
+  // Whether the start scored best: `gaussians` is then the start set as given (its colours in the
+  // result's form), and with RefineOptions::whole_start the caller's whole scene is the answer.
+  bool kept_start = false;
+  int chosen_step = 0;  // the step of the iterate returned (0: the start)
 };
 
 // `start` has RGB colours (sh_degree -1), like the network's. Errors: no views, a view whose
@@ -136,10 +162,24 @@ RefineResult refine_gaussians(const GaussianSet& start, const std::vector<Refine
 std::vector<RefineView> refinement_views(const Scene& scene, const Prediction& prediction,
                                          const SceneInputOptions& options);
 
-// Both of the above for a prediction: `start` (its Gaussians, on the device to refine on)
-// refined against the scene's views; `report` receives what refinement_report() makes, for
-// run.json / metrics.json.
+// Both of the above for a prediction: `start` (its Gaussians, every layer, on the device to
+// refine on) refined against the scene's views; `report` receives what refinement_report()
+// makes, for run.json / metrics.json. Refinement only adds to what the prediction gives: the
+// reference's region keeps the Gaussians it was given (the other views' masks hide it), the
+// rest starts thinned (RefineOptions::start_stride) and densifies, and the prediction itself
+// is the answer unless an iterate scores better on the held-out views.
 nlohmann::json refinement_report(const RefineResult& result, const RefineOptions& options);
+// The prediction as refine_prediction takes it: `gaussians` (every layer, in Prediction::gaussians()'s
+// order, or the context views' pixels alone) split into the Gaussians that move, thinned by
+// `stride`, and those kept as given: whatever the reference sees in its region (the region
+// surface's pixels, else its mask; none with `keep_object`), whichever view made it, and the
+// region's cover.
+struct RefinementStart {
+  GaussianSet moving, kept;
+};
+RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction& prediction, bool keep_object,
+                                 int stride);
+
 GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, const SceneInputOptions& options,
                               const GaussianSet& start, const RefineOptions& refine, nlohmann::json& report);
 

@@ -53,6 +53,22 @@ std::vector<RefineView> views_of(const GaussianSet& truth) {
   return views;
 }
 
+// `n` views of `truth` side by side (v0 ... v<n-1>), from cameras 0.15 apart.
+std::vector<RefineView> views_across(const GaussianSet& truth, int n) {
+  std::vector<RefineView> views;
+  for (int k = 0; k < n; ++k) {
+    RefineView v;
+    v.name = "v" + std::to_string(k);
+    v.camera.K = Intrinsics::from_fov(32, 24, 0.9, 0.7);
+    v.camera.c2w(0, 3) = 0.15 * (k - (n - 1) / 2.0);
+    RenderCamera rc;
+    rc.camera = v.camera;
+    v.rgb = image_from_hwc(render(truth, rc).rgb);
+    views.push_back(std::move(v));
+  }
+  return views;
+}
+
 // The plain optimisation: no new Gaussians, no colour maps, full resolution.
 RefineOptions few_steps(int steps) {
   RefineOptions o;
@@ -318,6 +334,119 @@ TEST(Refine, ShDegreeStartsFromTheColoursAndFitsViewDependence) {
   EXPECT_GT(r.gaussians.colors.narrow(1, 1, 8).abs().max().item<float>(), 0.f);
 }
 
+// Every second view after the first is held out (v2, v4, v6 of seven) and scores the start and
+// the iterates; the best of them is the result.
+TEST(Refine, HeldOutViewsChooseTheResultAndAnIterateThatBeatsTheStartWins) {
+  RefineOptions o = few_steps(30);
+  o.hold_out_every = 2;
+  o.score_at = {0.5};
+  const RefineResult r = refine_gaussians(grid(0.25f), views_across(grid(), 7), o);
+  EXPECT_EQ(r.views, (std::vector<std::string>{"v0", "v1", "v3", "v5"}));
+  EXPECT_EQ(r.held_out, (std::vector<std::string>{"v2", "v4", "v6"}));
+  ASSERT_EQ(r.iterates.size(), 2u);  // at half the run and at its end
+  EXPECT_EQ(r.iterates[0].first, 15);
+  EXPECT_EQ(r.iterates[1].first, 30);
+  EXPECT_GT(r.iterates[1].second, r.start_psnr + 3);
+  EXPECT_FALSE(r.kept_start);
+  EXPECT_EQ(r.chosen_step, 30);
+  const nlohmann::json report = refinement_report(r, o);
+  EXPECT_EQ(report["held_out"]["chosen"], 30);
+  EXPECT_EQ(report["held_out"]["views"].size(), 3u);
+}
+
+// The views it fits show other colours than the held-out ones: every iterate is worse than the
+// start there, so the start comes back as it was given.
+TEST(Refine, TheStartComesBackWhenNoIterateBeatsItOnTheHeldOutViews) {
+  RefineOptions o = few_steps(20);
+  o.hold_out_every = 2;
+  std::vector<RefineView> views = views_across(grid(0.25f), 7);
+  const std::vector<RefineView> truth = views_across(grid(), 7);
+  for (int k : {2, 4, 6}) views[k] = truth[k];
+  const RefineResult r = refine_gaussians(grid(), views, o);
+  EXPECT_TRUE(r.kept_start);
+  EXPECT_EQ(r.chosen_step, 0);
+  ASSERT_EQ(r.iterates.size(), 3u);  // 0.7, 0.85 and the end
+  for (const auto& [step, psnr] : r.iterates) EXPECT_LT(psnr, r.start_psnr) << step;
+  EXPECT_TRUE(torch::equal(r.gaussians.means, grid().means));
+  EXPECT_TRUE(torch::equal(r.gaussians.colors, grid().colors));
+  EXPECT_EQ(refinement_report(r, o)["held_out"]["chosen"], "start");
+}
+
+// Views the start was made from are never held out; too few views left to fit: none is.
+TEST(Refine, ContextViewsAreNotHeldOutNorAreViewsThatTheFitNeeds) {
+  RefineOptions o = few_steps(2);
+  o.hold_out_every = 2;
+  std::vector<RefineView> views = views_across(grid(), 7);
+  views[2].may_hold_out = false;
+  EXPECT_EQ(refine_gaussians(grid(0.25f), views, o).held_out, (std::vector<std::string>{"v3", "v5"}));
+  const RefineResult few = refine_gaussians(grid(0.25f), views_across(grid(), 3), o);
+  EXPECT_TRUE(few.held_out.empty());
+  EXPECT_EQ(few.views.size(), 3u);
+  EXPECT_EQ(few.start_psnr, -1);
+}
+
+// Two 4 x 3 context views; the reference's region surface is its pixels 5 and 6 (the second view's
+// mask, its pixel 5, is not the region). Each Gaussian's red is its row, so the split can be read
+// off; they all sit at the reference camera's centre, which sees none of them, but one.
+TEST(Refine, RefinementStartKeepsTheRegionAndItsCoverAndThinsTheRest) {
+  Prediction p;
+  for (int v = 0; v < 2; ++v) {
+    PreparedView view;
+    view.rgb = Image(4, 3, 3);
+    view.mask = Image(4, 3, 1);
+    p.input.views.push_back(view);
+  }
+  p.input.views[1].mask->at(1, 1) = 1;
+  p.region_surface_pixels = torch::tensor({5, 6}, torch::kInt64);
+  auto rows = [](int64_t n) {
+    GaussianSet g;
+    g.means = torch::zeros({n, 3});
+    g.scales = torch::full({n, 3}, 0.1f);
+    g.quats = torch::tensor({1.f, 0.f, 0.f, 0.f}).repeat({n, 1});
+    g.opacities = torch::full({n}, 0.5f);
+    g.colors = torch::zeros({n, 3});
+    return g;
+  };
+  p.beyond_frame = rows(9);
+  p.behind_edges = rows(3);
+  p.region_cover = rows(2);
+  GaussianSet all = rows(24 + 9 + 3 + 2);
+  all.colors.select(1, 0).copy_(torch::arange(all.size()).to(torch::kFloat32));
+  auto xs = [](const GaussianSet& g) {
+    std::vector<int64_t> out;
+    for (int64_t i = 0; i < g.size(); ++i) out.push_back(static_cast<int64_t>(g.colors[i][0].item<float>()));
+    return out;
+  };
+  const RefinementStart s = refinement_start(all, p, /*keep_object=*/false, 2);
+  // Rows 0 and 2, columns 0 and 2 of each view; then every 4th past the frames and behind the edges.
+  EXPECT_EQ(xs(s.moving), (std::vector<int64_t>{0, 2, 8, 10, 12, 14, 20, 22, 24, 28, 32}));
+  EXPECT_EQ(xs(s.kept), (std::vector<int64_t>{5, 6, 36, 37}));
+  // Without a region surface, the reference's mask is the region.
+  p.region_surface_pixels = torch::Tensor();
+  p.input.views[0].mask->at(0, 3) = 1;
+  EXPECT_EQ(xs(refinement_start(all, p, false, 2).kept), (std::vector<int64_t>{3, 36, 37}));
+  p.region_surface_pixels = torch::tensor({5, 6}, torch::kInt64);
+  EXPECT_FLOAT_EQ(s.moving.scales[0][0].item<float>(), 0.2f);
+  EXPECT_FLOAT_EQ(s.kept.scales[0][0].item<float>(), 0.1f);
+  // Keeping the object: nothing is the region; the cover still stays as it is.
+  EXPECT_EQ(xs(refinement_start(all, p, true, 1).kept), (std::vector<int64_t>{36, 37}));
+  EXPECT_EQ(test::error_message([&] { refinement_start(rows(5), p, false, 2); }),
+            "refine: 5 Gaussians do not match the prediction's 24 pixels");
+  // Seen by the reference's camera (fx = fy = 1, no offset), every Gaussian at (1.5, -1.5, -3), on
+  // its pixel (0, 1). Row 20 (the second view's) lies on the region, at pixel (1, 1) = 5: kept.
+  Camera camera;
+  camera.K.width = 4;
+  camera.K.height = 3;
+  camera.K.fx = camera.K.fy = 1;
+  camera.K.cx = camera.K.cy = 0;
+  p.input.input.view_cameras = {camera, camera};
+  all.means.copy_(torch::tensor({1.5f, -1.5f, -3.f}).expand({all.size(), 3}));
+  all.means[20] = torch::tensor({4.5f, -4.5f, -3.f});
+  const RefinementStart seen = refinement_start(all, p, false, 2);
+  EXPECT_EQ(xs(seen.kept), (std::vector<int64_t>{5, 6, 20, 36, 37}));
+  EXPECT_EQ(xs(seen.moving), (std::vector<int64_t>{0, 2, 8, 10, 12, 14, 22, 24, 28, 32}));
+}
+
 TEST(Refine, BadInputsAreClearErrors) {
   EXPECT_EQ(test::error_message([] { refine_gaussians(grid(), {}, few_steps(1)); }), "refine: no views to refine against");
   std::vector<RefineView> views = views_of(grid());
@@ -344,7 +473,11 @@ TEST(RefineCli, InferRefinesAgainstEveryViewNotHeldOut) {
       << test::file_bytes(log);
   const nlohmann::json run = nlohmann::json::parse(test::file_bytes(tmp / "run.json"));
   EXPECT_EQ(run["refine"]["steps"], 2);
-  const nlohmann::json& views = run["refine"]["views"];
+  std::vector<std::string> views = run["refine"]["views"];
+  const std::vector<std::string> scored = run["refine"]["held_out"]["views"];
+  EXPECT_EQ(scored.size(), 3u);  // every 8th view but the context's chooses the result
+  EXPECT_TRUE(run["refine"]["held_out"].contains("chosen"));  // the start or a step: SH 1 either way
+  views.insert(views.end(), scored.begin(), scored.end());
   EXPECT_EQ(views.size(), 25u);  // every input view of the scene but 0, 8, 16, 24
   for (const char* held_out : {"IMG_2707", "IMG_2715", "IMG_2723", "IMG_2731"})
     EXPECT_EQ(std::find(views.begin(), views.end(), held_out), views.end()) << held_out;
