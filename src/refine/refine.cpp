@@ -14,6 +14,7 @@
 #include "refine/adam.h"
 #include "render/projection.h"
 #include "render/rasterizer.h"
+#include "tensor/camera_projection.h"
 #include "tensor/image_tensor.h"
 
 namespace ii {
@@ -608,16 +609,21 @@ namespace {
 
 // Which of `means` (N, 3) lie in front of `camera` and inside `region` (H, W bool) of its picture.
 torch::Tensor seen_in(const torch::Tensor& means, const Camera& camera, const torch::Tensor& region) {
-  const auto [R, t] = rotation_and_translation(camera.w2c_opencv(), means.options());
-  const torch::Tensor local = means.matmul(R.t()) + t;
-  const torch::Tensor z = local.select(1, 2);
-  const torch::Tensor u = (local.select(1, 0) / z * camera.K.fx + camera.K.cx).floor();
-  const torch::Tensor v = (local.select(1, 1) / z * camera.K.fy + camera.K.cy).floor();
-  const torch::Tensor inside = (z > 0) & (u >= 0) & (u < region.size(1)) & (v >= 0) & (v < region.size(0));
-  torch::Tensor seen = torch::zeros({means.size(0)}, torch::kBool);
-  const torch::Tensor at = inside.nonzero().squeeze(1);
-  seen.index_put_({at}, region.index({v.index({at}).to(torch::kInt64), u.index({at}).to(torch::kInt64)}));
-  return seen;
+  const PixelHit hit = project(camera, means);
+  return hit.inside.logical_and(region.reshape({-1}).index_select(0, hit.index));
+}
+
+// The reference's region as an (H, W) mask of its picture: the region surface's pixels, else its
+// mask; nothing with `keep_object`.
+torch::Tensor reference_region(const Prediction& prediction, bool keep_object) {
+  const PreparedView& reference = prediction.input.views.front();
+  torch::Tensor region = torch::zeros({reference.rgb.height, reference.rgb.width}, torch::kBool);
+  if (keep_object) return region;
+  if (prediction.region_surface_pixels.defined() && prediction.region_surface_pixels.numel() > 0)
+    region.view({-1}).index_fill_(0, prediction.region_surface_pixels.to(torch::kCPU, torch::kInt64), true);
+  else if (reference.mask)
+    region = image_to_tensor(*reference.mask)[0][0] > 0.5;
+  return region;
 }
 
 GaussianSet rows_of(const GaussianSet& g, const torch::Tensor& rows) {
@@ -647,15 +653,7 @@ RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction&
     fail("refine: {} Gaussians do not match the prediction's {} pixels", gaussians.size(), pixels);
   stride = std::max(stride, 1);
 
-  // The region: the reference's pixels it covers, as an (H, W) mask of the reference.
-  const PreparedView& reference = prediction.input.views.front();
-  torch::Tensor region = torch::zeros({reference.rgb.height, reference.rgb.width}, torch::kBool);
-  if (!keep_object) {
-    if (prediction.region_surface_pixels.defined() && prediction.region_surface_pixels.numel() > 0)
-      region.view({-1}).index_fill_(0, prediction.region_surface_pixels.to(torch::kCPU, torch::kInt64), true);
-    else if (reference.mask)
-      region = image_to_tensor(*reference.mask)[0][0] > 0.5;
-  }
+  const torch::Tensor region = reference_region(prediction, keep_object);
   const int64_t region_pixels = region.sum().item<int64_t>();
   // Every Gaussian that the reference sees in its region, whichever view or layer it came from.
   torch::Tensor kept = torch::zeros({gaussians.size()}, torch::kBool);
@@ -686,6 +684,16 @@ RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction&
   return s;
 }
 
+GaussianSet outside_the_region(const GaussianSet& moved, const Prediction& prediction, bool keep_object,
+                               int64_t* dropped) {
+  const torch::Tensor region = reference_region(prediction, keep_object);
+  if (!region.any().item<bool>() || prediction.input.input.view_cameras.empty()) return moved;
+  const torch::Tensor in =
+      seen_in(moved.means.to(torch::kCPU, torch::kFloat32), prediction.input.input.view_cameras.front(), region);
+  if (dropped) *dropped = in.sum().item<int64_t>();
+  return rows_of(moved, in.logical_not().nonzero().squeeze(1));
+}
+
 GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, const SceneInputOptions& options,
                               const GaussianSet& start, const RefineOptions& refine, nlohmann::json& report) {
   const std::vector<RefineView> views = refinement_views(scene, prediction, options);
@@ -696,7 +704,10 @@ GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, 
   RefineResult r = refine_gaussians(parts.moving, views, o);
   report = refinement_report(r, refine);
   if (r.kept_start) return in_result_form(start, refine.sh_degree);
-  return o.fixed.size() > 0 ? with_fixed(r.gaussians, o.fixed) : std::move(r.gaussians);
+  int64_t dropped = 0;
+  const GaussianSet moved = outside_the_region(r.gaussians, prediction, options.keep_object, &dropped);
+  report["gaussians"]["moved_into_the_region"] = dropped;
+  return o.fixed.size() > 0 ? with_fixed(moved, o.fixed) : moved;
 }
 
 }  // namespace ii

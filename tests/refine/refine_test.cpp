@@ -445,6 +445,13 @@ TEST(Refine, RefinementStartKeepsTheRegionAndItsCoverAndThinsTheRest) {
   const RefinementStart seen = refinement_start(all, p, false, 2);
   EXPECT_EQ(xs(seen.kept), (std::vector<int64_t>{5, 6, 20, 36, 37}));
   EXPECT_EQ(xs(seen.moving), (std::vector<int64_t>{0, 2, 8, 10, 12, 14, 22, 24, 28, 32}));
+  // After the run, a moved Gaussian that the reference sees in its region goes (row 20's place).
+  int64_t dropped = -1;
+  const GaussianSet outside = outside_the_region(all, p, false, &dropped);
+  EXPECT_EQ(dropped, 1);
+  EXPECT_EQ(outside.size(), all.size() - 1);
+  EXPECT_EQ(xs(outside).at(20), 21);
+  EXPECT_EQ(outside_the_region(all, p, true).size(), all.size());  // keeping the object: no region
 }
 
 TEST(Refine, BadInputsAreClearErrors) {
