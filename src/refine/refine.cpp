@@ -343,7 +343,8 @@ GaussianSet in_result_form(GaussianSet g, int sh_degree) {
   g.colors = g.colors.to(torch::kFloat32);
   if (sh_degree > 0) {
     const int64_t k = (sh_degree + 1) * (sh_degree + 1);
-    g.colors = torch::cat({sh_dc_from_rgb(g.colors).unsqueeze(1), torch::zeros({g.size(), k - 1, 3}, g.colors.options())}, 1);
+    g.colors = torch::cat(
+        {sh_dc_from_rgb(g.colors).unsqueeze(1), torch::zeros({g.size(), k - 1, 3}, g.colors.options())}, 1);
     g.sh_degree = sh_degree;
   }
   return g;
@@ -358,7 +359,8 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   const torch::Device device = start_set.means.device();
   std::vector<Target> targets = refinement_targets(views, device);
   const bool optimise = refine_requested(options);
-  const std::vector<Target> held = optimise ? take_held_out(targets, options.hold_out_every) : std::vector<Target>{};
+  const std::vector<Target> held =
+      optimise ? take_held_out(targets, options.hold_out_every) : std::vector<Target>{};
   RefineResult result;
   for (const Target& t : targets) result.views.push_back(t.name);
   for (const Target& t : held) result.held_out.push_back(t.name);
@@ -638,10 +640,9 @@ GaussianSet rows_of(const GaussianSet& g, const torch::Tensor& rows) {
 // What the reference sees in its region (the region surface's pixels, else its mask), whichever
 // view or layer made it, and the region's cover are kept as they are: the other views' masks hide
 // the region, so nothing but the reference would move them, and it would slide them along its own
-// rays (scene 1, object-free reference: from the network's Gaussians there the region lost 4 dB;
-// keeping the reference's region pixels alone lost 0.4 more; also keeping what no other view sees
-// outside its mask gained nothing). Prediction::gaussians()'s order: one per pixel of each context
-// view, then those past the frames, behind the depth edges and the region's cover.
+// rays (scene 1 with an object-free reference: refined from the network's Gaussians there, the
+// region lost 4 dB; docs/benchmarks.md, session 43). Prediction::gaussians()'s order: one per pixel
+// of each context view, then those past the frames, behind the depth edges and the region's cover.
 RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction& prediction, bool keep_object,
                                  int stride) {
   int64_t pixels = 0;
@@ -660,7 +661,8 @@ RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction&
   if (region_pixels > 0) {
     kept.narrow(0, 0, region.numel()).copy_(region.flatten());
     if (!prediction.input.input.view_cameras.empty())
-      kept.logical_or_(seen_in(gaussians.means.to(torch::kCPU, torch::kFloat32), prediction.input.input.view_cameras.front(), region));
+      kept.logical_or_(seen_in(gaussians.means.to(torch::kCPU, torch::kFloat32),
+                               prediction.input.input.view_cameras.front(), region));
   }
   if (layers) kept.narrow(0, pixels + beyond + behind, cover).fill_(true);
   // The rest moves, thinned.
@@ -674,7 +676,8 @@ RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction&
         .fill_(true);
     first += int64_t(v.rgb.width) * v.rgb.height;
   }
-  if (layers) thinned.narrow(0, pixels, beyond + behind).slice(0, 0, beyond + behind, int64_t(stride) * stride).fill_(true);
+  if (layers)
+    thinned.narrow(0, pixels, beyond + behind).slice(0, 0, beyond + behind, int64_t(stride) * stride).fill_(true);
   const torch::Tensor moving_rows = thinned.logical_and(kept.logical_not()).nonzero().squeeze(1);
   const torch::Tensor kept_rows = kept.nonzero().squeeze(1);
   RefinementStart s;

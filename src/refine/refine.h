@@ -162,13 +162,9 @@ RefineResult refine_gaussians(const GaussianSet& start, const std::vector<Refine
 std::vector<RefineView> refinement_views(const Scene& scene, const Prediction& prediction,
                                          const SceneInputOptions& options);
 
-// Both of the above for a prediction: `start` (its Gaussians, every layer, on the device to
-// refine on) refined against the scene's views; `report` receives what refinement_report()
-// makes, for run.json / metrics.json. Refinement only adds to what the prediction gives: the
-// reference's region keeps the Gaussians it was given (the other views' masks hide it) and no
-// moved one ends there, the rest starts thinned (RefineOptions::start_stride) and densifies, and
-// the prediction itself is the answer unless an iterate scores better on the held-out views.
+// What run.json / metrics.json record of a refinement.
 nlohmann::json refinement_report(const RefineResult& result, const RefineOptions& options);
+
 // The prediction as refine_prediction takes it: `gaussians` (every layer, in Prediction::gaussians()'s
 // order, or the context views' pixels alone) split into the Gaussians that move, thinned by
 // `stride`, and those kept as given: whatever the reference sees in its region (the region
@@ -188,6 +184,12 @@ RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction&
 GaussianSet outside_the_region(const GaussianSet& moved, const Prediction& prediction, bool keep_object,
                                int64_t* dropped = nullptr);
 
+// refine_gaussians against refinement_views for a prediction: `start` (its Gaussians, every
+// layer, on the device to refine on) refined against the scene's views; `report` receives what
+// refinement_report() makes, for run.json / metrics.json. Refinement only adds to what the prediction gives: the
+// reference's region keeps the Gaussians it was given (the other views' masks hide it) and no
+// moved one ends there, the rest starts thinned (RefineOptions::start_stride) and densifies, and
+// the prediction itself is the answer unless an iterate scores better on the held-out views.
 GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, const SceneInputOptions& options,
                               const GaussianSet& start, const RefineOptions& refine, nlohmann::json& report);
 
