@@ -148,14 +148,17 @@ RefineOptions refine_setting(const std::string& text) {
 
 namespace {
 
+// `s`'s colours as `k` SH coefficients: RGB as the DC term, missing coefficients zero.
+torch::Tensor as_sh(const GaussianSet& s, int64_t k) {
+  torch::Tensor c = s.sh_degree < 0 ? sh_dc_from_rgb(s.colors).unsqueeze(1) : s.colors;
+  if (c.size(1) < k) c = torch::cat({c, torch::zeros({c.size(0), k - c.size(1), 3}, c.options())}, 1);
+  return c.narrow(1, 0, k);
+}
+
 // `g` drawn in front of the fixed set: one set, colours in the form of the richer of the two
-// (RGB as SH DC, missing SH coefficients zero).
+// (RGB as SH DC, missing SH coefficients zero); `g` itself when nothing is fixed.
 GaussianSet with_fixed(const GaussianSet& g, const GaussianSet& fixed) {
-  auto as_sh = [](const GaussianSet& s, int64_t k) {
-    torch::Tensor c = s.sh_degree < 0 ? sh_dc_from_rgb(s.colors).unsqueeze(1) : s.colors;
-    if (c.size(1) < k) c = torch::cat({c, torch::zeros({c.size(0), k - c.size(1), 3}, c.options())}, 1);
-    return c.narrow(1, 0, k);
-  };
+  if (fixed.size() == 0) return g;
   GaussianSet out;
   out.means = torch::cat({g.means, fixed.means});
   out.scales = torch::cat({g.scales, fixed.scales});
@@ -342,9 +345,7 @@ GaussianSet in_result_form(GaussianSet g, int sh_degree) {
   g.opacities = g.opacities.to(torch::kFloat32).reshape({-1});
   g.colors = g.colors.to(torch::kFloat32);
   if (sh_degree > 0) {
-    const int64_t k = (sh_degree + 1) * (sh_degree + 1);
-    g.colors = torch::cat(
-        {sh_dc_from_rgb(g.colors).unsqueeze(1), torch::zeros({g.size(), k - 1, 3}, g.colors.options())}, 1);
+    g.colors = as_sh(g, (sh_degree + 1) * (sh_degree + 1));
     g.sh_degree = sh_degree;
   }
   return g;
@@ -368,11 +369,8 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   result.start_count = start_set.size();
   GaussianSet start = start_set.to(device);
   if (!held.empty()) {
-    const GaussianSet& whole = options.whole_start.size() > 0 ? options.whole_start : start;
-    result.start_psnr = held_out_psnr(options.fixed.size() > 0 && options.whole_start.size() == 0
-                                          ? with_fixed(whole, options.fixed)
-                                          : whole,
-                                      held);
+    result.start_psnr = held_out_psnr(
+        options.whole_start.size() > 0 ? options.whole_start : with_fixed(start, options.fixed), held);
   }
   if (optimise && options.cover) {
     const GaussianSet added = cover_uncovered(start, targets);
@@ -408,7 +406,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   }
   // What a step draws: the optimised Gaussians and the fixed ones.
   auto drawn = [&](int degree) {
-    return options.fixed.size() > 0 ? with_fixed(p.gaussians(degree), options.fixed) : p.gaussians(degree);
+    return with_fixed(p.gaussians(degree), options.fixed);
   };
 
   const int64_t max_gaussians = options.densify.max_gaussians > 0
@@ -429,7 +427,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   double best_psnr = result.start_psnr;
   auto score = [&](int step) {
     const GaussianSet now = snapshot(p.gaussians(options.sh_degree));
-    const double psnr = held_out_psnr(options.fixed.size() > 0 ? with_fixed(now, options.fixed) : now, held);
+    const double psnr = held_out_psnr(with_fixed(now, options.fixed), held);
     result.iterates.push_back({step, psnr});
     if (psnr > best_psnr) {
       best_psnr = psnr;
@@ -628,12 +626,6 @@ torch::Tensor reference_region(const Prediction& prediction, bool keep_object) {
   return region;
 }
 
-GaussianSet rows_of(const GaussianSet& g, const torch::Tensor& rows) {
-  GaussianSet out = g;
-  for (torch::Tensor* t : {&out.means, &out.scales, &out.quats, &out.opacities, &out.colors})
-    *t = t->index_select(0, rows.to(t->device()));
-  return out;
-}
 
 }  // namespace
 
@@ -681,9 +673,9 @@ RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction&
   const torch::Tensor moving_rows = thinned.logical_and(kept.logical_not()).nonzero().squeeze(1);
   const torch::Tensor kept_rows = kept.nonzero().squeeze(1);
   RefinementStart s;
-  s.moving = rows_of(gaussians, moving_rows);
+  s.moving = select_rows(gaussians, moving_rows.to(gaussians.means.device()));
   s.moving.scales = s.moving.scales * stride;
-  s.kept = rows_of(gaussians, kept_rows);
+  s.kept = select_rows(gaussians, kept_rows.to(gaussians.means.device()));
   return s;
 }
 
@@ -694,7 +686,7 @@ GaussianSet outside_the_region(const GaussianSet& moved, const Prediction& predi
   const torch::Tensor in =
       seen_in(moved.means.to(torch::kCPU, torch::kFloat32), prediction.input.input.view_cameras.front(), region);
   if (dropped) *dropped = in.sum().item<int64_t>();
-  return rows_of(moved, in.logical_not().nonzero().squeeze(1));
+  return select_rows(moved, in.logical_not().to(moved.means.device()));
 }
 
 GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, const SceneInputOptions& options,
@@ -702,7 +694,7 @@ GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, 
   const std::vector<RefineView> views = refinement_views(scene, prediction, options);
   const RefinementStart parts = refinement_start(start, prediction, options.keep_object, refine.start_stride);
   RefineOptions o = refine;
-  o.fixed = refine.fixed.size() > 0 ? with_fixed(parts.kept, refine.fixed) : parts.kept;
+  o.fixed = with_fixed(parts.kept, refine.fixed);
   o.whole_start = start;
   RefineResult r = refine_gaussians(parts.moving, views, o);
   report = refinement_report(r, refine);
@@ -710,7 +702,7 @@ GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, 
   int64_t dropped = 0;
   const GaussianSet moved = outside_the_region(r.gaussians, prediction, options.keep_object, &dropped);
   report["gaussians"]["moved_into_the_region"] = dropped;
-  return o.fixed.size() > 0 ? with_fixed(moved, o.fixed) : moved;
+  return with_fixed(moved, o.fixed);
 }
 
 }  // namespace ii
