@@ -13,8 +13,10 @@
 #include "data/preprocess.h"
 #include "fill/surface.h"
 #include "gaussians/gaussians.h"
-#include "model/device.h"
+#include "geometry/depth_alignment.h"
 #include "geometry/surface_splats.h"
+#include "geometry/visibility.h"
+#include "model/device.h"
 #include "render/projection.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
@@ -84,15 +86,13 @@ Observer observe(const GaussianSet& scene, const Camera& camera, torch::Tensor* 
   return {camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous()};
 }
 
-// Which of the world points (N, 3; float64) the observer saw: in its view, on the surface it drew
-// there, within 3 % of the depth (synthetic rooms at 10 %: one hole 0.3 dB better, another 4.8 dB
-// worse, more of it taken for seen).
-torch::Tensor seen_by(const Observer& o, const torch::Tensor& points) {
-  const PixelHit hit = project(o.camera, points);
-  const torch::Tensor d = o.depth.reshape({-1}).index({hit.index}).to(torch::kFloat64);
-  const torch::Tensor a = o.alpha.reshape({-1}).index({hit.index});
-  return hit.inside.logical_and(a > 0.5).logical_and((d - hit.z).abs() <= 0.03 * hit.z);
-}
+// The depth tolerance of fill's visibility tests (geometry/visibility.h): a point within 3 % of the
+// surface a camera drew is on it, one more than 3 % nearer hides it (synthetic rooms at 10 %: one
+// hole 0.3 dB better, another 4.8 dB worse, more of it taken for seen).
+constexpr double kSeenTolerance = 0.03;
+
+// What an observer saw, where it drew something.
+SeenDepth seen_depth(const Observer& o) { return {o.camera, o.depth, o.alpha > 0.5}; }
 
 struct CameraViews {
   Image before, kept, mask;
@@ -139,28 +139,21 @@ Image hole_mask(const CameraViews& self, const std::vector<const Observer*>& oth
     const torch::Tensor d = self.kept_depth.index({pixels.select(1, 0), pixels.select(1, 1)});
     const torch::Tensor world = unproject(c, pixels.select(1, 0), pixels.select(1, 1), d);
     torch::Tensor seen = torch::zeros({pixels.size(0)}, torch::kBool);
-    for (const Observer* o : others) seen = seen.logical_or(seen_by(*o, world));
+    for (const Observer* o : others) seen.logical_or_(on_seen_surface(world, seen_depth(*o), kSeenTolerance));
     hole.index_put_({pixels.select(1, 0), pixels.select(1, 1)}, seen.logical_not());
   }
   return dilate_mask(image_from_hwc(hole.to(torch::kFloat32).unsqueeze(2)), 1, 5);
 }
 
 // Which new splats (world positions, N x 3 float64) of view `self` hide nothing another view saw:
-// a splat that lands outside that view's hole in front of the surface it shows there (3 % nearer)
-// would cover what was seen (a floater of a depth the network got wrong), and is left out.
+// a splat that lands outside that view's hole in front of the surface it shows there would cover
+// what was seen (a floater of a depth the network got wrong), and is left out.
 torch::Tensor in_no_ones_way(const torch::Tensor& points, const std::vector<CameraViews>& views, size_t self) {
-  torch::Tensor keep = torch::ones({points.size(0)}, torch::kBool);
-  for (size_t w = 0; w < views.size(); ++w) {
-    if (w == self) continue;
-    const PixelHit hit = project(views[w].whole.camera, points);
-    const torch::Tensor hole = image_to_tensor(views[w].mask).reshape({-1}).index({hit.index}) > 0.5;
-    const torch::Tensor seen = views[w].kept_alpha.reshape({-1}).index({hit.index}) > 0.5;
-    const torch::Tensor surface = views[w].kept_depth.reshape({-1}).index({hit.index}).to(torch::kFloat64);
-    const torch::Tensor hides =
-        hit.inside.logical_and(hole.logical_not()).logical_and(seen).logical_and(hit.z < 0.97 * surface);
-    keep = keep.logical_and(hides.logical_not());
-  }
-  return keep;
+  std::vector<SeenDepth> seen;
+  for (const CameraViews& v : views)
+    seen.push_back({v.whole.camera, v.kept_depth,
+                    (image_to_tensor(v.mask)[0][0] <= 0.5).logical_and(v.kept_alpha > 0.5)});
+  return seen_through(points, seen, kSeenTolerance, static_cast<int64_t>(self)).logical_not();
 }
 
 // The factor that brings the network's depth (normalised units) to the scene's around the hole:
@@ -170,12 +163,8 @@ double depth_scale(const CameraViews& v, const torch::Tensor& predicted_depth, d
   const torch::Tensor mask = image_to_tensor(v.mask)[0][0] > 0.5;
   const torch::Tensor ring = image_to_tensor(dilate_mask(v.mask, 4, 5))[0][0] > 0.5;
   const torch::Tensor seen = v.kept_alpha > 0.5;
-  const torch::Tensor ratio = v.kept_depth / (predicted_depth.to(torch::kCPU) * normalization_scale).clamp_min(1e-12);
-  for (const torch::Tensor& where : {ring.logical_and(mask.logical_not()).logical_and(seen), seen}) {
-    const torch::Tensor r = ratio.index({where});
-    if (r.numel() >= 16) return r.median().item<double>();
-  }
-  return 1.0;
+  return median_depth_ratio(v.kept_depth, predicted_depth.to(torch::kCPU) * normalization_scale,
+                            {ring.logical_and(mask.logical_not()).logical_and(seen), seen});
 }
 
 // A reference painted on a given camera's full-size view comes to the working size as a photo

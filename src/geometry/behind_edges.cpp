@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "common/error.h"
-#include "geometry/floaters.h"
+#include "geometry/visibility.h"
 #include "tensor/window_max.h"
 
 namespace ii {
@@ -55,11 +55,11 @@ GaussianSet gaussians_behind_edges(const GaussianMaps& maps, const ModelInput& i
   const int64_t reach = behind_edges_pixels(H, options);
   if (reach == 0) return {};
   torch::NoGradGuard no_grad;
-  const ViewDepths seen = view_depths(maps, views);
+  const std::vector<SeenDepth> seen = seen_depths(maps, views, input.view_cameras);
   GaussianSet all;
   for (int64_t v = 0; v < V; ++v) {
-    const torch::Tensor& depth = seen.depth[static_cast<size_t>(v)];
-    const torch::Tensor& usable = seen.usable[static_cast<size_t>(v)];
+    const torch::Tensor& depth = seen[static_cast<size_t>(v)].depth;
+    const torch::Tensor& usable = seen[static_cast<size_t>(v)].usable;
     // Each pixel's farthest far-side pixel within `reach`, and where it lies deeper than the pixel.
     const torch::Tensor sources =
         torch::where(usable.logical_and(far_side_of_edges(depth, options.jump)), depth, torch::zeros_like(depth));

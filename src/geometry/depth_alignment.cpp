@@ -238,4 +238,14 @@ std::vector<DepthAlignment> align_depth_to_points(GaussianMaps& maps, const Scen
   return out;
 }
 
+double median_depth_ratio(const torch::Tensor& measured, const torch::Tensor& predicted,
+                          const std::vector<torch::Tensor>& where, int64_t min_pixels) {
+  const torch::Tensor ratio = measured / predicted.to(measured.device()).clamp_min(1e-12);
+  for (const torch::Tensor& pixels : where) {
+    const torch::Tensor r = ratio.index({pixels.to(ratio.device())});
+    if (r.numel() >= min_pixels) return r.median().item<double>();
+  }
+  return 1.0;
+}
+
 }  // namespace ii

@@ -32,4 +32,11 @@ std::vector<DepthAlignment> align_depth_to_points(GaussianMaps& maps, const Scen
                                                   const std::vector<Eigen::Vector3d>& points,
                                                   const DepthDetailOptions& options = {}, int64_t min_points = 20);
 
+// One factor that brings `predicted` depth (H, W) to `measured` (H, W, the same units once scaled):
+// the median ratio over the first of `where` (each (H, W) bool, in order of preference) that holds
+// at least `min_pixels` pixels; 1 when none does. Fill scales the network's depth of a hole to
+// the rendered scene's around it this way.
+double median_depth_ratio(const torch::Tensor& measured, const torch::Tensor& predicted,
+                          const std::vector<torch::Tensor>& where, int64_t min_pixels = 16);
+
 }  // namespace ii

@@ -1,7 +1,6 @@
 #include "geometry/floaters.h"
 
 #include "common/error.h"
-#include "tensor/camera_projection.h"
 
 namespace ii {
 
@@ -17,41 +16,6 @@ torch::Tensor depth_edges(const torch::Tensor& depth, double edge) {
 
 }  // namespace
 
-ViewDepths view_depths(const GaussianMaps& maps, const std::vector<PreparedView>& views) {
-  const int64_t count = maps.depth.size(1), h = maps.depth.size(3), w = maps.depth.size(4);
-  if (static_cast<int64_t>(views.size()) != count)
-    fail("floaters: {} views for {} views of maps", views.size(), count);
-  const torch::Device device = maps.depth.device();
-  ViewDepths seen;
-  for (int64_t v = 0; v < count; ++v) {
-    const PreparedView& view = views[static_cast<size_t>(v)];
-    seen.depth.push_back(maps.depth[0][v][0].to(torch::kFloat32));
-    if (view.mask && (view.mask->width != w || view.mask->height != h))
-      fail("floaters: view {}'s mask is {}x{}, its depth {}x{}", view.name, view.mask->width, view.mask->height, w, h);
-    seen.usable.push_back(view.mask ? torch::from_blob(const_cast<float*>(view.mask->pixels.data()), {h, w},
-                                                       torch::kFloat32)
-                                          .le(0.5f)
-                                          .to(device)
-                                    : torch::ones({h, w}, torch::TensorOptions(torch::kBool).device(device)));
-  }
-  return seen;
-}
-
-torch::Tensor seen_through(const torch::Tensor& points, const ViewDepths& seen, const std::vector<Camera>& cameras,
-                           double tolerance, int64_t skip) {
-  if (cameras.size() != seen.depth.size())
-    fail("floaters: {} cameras for {} views' depths", cameras.size(), seen.depth.size());
-  torch::Tensor through = torch::zeros({points.size(0)}, torch::TensorOptions(torch::kBool).device(points.device()));
-  for (size_t u = 0; u < cameras.size(); ++u) {
-    if (static_cast<int64_t>(u) == skip) continue;
-    const PixelHit hit = project(cameras[u], points);
-    const torch::Tensor there = seen.depth[u].reshape({-1}).index_select(0, hit.index);
-    through.logical_or_(hit.inside.logical_and(seen.usable[u].reshape({-1}).index_select(0, hit.index))
-                            .logical_and(hit.z < there * (1 - tolerance)));
-  }
-  return through;
-}
-
 int64_t fade_floaters(GaussianMaps& maps, const std::vector<PreparedView>& views, const std::vector<Camera>& cameras,
                       const FloaterOptions& options) {
   if (options.fade >= 1 || views.size() < 2) return 0;
@@ -59,16 +23,16 @@ int64_t fade_floaters(GaussianMaps& maps, const std::vector<PreparedView>& views
   if (static_cast<int64_t>(views.size()) != count || cameras.size() != views.size())
     fail("floaters: {} views and {} cameras for {} views of maps", views.size(), cameras.size(), count);
   torch::InferenceMode inference;  // the maps are the network's inference tensors
-  const ViewDepths seen = view_depths(maps, views);
+  const std::vector<SeenDepth> seen = seen_depths(maps, views, cameras);
   int64_t faded = 0;
   for (int64_t v = 0; v < count; ++v) {
     // Only the pixels on its depth edges are candidates (a tenth to a fifth of them): the others
     // are not projected at all.
-    const torch::Tensor on_edge = depth_edges(seen.depth[static_cast<size_t>(v)], options.edge);
+    const torch::Tensor on_edge = depth_edges(seen[static_cast<size_t>(v)].depth, options.edge);
     const torch::Tensor edge = on_edge.reshape({-1}).nonzero().squeeze(1);
     if (edge.numel() == 0) continue;
     const torch::Tensor points = maps.xyz[0][v].to(torch::kFloat32).reshape({3, -1}).index_select(1, edge).t();
-    const torch::Tensor through = seen_through(points, seen, cameras, options.tolerance, v);
+    const torch::Tensor through = seen_through(points, seen, options.tolerance, v);
     const torch::Tensor floaters =
         torch::zeros({h * w}, on_edge.options()).index_fill_(0, edge.masked_select(through), true).view({h, w});
     faded += floaters.sum().item<int64_t>();

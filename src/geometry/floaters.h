@@ -14,6 +14,7 @@
 #include "camera/camera.h"
 #include "data/preprocess.h"
 #include "gaussians/gaussians.h"
+#include "geometry/visibility.h"
 
 namespace ii {
 
@@ -25,19 +26,6 @@ struct FloaterOptions {
   double tolerance = 0.1;  // in front of another view's depth by more than this fraction
   double edge = 0.15;      // on a depth edge: the log depths of its 3 x 3 pixels span more than this
 };
-
-// What the context views saw: each one's depth (H, W, float32) in the maps and where that depth is
-// the scene's (outside its mask: inside, the network guessed), on the maps' device.
-struct ViewDepths {
-  std::vector<torch::Tensor> depth, usable;
-};
-ViewDepths view_depths(const GaussianMaps& maps, const std::vector<PreparedView>& views);
-
-// Which of `points` (N, 3) a context view other than `skip` sees through: they land inside its
-// picture where its depth is usable, more than `tolerance` (a fraction of that depth) in front of
-// it. (N) bool.
-torch::Tensor seen_through(const torch::Tensor& points, const ViewDepths& seen, const std::vector<Camera>& cameras,
-                           double tolerance, int64_t skip = -1);
 
 // Fades the floaters of `maps` (the network's output, B = 1, after any depth alignment) in place:
 // `views` and `cameras` are the context views (their masks) and their cameras in the maps' frame.

@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "common/error.h"
-#include "geometry/floaters.h"
+#include "geometry/visibility.h"
 
 namespace ii {
 
@@ -105,7 +105,7 @@ GaussianSet without_seen_through(const GaussianSet& margin, const GaussianMaps& 
   if (margin.size() == 0) return margin;
   torch::NoGradGuard no_grad;
   const torch::Tensor through =
-      seen_through(margin.means.to(torch::kFloat32), view_depths(maps, views), cameras, /*tolerance=*/0);
+      seen_through(margin.means.to(torch::kFloat32), seen_depths(maps, views, cameras), /*tolerance=*/0);
   return select_rows(margin, through.logical_not());
 }
 

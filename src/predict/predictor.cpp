@@ -2,8 +2,8 @@
 
 #include <future>
 
+#include "common/error.h"
 #include "data/masks.h"
-
 #include "model/checkpoint.h"
 #include "model/cpu/dispatch.h"
 #include "model/default_model.h"
@@ -57,6 +57,39 @@ ScenePoints gather_scene_points(const Scene& scene, DepthPoints which, const std
   return out;
 }
 
+// Each view's Gaussians past the edges of its picture, less those another view sees through.
+GeometryLayer frame_margin_layer(Prediction& p, const FrameMarginOptions& options) {
+  GaussianSet beyond = gaussians_beyond_frame(p.maps, p.input.input, options);
+  const int64_t continued = beyond.size();
+  if (options.drop_seen_through)
+    beyond = without_seen_through(beyond, p.maps, p.input.views, p.input.input.view_cameras);
+  nlohmann::json record =
+      describe_frame_margin(options, p.maps.depth.size(3), beyond.size(), continued - beyond.size());
+  if (beyond.size() > 0) p.stages.lap("Gaussians past the frames");
+  return {"frame_margin", std::move(beyond), std::move(record)};
+}
+
+// The far side of each view's depth edges under the near side, less what another view sees through.
+GeometryLayer behind_edges_layer(Prediction& p, const BehindEdgesOptions& given) {
+  const BehindEdgesOptions options =
+      behind_edges_for(given, p.measured_surface.value("source", "") == "depth maps");
+  GaussianSet behind = gaussians_behind_edges(p.maps, p.input.input, p.input.views, options);
+  const int64_t found = behind.size();
+  behind = without_seen_through(behind, p.maps, p.input.views, p.input.input.view_cameras);
+  nlohmann::json record = describe_behind_edges(options, p.maps.depth.size(3), behind.size(), found - behind.size());
+  if (found > 0) p.stages.lap("Gaussians behind depth edges");
+  return {"behind_edges", std::move(behind), std::move(record)};
+}
+
+// Flat splats over the reference's region.
+GeometryLayer region_cover_layer(Prediction& p, const RegionCoverOptions& options) {
+  GaussianSet cover = region_cover_gaussians(p.input.views.front(), p.input.input.view_cameras.front(),
+                                             p.maps.depth[0][0][0], options, p.maps.xyz);
+  nlohmann::json record = describe_region_cover(options, cover.size());
+  if (cover.size() > 0) p.stages.lap("the region's cover");
+  return {"region_cover", std::move(cover), std::move(record)};
+}
+
 // The steps GeometryOptions names, on the network's output in `p`, in order; each recorded.
 void after_the_network(Prediction& p, const Scene& scene, const SceneInputOptions& options,
                        std::future<ScenePoints>& points) {
@@ -86,25 +119,9 @@ void after_the_network(Prediction& p, const Scene& scene, const SceneInputOption
   const int64_t faded = fade_floaters(p.maps, p.input.views, p.input.input.view_cameras, geometry.floaters);
   p.floaters = describe_floaters(geometry.floaters, faded);
   if (geometry.floaters.fade < 1) p.stages.lap("fade floaters");
-  p.beyond_frame = gaussians_beyond_frame(p.maps, p.input.input, geometry.frame_margin);
-  const int64_t continued = p.beyond_frame.size();
-  if (geometry.frame_margin.drop_seen_through)
-    p.beyond_frame = without_seen_through(p.beyond_frame, p.maps, p.input.views, p.input.input.view_cameras);
-  p.frame_margin = describe_frame_margin(geometry.frame_margin, p.maps.depth.size(3), p.beyond_frame.size(),
-                                         continued - p.beyond_frame.size());
-  if (p.beyond_frame.size() > 0) p.stages.lap("Gaussians past the frames");
-  const BehindEdgesOptions behind_options =
-      behind_edges_for(geometry.behind_edges, p.measured_surface.value("source", "") == "depth maps");
-  p.behind_edges = gaussians_behind_edges(p.maps, p.input.input, p.input.views, behind_options);
-  const int64_t behind = p.behind_edges.size();
-  p.behind_edges = without_seen_through(p.behind_edges, p.maps, p.input.views, p.input.input.view_cameras);
-  p.behind_edges_record = describe_behind_edges(behind_options, p.maps.depth.size(3), p.behind_edges.size(),
-                                                behind - p.behind_edges.size());
-  if (behind > 0) p.stages.lap("Gaussians behind depth edges");
-  p.region_cover = region_cover_gaussians(p.input.views.front(), p.input.input.view_cameras.front(),
-                                          p.maps.depth[0][0][0], geometry.region_cover, p.maps.xyz);
-  p.region_cover_record = describe_region_cover(geometry.region_cover, p.region_cover.size());
-  if (p.region_cover.size() > 0) p.stages.lap("the region's cover");
+  p.layers = {frame_margin_layer(p, geometry.frame_margin),
+              behind_edges_layer(p, geometry.behind_edges),
+              region_cover_layer(p, geometry.region_cover)};
 }
 
 }  // namespace
@@ -130,10 +147,19 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
   return p;
 }
 
+const GaussianSet& Prediction::layer(const std::string& name) const {
+  std::string names;
+  for (const GeometryLayer& l : layers) {
+    if (l.name == name) return l.gaussians;
+    names += (names.empty() ? "" : ", ") + l.name;
+  }
+  fail("prediction: no layer '{}' (it has: {})", name, names.empty() ? "none" : names);
+}
+
 GaussianSet Prediction::gaussians() const {
   GaussianSet all = gaussians_from_maps(maps);
-  for (const GaussianSet* more : {&beyond_frame, &behind_edges, &region_cover})
-    if (more->size() > 0) all = joined(all, *more);
+  for (const GeometryLayer& l : layers)
+    if (l.gaussians.size() > 0) all = joined(all, l.gaussians);
   return all;
 }
 
@@ -141,15 +167,14 @@ nlohmann::json Prediction::describe_geometry() const {
   nlohmann::json views = nlohmann::json::array();
   for (const DepthAlignment& a : depth_alignment)
     views.push_back({{"view", a.view}, {"scale", a.scale}, {"points", a.points}, {"detail_mean", a.detail_mean}});
-  return {{"source", geometry},
-          {"detail", depth_detail},
-          {"views", views},
-          {"floaters", floaters},
-          {"frame_margin", frame_margin},
-          {"behind_edges", behind_edges_record},
-          {"region_cover", region_cover_record},
-          {"measured_surface", measured_surface},
-          {"region_surface", region_surface}};
+  nlohmann::json d = {{"source", geometry},
+                      {"detail", depth_detail},
+                      {"views", views},
+                      {"floaters", floaters},
+                      {"measured_surface", measured_surface},
+                      {"region_surface", region_surface}};
+  for (const GeometryLayer& l : layers) d[l.name] = l.record;
+  return d;
 }
 
 }  // namespace ii

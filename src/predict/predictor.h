@@ -17,6 +17,7 @@
 #include "data/masks.h"
 #include "gaussians/gaussians.h"
 #include "geometry/depth_alignment.h"
+#include "geometry/layer.h"
 #include "geometry/options.h"
 #include "model/config.h"
 #include "model/network.h"
@@ -52,26 +53,18 @@ struct Prediction {
   // With GeometryOptions::floaters: what run.json and metrics.json record of them.
   nlohmann::json floaters;
 
-  // With GeometryOptions::frame_margin: each view's Gaussians past the edges of its picture
-  // (geometry/frame_margin.h), an empty set without.
-  GaussianSet beyond_frame;
-  nlohmann::json frame_margin;  // what run.json and metrics.json record of it
-
-  // With GeometryOptions::behind_edges: the far side of each view's depth edges continued under
-  // the near side (geometry/behind_edges.h), an empty set without.
-  GaussianSet behind_edges;
-  nlohmann::json behind_edges_record;  // what run.json and metrics.json record of it
-
-  // With GeometryOptions::region_cover: flat splats over the reference's region
-  // (geometry/region_cover.h), an empty set without.
-  GaussianSet region_cover;
-  nlohmann::json region_cover_record;  // what run.json and metrics.json record of it
+  // The steps' Gaussians beside the network's own, in this order and always all three, empty when
+  // off: "frame_margin" (past the edges of each view's picture, geometry/frame_margin.h),
+  // "behind_edges" (the far side of depth edges under the near side, geometry/behind_edges.h),
+  // "region_cover" (flat splats over the reference's region, geometry/region_cover.h).
+  std::vector<GeometryLayer> layers;
+  // The Gaussians of the layer `name` (an Error naming the layers when there is none such).
+  const GaussianSet& layer(const std::string& name) const;
 
   // What run.json and metrics.json record of the depth alignment.
   nlohmann::json describe_geometry() const;
 
-  // One Gaussian per input pixel, rows in the official order (views of `maps`), then those past
-  // the frames, then those behind the depth edges, then the region's cover.
+  // One Gaussian per input pixel, rows in the official order (views of `maps`), then each layer's.
   GaussianSet gaussians() const;
 };
 

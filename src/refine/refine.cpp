@@ -634,14 +634,14 @@ torch::Tensor reference_region(const Prediction& prediction, bool keep_object) {
 // the region, so nothing but the reference would move them, and it would slide them along its own
 // rays (scene 1 with an object-free reference: refined from the network's Gaussians there, the
 // region lost 4 dB; docs/benchmarks.md, session 43). Prediction::gaussians()'s order: one per pixel
-// of each context view, then those past the frames, behind the depth edges and the region's cover.
+// of each context view, then each layer's.
 RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction& prediction, bool keep_object,
                                  int stride) {
   int64_t pixels = 0;
   for (const PreparedView& v : prediction.input.views) pixels += int64_t(v.rgb.width) * v.rgb.height;
-  const int64_t beyond = prediction.beyond_frame.size(), behind = prediction.behind_edges.size(),
-                cover = prediction.region_cover.size();
-  const bool layers = gaussians.size() == pixels + beyond + behind + cover;
+  int64_t layered = 0;
+  for (const GeometryLayer& l : prediction.layers) layered += l.gaussians.size();
+  const bool layers = gaussians.size() == pixels + layered;
   if (gaussians.size() != pixels && !layers)
     fail("refine: {} Gaussians do not match the prediction's {} pixels", gaussians.size(), pixels);
   stride = std::max(stride, 1);
@@ -656,7 +656,6 @@ RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction&
       kept.logical_or_(seen_in(gaussians.means.to(torch::kCPU, torch::kFloat32),
                                prediction.input.input.view_cameras.front(), region));
   }
-  if (layers) kept.narrow(0, pixels + beyond + behind, cover).fill_(true);
   // The rest moves, thinned.
   torch::Tensor thinned = torch::zeros({gaussians.size()}, torch::kBool);
   int64_t first = 0;
@@ -668,8 +667,22 @@ RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction&
         .fill_(true);
     first += int64_t(v.rgb.width) * v.rgb.height;
   }
-  if (layers)
-    thinned.narrow(0, pixels, beyond + behind).slice(0, 0, beyond + behind, int64_t(stride) * stride).fill_(true);
+  // The layers: the region's cover kept whole; of the others' rows (past the frames, behind depth
+  // edges), counted as one run, every stride²-th moves.
+  if (layers) {
+    const int64_t every = int64_t(stride) * stride;
+    int64_t counted = 0;
+    for (const GeometryLayer& l : prediction.layers) {
+      const int64_t n = l.gaussians.size();
+      if (l.name == "region_cover") {
+        kept.narrow(0, first, n).fill_(true);
+      } else {
+        thinned.narrow(0, first, n).slice(0, (every - counted % every) % every, n, every).fill_(true);
+        counted += n;
+      }
+      first += n;
+    }
+  }
   const torch::Tensor moving_rows = thinned.logical_and(kept.logical_not()).nonzero().squeeze(1);
   const torch::Tensor kept_rows = kept.nonzero().squeeze(1);
   RefinementStart s;

@@ -164,7 +164,7 @@ TEST(BehindEdges, APredictionJoinsThemAfterTheMarginAndRecordsThem) {
   EXPECT_EQ(used.fraction, 0.0625);
   EXPECT_EQ(behind_edges_for(options.geometry.behind_edges, false).fraction, 0.03125);
   const int64_t found = gaussians_behind_edges(with.maps, with.input.input, with.input.views, used).size();
-  const int64_t kept = with.behind_edges.size();
+  const int64_t kept = with.layer("behind_edges").size();
   EXPECT_GT(kept, 0);  // the room's table stands in front of its floor
   const nlohmann::json recorded = with.describe_geometry()["behind_edges"];
   EXPECT_EQ(recorded["fraction"], 0.0625);
@@ -175,12 +175,12 @@ TEST(BehindEdges, APredictionJoinsThemAfterTheMarginAndRecordsThem) {
 
   options.geometry.behind_edges.fraction = 0;
   const Prediction without = predictor.predict(scene, options);
-  EXPECT_EQ(without.behind_edges.size(), 0);
+  EXPECT_EQ(without.layer("behind_edges").size(), 0);
   const GaussianSet joined_with = with.gaussians(), joined_without = without.gaussians();
   ASSERT_EQ(joined_with.size(), joined_without.size() + kept);
-  const int64_t before = 4 * 64 * 64 + with.beyond_frame.size();
+  const int64_t before = 4 * 64 * 64 + with.layer("frame_margin").size();
   EXPECT_TRUE(torch::equal(joined_with.means.narrow(0, 0, before), joined_without.means.narrow(0, 0, before)));
-  EXPECT_TRUE(torch::equal(joined_with.means.narrow(0, before, kept), with.behind_edges.means));
+  EXPECT_TRUE(torch::equal(joined_with.means.narrow(0, before, kept), with.layer("behind_edges").means));
 }
 
 }  // namespace behind_edges_test

@@ -87,7 +87,7 @@ TEST(Floaters, NothingFadedWhereTheOtherViewsMaskHidesItsDepthOrWithAFadeOfOne) 
   Wall small_mask = wall();
   small_mask.views[1].mask = Image(kW - 1, kH, 1);
   EXPECT_EQ(test::error_message([&] { fade_floaters(small_mask.maps, small_mask.views, small_mask.cameras, {}); }),
-            "floaters: view view_1's mask is 15x12, its depth 16x12");
+            "visibility: view view_1's mask is 15x12, its depth 16x12");
 }
 
 TEST(Floaters, APredictionRecordsThem) {

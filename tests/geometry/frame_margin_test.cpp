@@ -222,10 +222,10 @@ TEST(FrameMargin, APredictionJoinsThemAfterThePixelsAndRecordsThem) {
   const int64_t pixels = 4 * 64 * 64, continued = 4 * (80 * 80 - 64 * 64 + 48 * 48 - 40 * 40);
   EXPECT_EQ(without.gaussians().size(), pixels);
   const GaussianSet joined_set = with.gaussians();
-  const int64_t margin = with.beyond_frame.size();
-  ASSERT_EQ(joined_set.size(), pixels + margin + with.behind_edges.size());  // then those behind depth edges
+  const int64_t margin = with.layer("frame_margin").size();
+  ASSERT_EQ(joined_set.size(), pixels + margin + with.layer("behind_edges").size());  // then those behind depth edges
   EXPECT_TRUE(torch::equal(joined_set.means.narrow(0, 0, pixels), without.gaussians().means));
-  EXPECT_TRUE(torch::equal(joined_set.means.narrow(0, pixels, margin), with.beyond_frame.means));
+  EXPECT_TRUE(torch::equal(joined_set.means.narrow(0, pixels, margin), with.layer("frame_margin").means));
   const nlohmann::json recorded = with.describe_geometry()["frame_margin"];
   EXPECT_EQ(recorded["fraction"], 0.125);
   EXPECT_EQ(recorded["pixels"], 8);

@@ -98,7 +98,7 @@ TEST(RegionCover, APredictionJoinsItAfterThePixelsAndRecordsIt) {
   const GaussianSet all = with.gaussians();
   ASSERT_EQ(all.size(), pixels + region);
   EXPECT_TRUE(torch::equal(all.means.narrow(0, 0, pixels), without.gaussians().means));
-  EXPECT_TRUE(torch::equal(all.means.narrow(0, pixels, region), with.region_cover.means));
+  EXPECT_TRUE(torch::equal(all.means.narrow(0, pixels, region), with.layer("region_cover").means));
   const nlohmann::json recorded = with.describe_geometry()["region_cover"];
   EXPECT_EQ(recorded["opacity"], 0.3);
   EXPECT_EQ(recorded["gaussians"], region);
@@ -106,7 +106,7 @@ TEST(RegionCover, APredictionJoinsItAfterThePixelsAndRecordsIt) {
   // A reconstruction of the scene as captured has no region to cover.
   options.geometry.region_cover.opacity = 0.3;
   options.keep_object = true;
-  EXPECT_EQ(predictor.predict(scene, options).region_cover.size(), 0);
+  EXPECT_EQ(predictor.predict(scene, options).layer("region_cover").size(), 0);
 }
 
 }  // namespace region_cover_test

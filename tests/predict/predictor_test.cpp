@@ -91,6 +91,14 @@ TEST(Predictor, PapersGeometryLeavesTheNetworksGaussiansAlone) {
   EXPECT_EQ(record["frame_margin"]["gaussians"], 0);
   EXPECT_EQ(record["behind_edges"]["gaussians"], 0);
   EXPECT_EQ(record["region_cover"]["gaussians"], 0);
+  // Every step's layer is there, empty, in Prediction::gaussians()'s order; no other name is.
+  ASSERT_EQ(p.layers.size(), 3u);
+  EXPECT_EQ(p.layers[0].name, "frame_margin");
+  EXPECT_EQ(p.layers[1].name, "behind_edges");
+  EXPECT_EQ(p.layers[2].name, "region_cover");
+  EXPECT_EQ(p.layer("behind_edges").size(), 0);
+  EXPECT_EQ(test::error_message([&] { p.layer("floaters"); }),
+            "prediction: no layer 'floaters' (it has: frame_margin, behind_edges, region_cover)");
 }
 
 // By default a capture without depth maps or points gets its depth scaled to points

@@ -407,9 +407,7 @@ TEST(Refine, RefinementStartKeepsTheRegionAndItsCoverAndThinsTheRest) {
     g.colors = torch::zeros({n, 3});
     return g;
   };
-  p.beyond_frame = rows(9);
-  p.behind_edges = rows(3);
-  p.region_cover = rows(2);
+  p.layers = {{"frame_margin", rows(9), {}}, {"behind_edges", rows(3), {}}, {"region_cover", rows(2), {}}};
   GaussianSet all = rows(24 + 9 + 3 + 2);
   all.colors.select(1, 0).copy_(torch::arange(all.size()).to(torch::kFloat32));
   auto xs = [](const GaussianSet& g) {
