@@ -23,6 +23,7 @@ quiets it.
 """
 from __future__ import annotations
 
+import inspect
 import json
 import os
 from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple, Union
@@ -30,10 +31,41 @@ from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple, Unio
 from . import _core
 from ._core import Camera, Error, Scene, set_log_level, set_threads
 
-# Predictor.predict's defaults: the library's own (GeometryOptions), as the commands use them.
-(_ALIGN_DEPTH, _DEPTH_DETAIL, _FRAME_MARGIN, _REGION_COVER, _FADE_FLOATERS,
- _MEASURED_SURFACE, _STEREO_DEPTH, _FRAME_MARGIN_DROP_SEEN, _FRAME_MARGIN_OUTER,
- _BEHIND_EDGES, _REGION_SURFACE, _FLYING_PIXELS_FAR) = _core._geometry_defaults
+
+
+def _geometry_value(kind: str, text: str) -> Any:
+    if kind == "bool":
+        return text == "true"
+    if kind == "number":
+        return float(text)
+    if kind == "integer":
+        return int(text)
+    return text
+
+
+# Predictor.predict's geometry keywords: the commands' geometry flags, one row each of the
+# library's table (geometry/settings.h), with its kind, its default (the commands'), its choices
+# and its help: a setting added there is a keyword here.
+_GEOMETRY = {name: (kind, _geometry_value(kind, default), choices, help)
+             for name, kind, default, choices, help in _core._geometry_settings}
+# Keywords renamed, kept as aliases: flying_pixels_far=True/False is flying_pixels="far"/"keep".
+_GEOMETRY_ALIASES = {"flying_pixels_far": ("flying_pixels", lambda far: "far" if far else "keep")}
+
+
+def _geometry_texts(geometry: Mapping[str, Any]) -> Dict[str, str]:
+    """Predictor.predict's geometry keywords as the library's table reads them (text)."""
+    texts = {}
+    for name, value in geometry.items():
+        if name in _GEOMETRY_ALIASES:
+            name, convert = _GEOMETRY_ALIASES[name]
+            value = convert(value)
+        if name not in _GEOMETRY:
+            raise TypeError(f"predict() got an unexpected keyword argument '{name}' (the geometry's: "
+                            + ", ".join(_GEOMETRY) + ")")
+        kind = _GEOMETRY[name][0]
+        texts[name] = ("true" if value else "false") if kind == "bool" else str(value)
+    return texts
+
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
@@ -128,8 +160,9 @@ class Gaussians:
                progress: Optional[ProgressCallback] = None) -> "Gaussians":
         """Optimises a prediction against every view of its scene (3DGS-style, with densification)
         and returns the refined Gaussians; these stay as they are. The region keeps the
-        prediction's splats, and every 8th input view is held out to choose the result: the
-        prediction itself comes back when no iterate beats it there.
+        prediction's splats, each view's mask is fitted to what the prediction draws there, and
+        every 8th input view is held out to choose the result: the prediction itself comes back
+        when no iterate beats it there.
 
         preset: "fast" (1 minute), "balanced" (5), "best" (10), a time ("90s", "2m") or a step count.
         position_rate: the position learning rate in multiples of 3DGS's (default 30).
@@ -218,15 +251,7 @@ class Predictor:
     def predict(self, scene: Scene, *, context: Sequence[str] = (), views: int = 4,
                 reference: Union[PathLike, Any, None] = None, reference_view: str = "", height: int = 256,
                 masks: Optional[Mapping[str, Any]] = None, keep_object: bool = False,
-                align_depth: str = _ALIGN_DEPTH, depth_detail: float = _DEPTH_DETAIL,
-                frame_margin: float = _FRAME_MARGIN, region_cover: float = _REGION_COVER,
-                fade_floaters: float = _FADE_FLOATERS,
-                measured_surface: float = _MEASURED_SURFACE, stereo_depth: bool = _STEREO_DEPTH,
-                frame_margin_drop_seen: bool = _FRAME_MARGIN_DROP_SEEN,
-                frame_margin_outer: float = _FRAME_MARGIN_OUTER,
-                behind_edges: float = _BEHIND_EDGES,
-                region_surface: float = _REGION_SURFACE,
-                flying_pixels_far: bool = _FLYING_PIXELS_FAR) -> Gaussians:
+                **geometry: Any) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
@@ -235,52 +260,30 @@ class Predictor:
         height: the working height in pixels (a multiple of the patch size after scaling).
         masks: object masks by view name (H x W arrays at the photos' size), instead of the scene's.
         keep_object: reconstruct the scene as captured (no masks, the reference's own photo).
-        align_depth: each context view's depth scaled to the scene's points (`--align-depth`):
-        "photos" (depth maps, else points triangulated from the photos), "any" (COLMAP's points
-        before the photos'), "depth-maps" or "none" (the network's depth as it is).
-        depth_detail: how closely the aligned depth follows the points beyond one scale per view
-        (`--depth-detail`): the local correction's width in point spacings; 0 for the scale alone.
-        frame_margin: each context view's Gaussians continued past the edges of its picture by this
-        fraction of its height (`--frame-margin`), so that nearby views show no background at
-        their edges; 0 for none (the paper's).
-        region_cover: the reference's region covered by flat splats of this opacity on its depth
-        (`--region-cover`), so that views from elsewhere show no background where the object
-        stood; 0 for none (the paper's).
-        fade_floaters: the opacity kept by Gaussians on a depth edge of their view that lie in front
-        of another context view's depth (`--fade-floaters`); 1 for none faded (the paper's).
-        measured_surface: where a context view has its own depth map (a depth camera's, a synthetic
-        scene's), its Gaussians outside its mask lie on that surface as flat splats at least this
-        opaque, and inside its mask what lies outside the reference's mask from the reference's
-        camera (`--measured-surface`); 0 for none.
-        stereo_depth: where no context view has a depth map, each one's depth measured from the
-        context photos themselves (a plane sweep between them, `--stereo-depth`) serves as that
-        surface where the photos agree on it.
-        frame_margin_drop_seen: the frame margin's Gaussians that another context view sees through
-        (in front of the depth it saw there) dropped (`--frame-margin-drop-seen`); False keeps them.
-        frame_margin_outer: past `frame_margin`, the margin continued out to this fraction of the
-        height with one Gaussian per 2 x 2 pixels, twice as wide (`--frame-margin-outer`); no more
-        than `frame_margin` for none.
-        behind_edges: the far side of each context view's depth edges continued under the near side
-        by this fraction of its height (`--behind-edges`), those another view sees through dropped,
-        so that a camera beside it sees the ground behind an object's edge (twice as far where the
-        depth is the views' depth maps); 0 for none (the paper's).
-        region_surface: with a measured surface, the reference's region put on the measured depth
-        around it (each pixel on the surrounding surface its colour resembles) as flat splats at
-        least this opaque in the reference's colours (`--region-surface`); 0 for none (the
-        network's depth there).
-        flying_pixels_far: a depth map's pixels that straddle an edge (a depth between the two
-        sides, as depth cameras and supersampled synthetic depth give), and the reference's region
-        pixels whose depth falls between two surfaces, moved to the far side (`--flying-pixels
-        far`); False keeps them where they were measured.
+        **geometry: what is done with the network's output, one keyword per geometry flag of the
+        commands (frame_margin for `--frame-margin`), each with the commands' default; listed below.
         """
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
         return Gaussians(self._p._predict(scene, list(context), views, reference, reference_view, height,
-                                          keep_object, dict(masks or {}), align_depth, float(depth_detail),
-                                          float(frame_margin), float(region_cover), float(fade_floaters),
-                                          float(measured_surface), bool(stereo_depth),
-                                          bool(frame_margin_drop_seen), float(frame_margin_outer),
-                                          float(behind_edges), float(region_surface), bool(flying_pixels_far)))
+                                          keep_object, dict(masks or {}), _geometry_texts(geometry)))
+
+
+def _with_geometry_keywords(predict: Callable) -> None:
+    """predict's signature and help list the geometry's keywords, from the library's table."""
+    params = [p for p in inspect.signature(predict).parameters.values() if p.kind != p.VAR_KEYWORD]
+    params += [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default)
+               for name, (kind, default, choices, help) in _GEOMETRY.items()]
+    predict.__signature__ = inspect.Signature(params, return_annotation="Gaussians")
+    lines = []
+    for name, (kind, default, choices, help) in _GEOMETRY.items():
+        flag = "--" + name.replace("_", "-")
+        lines.append(f"        {name} (`{flag}`, default {default!r}): {help}")
+    lines.append("        flying_pixels_far: the older name of flying_pixels (True: \"far\", False: \"keep\").")
+    predict.__doc__ = predict.__doc__.rstrip() + "\n\n        Geometry keywords:\n" + "\n".join(lines) + "\n"
+
+
+_with_geometry_keywords(Predictor.predict)
 
 
 def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,

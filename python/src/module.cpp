@@ -17,6 +17,7 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include <algorithm>
 #include <memory>
 
 #include <spdlog/spdlog.h>
@@ -31,6 +32,7 @@
 #include "edit/scene_masks.h"
 #include "eval/protocol.h"
 #include "fill/fill.h"
+#include "geometry/settings.h"
 #include "io/image.h"
 #include "io/splat_file.h"
 #include "model/device.h"
@@ -192,15 +194,18 @@ NB_MODULE(_core, m) {
         "How much the library prints to standard output: trace, debug, info (default), warning, error, "
         "critical or off.");
 
-  // predict()'s defaults are the commands' (GeometryOptions), read here rather than written twice.
-  const GeometryOptions geometry;
-  m.attr("_geometry_defaults") = nb::make_tuple(depth_points_name(geometry.align_depth), geometry.depth_detail.detail,
-                                                geometry.frame_margin.fraction, geometry.region_cover.opacity,
-                                                geometry.floaters.fade, geometry.measured_surface.opacity,
-                                                geometry.measured_surface.from_photos,
-                                                geometry.frame_margin.drop_seen_through,
-                                                geometry.frame_margin.outer_fraction, geometry.behind_edges.fraction,
-                                                geometry.region_surface.opacity, geometry.measured_surface.far_side);
+  // predict()'s geometry keywords: geometry/settings.h's table (the commands' flags), each as
+  // (keyword, kind, default as text, choices, help), read here rather than written twice.
+  {
+    const GeometryOptions defaults;
+    nb::list settings;
+    for (const GeometrySetting& g : geometry_settings()) {
+      std::string keyword = g.name;
+      std::replace(keyword.begin(), keyword.end(), '-', '_');
+      settings.append(nb::make_tuple(keyword, g.kind, g.get(defaults), g.choices, g.help));
+    }
+    m.attr("_geometry_settings") = settings;
+  }
 
   m.def("set_threads",
         [](int threads) {
@@ -453,25 +458,10 @@ NB_MODULE(_core, m) {
       .def("_predict",
            [](const Predictor& p, const Scene& scene, const std::vector<std::string>& context, int views,
               const nb::object& reference, const std::string& reference_view, int height, bool keep_object,
-              const std::map<std::string, AnyArray>& masks, const std::string& align_depth, double depth_detail,
-              double frame_margin, double region_cover, double fade_floaters, double measured_surface,
-              bool stereo_depth, bool frame_margin_drop_seen, double frame_margin_outer, double behind_edges,
-              double region_surface, bool flying_pixels_far) {
+              const std::map<std::string, AnyArray>& masks, const std::map<std::string, std::string>& geometry) {
              auto input = std::make_shared<SceneInputOptions>(
                  input_options(context, views, reference, reference_view, height, keep_object, masks));
-             input->geometry.align_depth = parse_depth_points(align_depth);
-             input->geometry.depth_detail.detail = depth_detail;
-             input->geometry.frame_margin.fraction = frame_margin;
-             input->geometry.frame_margin.drop_seen_through = frame_margin_drop_seen;
-             input->geometry.frame_margin.outer_fraction = frame_margin_outer;
-             input->geometry.behind_edges.fraction = behind_edges;
-             input->geometry.region_cover.opacity = region_cover;
-             input->geometry.region_surface.opacity = region_surface;
-             input->geometry.floaters.fade = fade_floaters;
-             input->geometry.measured_surface.opacity = measured_surface;
-             input->geometry.measured_surface.from_photos = stereo_depth;
-             input->geometry.measured_surface.far_side = flying_pixels_far;
-             input->geometry.region_surface.far_side = flying_pixels_far;
+             for (const auto& [name, text] : geometry) set_geometry_setting(input->geometry, name, text);
              PyGaussians g;
              {
                nb::gil_scoped_release release;
@@ -484,9 +474,7 @@ NB_MODULE(_core, m) {
              return g;
            },
            "scene"_a, "context"_a, "views"_a, "reference"_a.none(), "reference_view"_a, "height"_a, "keep_object"_a,
-           "masks"_a, "align_depth"_a, "depth_detail"_a, "frame_margin"_a, "region_cover"_a, "fade_floaters"_a,
-           "measured_surface"_a, "stereo_depth"_a, "frame_margin_drop_seen"_a, "frame_margin_outer"_a,
-           "behind_edges"_a, "region_surface"_a, "flying_pixels_far"_a);
+           "masks"_a, "geometry"_a);
 
   m.def("_masks_from_one",
         [](const Scene& scene, const std::string& view, const nb::object& region, const Predictor* predictor,

@@ -121,8 +121,14 @@ def test_predict_defaults_are_the_commands():
     assert (defaults["align_depth"], defaults["depth_detail"], defaults["frame_margin"], defaults["region_cover"],
             defaults["fade_floaters"], defaults["measured_surface"], defaults["stereo_depth"],
             defaults["frame_margin_drop_seen"], defaults["frame_margin_outer"], defaults["behind_edges"],
-            defaults["region_surface"], defaults["flying_pixels_far"]) == \
-        ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True, 0.25, 0.03125, 0.95, True)
+            defaults["region_surface"], defaults["flying_pixels"]) == \
+        ("photos", 1.5, 0.125, 0.3, 0.3, 0.95, True, True, 0.25, 0.03125, 0.95, "far")
+    # Every geometry flag of the commands is a keyword (the library's one table), and the help says so.
+    assert defaults["stereo_planes"] == 24 and defaults["behind_edges_jump"] == 0.1, defaults
+    assert "frame_margin (`--frame-margin`, default 0.125)" in ii.Predictor.predict.__doc__
+    # The renamed keyword still works: flying_pixels_far=False is flying_pixels="keep".
+    assert ii._geometry_texts({"flying_pixels_far": False, "stereo_depth": True, "frame_margin": 0.5}) == \
+        {"flying_pixels": "keep", "stereo_depth": "true", "frame_margin": "0.5"}
 
 
 def test_the_depth_is_scaled_to_the_photos_points_by_default(statue, predictor):
@@ -178,6 +184,10 @@ def test_bad_arguments_raise_clear_errors(tmp_path, statue, predictor):
         predictor.predict(statue, context=["nope"], height=HEIGHT)
     with pytest.raises(ii.Error, match="--align-depth 'nope': none, depth-maps, photos or any"):
         predictor.predict(statue, height=HEIGHT, align_depth="nope")
+    with pytest.raises(ii.Error, match="--frame-margin '2': a number from 0 to 1"):
+        predictor.predict(statue, height=HEIGHT, frame_margin=2)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'frame_margins' \\(the geometry's: align_depth"):
+        predictor.predict(statue, height=HEIGHT, frame_margins=0)
     with pytest.raises(ii.Error, match=r"reference: expected 3 channels, got an array of shape \(4, 4, 1\)"):
         predictor.predict(statue, reference=np.zeros((4, 4, 1), np.float32), height=HEIGHT)
     with pytest.raises(ii.Error, match="unsupported element type"):

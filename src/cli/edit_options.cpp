@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "data/view_selection.h"
+#include "geometry/settings.h"
 #include "model/default_model.h"
 
 namespace ii::cli {
@@ -51,127 +52,39 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
   add_geometry_options(cmd, args.geometry);
 }
 
-void add_align_depth_option(CLI::App* cmd, GeometryOptions& geometry) {
+namespace {
+
+// What --help shows a setting takes, as CLI11 names its own types.
+std::string type_name(const GeometrySetting& setting) {
+  if (setting.kind == "number") return "FLOAT";
+  if (setting.kind == "integer") return "INT";
+  if (setting.kind == "bool") return "BOOLEAN";
+  std::string names;
+  for (const std::string& c : setting.choices) names += (names.empty() ? "" : ",") + c;
+  return "TEXT:{" + names + "}";
+}
+
+// One flag of geometry/settings.h's table, written into `geometry` as it is parsed.
+void add_geometry_setting(CLI::App* cmd, GeometryOptions& geometry, const GeometrySetting& setting) {
   cmd->add_option_function<std::string>(
-         "--align-depth", [&geometry](const std::string& name) { geometry.align_depth = parse_depth_points(name); },
-         "Scale each context view's predicted depth to the scene's own 3D points: depth-maps (a synthetic "
-         "scene's depth/), photos (those, else points triangulated from the context views' photos and "
-         "their neighbours with the scene's cameras), any (depth maps, else COLMAP's sparse points, else "
-         "the photos'), none (the network's depth as it is, the paper's). One-mask propagation reads photos as "
-         "depth-maps (the statue's masks lost precision with the photos' points)")
-      ->check(CLI::IsMember({"none", "depth-maps", "photos", "any"}))
-      ->default_str(depth_points_name(geometry.align_depth));
-  cmd->add_option("--depth-detail", geometry.depth_detail.detail,
-                  "With --align-depth: how closely each view's depth follows the points beyond one scale per view, "
-                  "as the width of its local correction in point spacings (the network often draws a table at the "
-                  "floor's depth); 0 = one scale per view")
-      ->check(CLI::Range(0.0, 64.0))
-      ->capture_default_str();
+         "--" + setting.name, [&geometry, &setting](const std::string& text) { setting.put(geometry, text); },
+         setting.help)
+      ->check([&setting](const std::string& text) {
+        const std::string takes = check_geometry_setting(setting, text);
+        return takes.empty() ? takes : "'" + text + "': expected " + takes;
+      })
+      ->type_name(type_name(setting))
+      ->default_str(setting.get(geometry));
+}
+
+}  // namespace
+
+void add_align_depth_option(CLI::App* cmd, GeometryOptions& geometry) {
+  for (const char* name : {"align-depth", "depth-detail"}) add_geometry_setting(cmd, geometry, geometry_setting(name));
 }
 
 void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
-  add_align_depth_option(cmd, geometry);
-  cmd->add_option("--measured-surface", geometry.measured_surface.opacity,
-                  "Where a context view has its own depth map (<scene>/depth/<view>.npy: a depth camera's, a "
-                  "synthetic scene's) or, without one, a depth its context photos measure (--stereo-depth), put its "
-                  "Gaussians outside its mask on that depth as flat splats along the measured surface, at least this "
-                  "opaque, and inside its mask what lies outside the reference's "
-                  "mask from the reference's camera (the scene beside the object); 0 = none (the network's "
-                  "Gaussians, aligned as --align-depth says; --align-depth none turns this off too)")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  cmd->add_option_function<std::string>(
-         "--flying-pixels",
-         [&geometry](const std::string& where) {
-           geometry.measured_surface.far_side = geometry.region_surface.far_side = where == "far";
-         },
-         "A depth map's pixels that straddle an edge (a depth between the near and the far side, as depth "
-         "cameras and supersampled synthetic depth give), and the reference's region pixels whose depth from "
-         "the surface around them falls between two surfaces: far = moved to the far side (a depth map's in "
-         "its colour), so that they do not float as specks between the two; keep = where they were measured")
-      ->check(CLI::IsMember({"far", "keep"}))
-      ->default_str(geometry.measured_surface.far_side ? "far" : "keep");
-  cmd->add_option("--stereo-depth", geometry.measured_surface.from_photos,
-                  "Where no context view has a depth map, measure each one's depth from the context photos "
-                  "themselves (a plane sweep between them about the network's aligned depth) and use it as the "
-                  "measured surface where the photos are textured and agree (false: the network's Gaussians there)")
-      ->capture_default_str();
-  cmd->add_option("--stereo-planes", geometry.measured_surface.stereo.planes,
-                  "Depths the stereo sweep tries per pixel")
-      ->check(CLI::Range(3, 1024))
-      ->capture_default_str();
-  cmd->add_option("--stereo-spread", geometry.measured_surface.stereo.spread,
-                  "The stereo sweep tries depths from the network's / N to its x N")
-      ->check(CLI::Range(1.01, 100.0))
-      ->capture_default_str();
-  cmd->add_option("--stereo-rows", geometry.measured_surface.stereo.rows,
-                  "The stereo sweep matches the pictures at about this many rows")
-      ->check(CLI::Range(16, 4096))
-      ->capture_default_str();
-  cmd->add_option("--stereo-min-ncc", geometry.measured_surface.stereo.min_ncc,
-                  "A stereo depth whose best match correlates less (normalised cross-correlation) is unknown")
-      ->check(CLI::Range(-1.0, 1.0))
-      ->capture_default_str();
-  cmd->add_option("--stereo-consistency", geometry.measured_surface.stereo.consistency,
-                  "Another view's stereo depth must agree within this relative difference")
-      ->check(CLI::Range(0.0, 10.0))
-      ->capture_default_str();
-  cmd->add_option("--fade-floaters", geometry.floaters.fade,
-                  "Gaussians on a depth edge of their view (a blend of the near and the far surface) that lie in "
-                  "front of another context view's depth there keep this fraction of their opacity, so that they "
-                  "do not smear across other views; 1 = none faded (the paper's)")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  cmd->add_option("--frame-margin", geometry.frame_margin.fraction,
-                  "Continue each context view's Gaussians past the edges of its picture by this fraction of its "
-                  "height (its border pixels repeated outward along their rays), so that views a little beside the "
-                  "context cameras show the scene's edge instead of the background; 0 = none (the paper's)")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  cmd->add_option("--frame-margin-outer", geometry.frame_margin.outer_fraction,
-                  "Past --frame-margin, continue the margin out to this fraction of the height more sparsely: one "
-                  "Gaussian per --frame-margin-stride pixels square, as wide as that square (no more than "
-                  "--frame-margin: none)")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  cmd->add_option("--frame-margin-stride", geometry.frame_margin.outer_stride,
-                  "The outer frame margin's pixels per Gaussian along each side")
-      ->check(CLI::Range(1, 16))
-      ->capture_default_str();
-  cmd->add_option("--frame-margin-drop-seen", geometry.frame_margin.drop_seen_through,
-                  "Drop the frame margin's Gaussians that another context view sees through (they lie in front of "
-                  "the depth it saw there), so that a repeated border does not stand in front of what the other "
-                  "views saw (false: keep the whole margin)")
-      ->capture_default_str();
-  cmd->add_option("--behind-edges", geometry.behind_edges.fraction,
-                  "Continue the far side of each context view's depth edges under the near side by this fraction "
-                  "of its height (those another context view sees through dropped), so that a camera beside it "
-                  "sees the ground behind an object's edge instead of the background; twice as far where the depth "
-                  "is the views' depth maps; 0 = none (the paper's)")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  cmd->add_option("--behind-edges-jump", geometry.behind_edges.jump,
-                  "A depth edge for --behind-edges: the far side more than this fraction farther than its neighbour")
-      ->check(CLI::Range(0.001, 10.0))
-      ->capture_default_str();
-  cmd->add_option("--region-surface", geometry.region_surface.opacity,
-                  "With --measured-surface: put the reference's region on the measured depth around it (each pixel "
-                  "on the surrounding surface its colour resembles: the hedge's green on the hedge, the bench's "
-                  "grey on the bench) as flat splats at least this opaque, in the reference's colours; 0 = none "
-                  "(the network's depth there); off for --mode insert")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  cmd->add_option("--region-surface-colour", geometry.region_surface.colour,
-                  "With --region-surface: how far (RGB distance, 0-1) a surrounding pixel's colour may be from a "
-                  "region pixel's and still lend it its depth")
-      ->check(CLI::Range(0.001, 2.0))
-      ->capture_default_str();
-  cmd->add_option("--region-cover", geometry.region_cover.opacity,
-                  "Cover the reference's region with flat splats of this opacity on its depth, beside the network's "
-                  "Gaussians, so that views from elsewhere show no background between them where the object "
-                  "stood; 0 = none (the paper's)")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
+  for (const GeometrySetting& setting : geometry_settings()) add_geometry_setting(cmd, geometry, setting);
 }
 
 void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {

@@ -29,9 +29,8 @@ void add_edit_options(CLI::App* cmd, EditArgs& args);
 // --reference-view, --reference-inpainter and add_geometry_options (commands that build the
 // network's input).
 void add_reference_options(CLI::App* cmd, EditArgs& args);
-// What is done with the network's output, into `geometry` as the options are parsed:
-// --align-depth, --depth-detail, --measured-surface, --fade-floaters, --frame-margin,
-// --frame-margin-drop-seen, --region-cover.
+// What is done with the network's output, into `geometry` as the options are parsed: a flag per
+// row of geometry/settings.h's table (--align-depth, --measured-surface, --frame-margin, ...).
 void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry);
 // --align-depth and --depth-detail alone (add_geometry_options adds them too).
 void add_align_depth_option(CLI::App* cmd, GeometryOptions& geometry);

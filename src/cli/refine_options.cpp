@@ -49,9 +49,10 @@ void add_refine_options(CLI::App* cmd, RefineArgs& args) {
   cmd->add_option("--refine-without", args.without,
                   "With --refine: parts of the optimisation to switch off: cover (new Gaussians where no Gaussian "
                   "covers a view), densify (clone, split, prune, opacity resets), reset (the opacity resets alone), "
-                  "coarse-to-fine")
+                  "coarse-to-fine, masks (each view's mask fitted to what the prediction draws there; without, "
+                  "masked pixels are free)")
       ->delimiter(',')
-      ->check(CLI::IsMember({"cover", "densify", "reset", "coarse-to-fine"}));
+      ->check(CLI::IsMember({"cover", "densify", "reset", "coarse-to-fine", "masks"}));
 }
 
 RefineOptions refine_options(const RefineArgs& args) {
@@ -64,6 +65,7 @@ RefineOptions refine_options(const RefineArgs& args) {
     if (part == "densify") o.densify.enabled = false;
     if (part == "reset") o.opacity_resets.clear();
     if (part == "coarse-to-fine") o.coarse_to_fine = false;
+    if (part == "masks") o.start_in_masks = false;
   }
   // A terminal gets one line rewritten in place; a log file a line per tenth of the run.
   const bool tty = ::isatty(::fileno(stderr));

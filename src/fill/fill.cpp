@@ -11,7 +11,7 @@
 #include "data/inpaint2d.h"
 #include "data/masks.h"
 #include "data/preprocess.h"
-#include "fill/surface.h"
+#include "geometry/continued_depth.h"
 #include "gaussians/gaussians.h"
 #include "geometry/depth_alignment.h"
 #include "geometry/surface_splats.h"
@@ -435,7 +435,12 @@ GaussianSet refine_new(const GaussianSet& added, const SceneSets& sets, const st
   for (size_t k = 0; k < extra.size(); ++k) {
     const CameraViews v = render_camera(sets.scene, sets.kept, sets.weights, extra[k].camera);
     const Image mask = hole_mask(v, other_observers(views, extra, result.cameras.sights, kNone, k));
-    targets.push_back({result.cameras.observers[k].name, v.kept, mask, extra[k].camera});
+    RefineView t;
+    t.name = result.cameras.observers[k].name;
+    t.rgb = v.kept;
+    t.mask = mask;
+    t.camera = extra[k].camera;
+    targets.push_back(std::move(t));
   }
   torch::AutoGradMode gradients(true);  // the rest of the fill runs without
   RefineOptions refine = *options.refine;

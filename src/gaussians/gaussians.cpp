@@ -59,6 +59,11 @@ GaussianSet joined(const GaussianSet& kept, const GaussianSet& added) {
   return out;
 }
 
+GaussianMaps cloned(const GaussianMaps& maps) {
+  auto copy = [](const torch::Tensor& t) { return t.defined() ? t.clone(torch::MemoryFormat::Contiguous) : t; };
+  return {copy(maps.depth), copy(maps.rgb), copy(maps.opacity), copy(maps.scale), copy(maps.rotation), copy(maps.xyz)};
+}
+
 GaussianMaps narrowed(const GaussianMaps& maps, int64_t dim, int64_t index) {
   auto part = [&](const torch::Tensor& t) { return t.defined() ? t.narrow(dim, index, 1) : t; };
   return {part(maps.depth), part(maps.rgb), part(maps.opacity), part(maps.scale), part(maps.rotation), part(maps.xyz)};

@@ -28,6 +28,9 @@ struct GaussianMaps {
   torch::Tensor xyz;       // C=3, world position
 };
 
+// A copy of every attribute that is there (contiguous, on the same device).
+GaussianMaps cloned(const GaussianMaps& maps);
+
 // Index `index` of dimension `dim` (0: the sample, 1: the view) of every attribute that is
 // there, kept as a dimension of size 1: views of `maps`.
 GaussianMaps narrowed(const GaussianMaps& maps, int64_t dim, int64_t index);

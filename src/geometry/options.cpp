@@ -1,6 +1,7 @@
 #include "geometry/options.h"
 
 #include "common/error.h"
+#include "geometry/settings.h"
 
 namespace ii {
 
@@ -22,19 +23,15 @@ DepthPoints parse_depth_points(const std::string& name) {
 
 GeometryOptions GeometryOptions::for_insertion() const {
   GeometryOptions insertion = *this;
-  insertion.region_surface.opacity = 0;
+  for (const GeometrySetting& s : geometry_settings())
+    if (s.off_for_insertion) s.put(insertion, s.off);
   return insertion;
 }
 
 GeometryOptions GeometryOptions::papers() {
   GeometryOptions none;
-  none.align_depth = DepthPoints::none;
-  none.floaters.fade = 1;
-  none.measured_surface.opacity = 0;
-  none.frame_margin.fraction = 0;
-  none.behind_edges.fraction = 0;
-  none.region_cover.opacity = 0;
-  none.region_surface.opacity = 0;
+  for (const GeometrySetting& s : geometry_settings())
+    if (!s.off.empty()) s.put(none, s.off);
   return none;
 }
 

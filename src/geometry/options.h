@@ -40,7 +40,8 @@ struct DepthDetailOptions {
 
 // What Predictor::predict does with the network's output before it makes Gaussians of it: each
 // step is recorded under "geometry" in run.json and metrics.json. One struct, so that the
-// commands, the server and the Python layer carry the steps whole: a new step is one field here.
+// commands, the server and the Python layer carry the steps whole; what a user sets of it is
+// geometry/settings.h's table (the flags, Python's keywords, the paper's preset, the insert rule).
 struct GeometryOptions {
   // Each context view's depth scaled to the scene's own 3D points (geometry/depth_alignment.h):
   // those of its depth maps (synthetic scenes), else points triangulated from the context views'
@@ -70,10 +71,11 @@ struct GeometryOptions {
   // (geometry/region_cover.h); opacity 0 = none (the paper's).
   RegionCoverOptions region_cover;
 
-  // Every step off: the network's Gaussians as the paper's code makes them.
+  // Every step off: the network's Gaussians as the paper's code makes them (each switch of
+  // geometry/settings.h's table at its `off` value).
   static GeometryOptions papers();
-  // For an insertion: the region holds a new object, not the surface around it, so the region
-  // surface is off (the one rule for the commands, eval and the server).
+  // For an insertion: the region holds a new object, not the surface around it, so the steps the
+  // table marks (the region surface) are off: the one rule for the commands, eval and the server.
   GeometryOptions for_insertion() const;
 };
 

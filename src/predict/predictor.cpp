@@ -90,6 +90,11 @@ GeometryLayer region_cover_layer(Prediction& p, const RegionCoverOptions& option
   return {"region_cover", std::move(cover), std::move(record)};
 }
 
+// Whether a step of `geometry` changes the network's maps in place (the others add layers).
+bool changes_the_maps(const GeometryOptions& geometry) {
+  return geometry.align_depth != DepthPoints::none || geometry.floaters.fade < 1;
+}
+
 // The steps GeometryOptions names, on the network's output in `p`, in order; each recorded.
 void after_the_network(Prediction& p, const Scene& scene, const SceneInputOptions& options,
                        std::future<ScenePoints>& points) {
@@ -140,9 +145,14 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
   upload_network_inputs(p.input.input, device_);
   synchronize(device_);
   p.stages.lap("upload");
-  p.maps = run_network(network_, p.input.input, precision_);
+  p.network = run_network(network_, p.input.input, precision_);
   synchronize(device_);
   p.stages.lap("network");
+  p.maps = p.network;
+  if (changes_the_maps(options.geometry)) {
+    p.maps = cloned(p.network);
+    p.stages.lap("the network's maps kept");
+  }
   after_the_network(p, scene, options, points);
   return p;
 }

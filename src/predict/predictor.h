@@ -34,7 +34,13 @@ struct SceneInputOptions : InputOptions {
 
 struct Prediction {
   SceneInput input;   // what the network saw: context views (reference first), normalisation
-  GaussianMaps maps;  // (1, V, C, H, W) on the predictor's device, in the pose-normalised frame
+  // The network's output as it came, (1, V, C, H, W) on the predictor's device, in the
+  // pose-normalised frame: no step changes it.
+  GaussianMaps network;
+  // The network's Gaussians after the steps that move, replace or fade them in place (the depth
+  // alignment, the measured surface, the region surface, the floaters); the same tensors as
+  // `network` when every such step is off.
+  GaussianMaps maps;
   // Where predict's time went: prepare_scene_input's stages, then "upload" and "network".
   StageTimes stages;
   // With GeometryOptions::align_depth: each context view's depth scaled to the scene's points.

@@ -37,6 +37,7 @@ struct Target {
   std::string name;
   std::array<Level, 3> levels;
   bool may_hold_out = true;  // RefineView::may_hold_out
+  torch::Tensor scored;      // (1, 1, H, W): the full size's pixels a held-out score reads (the image's own)
 };
 
 Level half_of(const Level& fine) {
@@ -204,6 +205,14 @@ std::vector<Target> refinement_targets(const std::vector<RefineView>& views, con
     full.rgb = image_to_tensor(v.rgb).to(device);
     full.weight = v.mask ? (image_to_tensor(*v.mask) <= 0.5).to(torch::kFloat32).to(device)
                          : torch::ones({1, 1, v.rgb.height, v.rgb.width}, torch::TensorOptions(device));
+    t.scored = full.weight;
+    if (v.mask && v.in_mask) {
+      if (v.in_mask->width != v.rgb.width || v.in_mask->height != v.rgb.height || v.in_mask->channels != 3)
+        fail("refine: what view {} fits inside its mask does not fit its {}x{} image", v.name, v.rgb.width,
+             v.rgb.height);
+      full.rgb = torch::where(full.weight > 0.5, full.rgb, image_to_tensor(*v.in_mask).to(device));
+      full.weight = torch::ones_like(full.weight);
+    }
     full.rgb = full.rgb * full.weight;
     full.any = full.weight.sum().item<double>() > 0;
     if (!full.any) continue;  // a view masked everywhere says nothing
@@ -316,15 +325,16 @@ std::vector<Target> take_held_out(std::vector<Target>& targets, int every) {
   return held;
 }
 
-// PSNR of `drawn` over the supervised pixels of every held-out view at full size, pooled.
+// PSNR of `drawn` over the image's own pixels (outside its mask) of every held-out view at full
+// size, pooled.
 double held_out_psnr(const GaussianSet& drawn, const std::vector<Target>& held) {
   torch::NoGradGuard no_grad;
   double squared = 0, count = 0;
   for (const Target& t : held) {
     const Level& l = t.levels[0];
-    const torch::Tensor rgb = render(drawn, l.camera).rgb.permute({2, 0, 1}).unsqueeze(0) * l.weight;
-    squared += (rgb - l.rgb).square().sum().item<double>();
-    count += 3 * l.weight.sum().item<double>();
+    const torch::Tensor rgb = render(drawn, l.camera).rgb.permute({2, 0, 1}).unsqueeze(0);
+    squared += ((rgb - l.rgb) * t.scored).square().sum().item<double>();
+    count += 3 * t.scored.sum().item<double>();
   }
   return -10 * std::log10(std::max(squared / std::max(count, 1.0), 1e-12));
 }
@@ -702,9 +712,33 @@ GaussianSet outside_the_region(const GaussianSet& moved, const Prediction& predi
   return select_rows(moved, in.logical_not().to(moved.means.device()));
 }
 
+namespace {
+
+// Each masked view but the reference fits inside its mask what `start` draws there (its render
+// over the mask's bounding box alone).
+void fit_the_start_in_masks(std::vector<RefineView>& views, const GaussianSet& start) {
+  torch::NoGradGuard no_grad;
+  for (size_t i = 1; i < views.size(); ++i) {
+    RefineView& v = views[i];
+    if (!v.mask) continue;
+    const torch::Tensor inside = (image_to_tensor(*v.mask)[0][0] > 0.5).nonzero();
+    if (inside.size(0) == 0) continue;
+    const int y0 = inside.select(1, 0).min().item<int>(), y1 = inside.select(1, 0).max().item<int>() + 1;
+    const int x0 = inside.select(1, 1).min().item<int>(), x1 = inside.select(1, 1).max().item<int>() + 1;
+    const torch::Tensor drawn =
+        render(start, {v.camera.cropped(x0, y0, x1 - x0, y1 - y0)}).rgb.clamp(0, 1).to(torch::kCPU, torch::kFloat32);
+    torch::Tensor picture = torch::zeros({v.rgb.height, v.rgb.width, 3});
+    picture.slice(0, y0, y1).slice(1, x0, x1).copy_(drawn);
+    v.in_mask = image_from_hwc(picture);
+  }
+}
+
+}  // namespace
+
 GaussianSet refine_prediction(const Scene& scene, const Prediction& prediction, const SceneInputOptions& options,
                               const GaussianSet& start, const RefineOptions& refine, nlohmann::json& report) {
-  const std::vector<RefineView> views = refinement_views(scene, prediction, options);
+  std::vector<RefineView> views = refinement_views(scene, prediction, options);
+  if (refine.start_in_masks && !options.keep_object) fit_the_start_in_masks(views, start);
   const RefinementStart parts = refinement_start(start, prediction, options.keep_object, refine.start_stride);
   RefineOptions o = refine;
   o.fixed = with_fixed(parts.kept, refine.fixed);

@@ -1,5 +1,5 @@
 // The surface placement's steps: depth continued into a hole (a plane stays the plane it was, in
-// inverse depth; fill/surface.h), one flat splat per pixel that tiles the view without gaps, and a
+// inverse depth; geometry/continued_depth.h), one flat splat per pixel that tiles the view without gaps, and a
 // backing that shows through where a seam in the depth opens a gap in another view
 // (geometry/surface_splats.h).
 #include <gtest/gtest.h>
@@ -7,7 +7,7 @@
 #include <cmath>
 
 #include "camera/trajectory.h"
-#include "fill/surface.h"
+#include "geometry/continued_depth.h"
 #include "geometry/surface_splats.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"

@@ -141,6 +141,12 @@ TEST(Predictor, ScalesTheDepthToThePhotosPointsByDefault) {
     EXPECT_GT((factor / a.scale - 1).abs().max().item<double>(), 0.05);
     EXPECT_TRUE(torch::allclose(detailed.maps.scale[0][v], raw.maps.scale[0][v] * factor, 1e-4, 1e-7));
   }
+  // The network's own maps stay as the network gave them, beside the moved ones; with no step
+  // that moves them, the two are one.
+  expect_same_maps(detailed.network, raw.maps);
+  EXPECT_TRUE(torch::equal(detailed.network.depth, raw.maps.depth));
+  EXPECT_FALSE(torch::equal(detailed.maps.depth, detailed.network.depth));
+  EXPECT_TRUE(raw.maps.depth.is_same(raw.network.depth));
 }
 
 TEST(Predictor, ImagesAndMasksInMemoryEqualTheirFiles) {

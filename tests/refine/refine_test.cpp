@@ -124,6 +124,48 @@ TEST(Refine, MaskedPixelsHaveNoInfluence) {
   }
 }
 
+// Inside a view's mask its `in_mask` picture is fitted as if the photo showed it there (as
+// refine_prediction fits the start's render in the other views' masks); a held-out view still
+// scores its own pixels alone.
+TEST(Refine, AViewFitsItsInMaskPictureInsideItsMask) {
+  auto left_half = [] {
+    Image mask(32, 24, 1);
+    for (int y = 0; y < 24; ++y)
+      for (int x = 0; x < 14; ++x) mask.at(y, x) = 1;
+    return mask;
+  };
+  std::vector<RefineView> masked = views_of(grid()), whole = views_of(grid());
+  const std::vector<RefineView> other = views_of(grid(0.25f));  // what to fit inside the masks
+  for (size_t k = 1; k < masked.size(); ++k) {
+    masked[k].mask = left_half();
+    masked[k].in_mask = other[k].rgb;
+    for (int y = 0; y < 24; ++y)
+      for (int x = 0; x < 14; ++x)
+        for (int c = 0; c < 3; ++c) whole[k].rgb.at(y, x, c) = other[k].rgb.at(y, x, c);
+  }
+  const RefineResult a = refine_gaussians(grid(0.25f), masked, few_steps(6));
+  const RefineResult b = refine_gaussians(grid(0.25f), whole, few_steps(6));
+  EXPECT_EQ(a.losses, b.losses);
+  EXPECT_TRUE(torch::equal(a.gaussians.means, b.gaussians.means));
+  EXPECT_TRUE(torch::equal(a.gaussians.colors, b.gaussians.colors));
+
+  RefineOptions o = few_steps(10);
+  o.hold_out_every = 2;  // v2, v4 and v6 score
+  std::vector<RefineView> held = views_across(grid(), 7);
+  for (RefineView& v : held) v.mask = left_half();
+  std::vector<RefineView> held_painted = held;
+  for (int k : {2, 4, 6}) held_painted[static_cast<size_t>(k)].in_mask = other[1].rgb;
+  const RefineResult c = refine_gaussians(grid(0.25f), held, o);
+  const RefineResult d = refine_gaussians(grid(0.25f), held_painted, o);
+  EXPECT_EQ(c.held_out, (std::vector<std::string>{"v2", "v4", "v6"}));
+  EXPECT_EQ(c.start_psnr, d.start_psnr);
+  EXPECT_EQ(c.iterates, d.iterates);
+  Image wrong(31, 24, 3);
+  masked[1].in_mask = wrong;
+  EXPECT_EQ(test::error_message([&] { refine_gaussians(grid(0.25f), masked, few_steps(1)); }),
+            "refine: what view v1 fits inside its mask does not fit its 32x24 image");
+}
+
 TEST(Refine, SameSeedSameGaussians) {
   const RefineResult a = refine_gaussians(grid(0.25f), views_of(grid()), all_parts(30));
   const RefineResult b = refine_gaussians(grid(0.25f), views_of(grid()), all_parts(30));

@@ -1,4 +1,4 @@
-#include "fill/surface.h"
+#include "geometry/continued_depth.h"
 
 #include <algorithm>
 #include <cmath>
