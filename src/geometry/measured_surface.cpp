@@ -85,6 +85,7 @@ MeasuredDepth stereo_of_photos(const SceneInput& input, const GaussianMaps& maps
     guides.push_back(maps.depth[0][static_cast<int64_t>(v)][0]);
   }
   out.source = "the photos (stereo)";
+  out.from = MeasuredFrom::photos;
   out.depth = stereo_depth(photos, input.input.view_cameras, guides, options);
   return out;
 }
@@ -134,6 +135,7 @@ MeasuredDepth measured_depth(const Scene& scene, const SceneInput& input, const 
   }
   if (any) {
     out.source = "depth maps";
+    out.from = MeasuredFrom::depth_maps;
     return out;
   }
   if (options.from_photos) return stereo_of_photos(input, maps, options.stereo);
@@ -145,6 +147,7 @@ MeasuredSurface put_on_measured_surface(GaussianMaps& maps, const SceneInput& in
   MeasuredSurface done;
   if (options.opacity <= 0 || measured.depth.empty()) return done;
   done.source = measured.source;
+  done.from = measured.from;
   torch::InferenceMode inference;  // the maps are the network's inference tensors
   const auto opacity = static_cast<float>(options.opacity);
   const std::optional<ObjectCone> object =

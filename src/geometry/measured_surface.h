@@ -59,8 +59,13 @@ struct MeasuredSurfaceOptions {
   FlyingPixelOptions flying;
 };
 
+// Where a measured depth came from: the steps that treat a depth map's slopes and edges as
+// measured (the region surface, behind the depth edges) ask this, not the record's text.
+enum class MeasuredFrom { nothing, depth_maps, photos };
+
 struct MeasuredSurface {
   std::string source;              // "depth maps", "the photos (stereo)" or "" (none)
+  MeasuredFrom from = MeasuredFrom::nothing;  // the same, typed
   std::vector<std::string> views;  // the context views that had a measured depth
   std::vector<double> known;       // ... the fraction of each one's pixels it covered
   int64_t gaussians = 0;           // the Gaussians put on their surface outside the masks
@@ -74,6 +79,7 @@ struct MeasuredSurface {
 // about `maps`' depth (the network's, aligned).
 struct MeasuredDepth {
   std::string source;
+  MeasuredFrom from = MeasuredFrom::nothing;
   std::vector<torch::Tensor> depth;
   // With depth maps and MeasuredSurfaceOptions::far_side, each view's flying pixels moved to the
   // far side (default-constructed for the others).

@@ -185,7 +185,7 @@ RegionSurface put_region_on_surface(GaussianMaps& maps, const SceneInput& input,
       torch::from_blob(const_cast<float*>(rgb.pixels.data()), {H, W, rgb.channels}, torch::kFloat32)
           .index({Slice(), Slice(), Slice(0, 3)})
           .permute({2, 0, 1});
-  done.slopes = measured.source == "depth maps";
+  done.slopes = measured.from == MeasuredFrom::depth_maps;
   const torch::Tensor completed = depth_from_surroundings(depth, region, colour, done.slopes, options, &done.ring);
   // Pixels of the region without a depth keep the network's Gaussians.
   const torch::Tensor take = region.logical_and(completed.gt(0));

@@ -72,7 +72,7 @@ GeometryLayer frame_margin_layer(Prediction& p, const FrameMarginOptions& option
 // The far side of each view's depth edges under the near side, less what another view sees through.
 GeometryLayer behind_edges_layer(Prediction& p, const BehindEdgesOptions& given) {
   const BehindEdgesOptions options =
-      behind_edges_for(given, p.measured_surface.value("source", "") == "depth maps");
+      behind_edges_for(given, p.measured_from == MeasuredFrom::depth_maps);
   GaussianSet behind = gaussians_behind_edges(p.maps, p.input.input, p.input.views, options);
   const int64_t found = behind.size();
   behind = without_seen_through(behind, p.maps, p.input.views, p.input.input.view_cameras);
@@ -112,8 +112,9 @@ void after_the_network(Prediction& p, const Scene& scene, const SceneInputOption
     const MeasuredDepth measured =
         measured_depth(scene, p.input, options.preprocess, p.maps, geometry.measured_surface);
     if (!measured.source.empty()) p.stages.lap("the measured depth (" + measured.source + ")");
-    p.measured_surface = describe_measured_surface(
-        geometry.measured_surface, put_on_measured_surface(p.maps, p.input, measured, geometry.measured_surface));
+    const MeasuredSurface surface = put_on_measured_surface(p.maps, p.input, measured, geometry.measured_surface);
+    p.measured_surface = describe_measured_surface(geometry.measured_surface, surface);
+    p.measured_from = surface.from;
     if (!p.measured_surface["views"].empty()) p.stages.lap("the measured surface");
     const RegionSurface region = put_region_on_surface(p.maps, p.input, measured,
                                                        geometry.measured_surface.mask_margin, geometry.region_surface);

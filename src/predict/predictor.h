@@ -51,6 +51,7 @@ struct Prediction {
 
   // With GeometryOptions::measured_surface: what run.json and metrics.json record of it.
   nlohmann::json measured_surface = nlohmann::json::object();
+  MeasuredFrom measured_from = MeasuredFrom::nothing;  // where the measured surface's depth came from
   // With GeometryOptions::region_surface: what run.json and metrics.json record of it, and the
   // reference's pixels it put on the surface (flat indices; refinement keeps them as they are).
   nlohmann::json region_surface = nlohmann::json::object();
