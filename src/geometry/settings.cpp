@@ -41,7 +41,7 @@ template <typename Field>
 GeometrySetting number(std::string name, double min, double max, std::string help, Field field,
                        std::string off = "", bool off_for_insertion = false) {
   GeometrySetting s = row(std::move(name), std::move(help), "number", min, max, {}, std::move(off), off_for_insertion);
-  s.get = [field](const GeometryOptions& o) { return number_text(field(const_cast<GeometryOptions&>(o))); };
+  s.get = [field](const GeometryOptions& o) { return number_text(field(o)); };
   s.put = [field](GeometryOptions& o, const std::string& text) { field(o) = std::strtod(text.c_str(), nullptr); };
   return s;
 }
@@ -49,7 +49,7 @@ GeometrySetting number(std::string name, double min, double max, std::string hel
 template <typename Field>
 GeometrySetting integer(std::string name, int64_t min, int64_t max, std::string help, Field field) {
   GeometrySetting s = row(std::move(name), std::move(help), "integer", double(min), double(max));
-  s.get = [field](const GeometryOptions& o) { return fmt::format("{}", field(const_cast<GeometryOptions&>(o))); };
+  s.get = [field](const GeometryOptions& o) { return fmt::format("{}", field(o)); };
   s.put = [field](GeometryOptions& o, const std::string& text) {
     field(o) = static_cast<std::remove_reference_t<decltype(field(o))>>(std::strtoll(text.c_str(), nullptr, 10));
   };
@@ -60,7 +60,7 @@ template <typename Field>
 GeometrySetting boolean(std::string name, std::string help, Field field) {
   GeometrySetting s = row(std::move(name), std::move(help), "bool", 0, 0, {"true", "false"});
   s.get = [field](const GeometryOptions& o) -> std::string {
-    return field(const_cast<GeometryOptions&>(o)) ? "true" : "false";
+    return field(o) ? "true" : "false";
   };
   s.put = [field](GeometryOptions& o, const std::string& text) { field(o) = bool_from_text(text).value_or(false); };
   return s;
@@ -83,7 +83,7 @@ std::vector<GeometrySetting> make_settings() {
                      "With --align-depth: how closely each view's depth follows the points beyond one scale per "
                      "view, as the width of its local correction in point spacings (the network often draws a "
                      "table at the floor's depth); 0 = one scale per view",
-                     [](GeometryOptions& o) -> double& { return o.depth_detail.detail; }));
+                     [](auto& o) -> auto& { return o.depth_detail.detail; }));
   t.push_back(number("measured-surface", 0, 1,
                      "Where a context view has its own depth map (<scene>/depth/<view>.npy: a depth camera's, a "
                      "synthetic scene's) or, without one, a depth its context photos measure (--stereo-depth), put "
@@ -91,7 +91,7 @@ std::vector<GeometrySetting> make_settings() {
                      "least this opaque, and inside its mask what lies outside the reference's mask from the "
                      "reference's camera (the scene beside the object); 0 = none (the network's Gaussians, aligned "
                      "as --align-depth says)",
-                     [](GeometryOptions& o) -> double& { return o.measured_surface.opacity; }, "0"));
+                     [](auto& o) -> auto& { return o.measured_surface.opacity; }, "0"));
   GeometrySetting flying = row("flying-pixels",
                          "A depth map's pixels that straddle an edge (a depth between the near and the far side, as "
                          "depth cameras and supersampled synthetic depth give), and the reference's region pixels "
@@ -109,67 +109,67 @@ std::vector<GeometrySetting> make_settings() {
                       "themselves (a plane sweep between them about the network's aligned depth) and use it as the "
                       "measured surface where the photos are textured and agree (false: the network's Gaussians "
                       "there)",
-                      [](GeometryOptions& o) -> bool& { return o.measured_surface.from_photos; }));
+                      [](auto& o) -> auto& { return o.measured_surface.from_photos; }));
   t.push_back(integer("stereo-planes", 3, 1024, "Depths the stereo sweep tries per pixel",
-                      [](GeometryOptions& o) -> int& { return o.measured_surface.stereo.planes; }));
+                      [](auto& o) -> auto& { return o.measured_surface.stereo.planes; }));
   t.push_back(number("stereo-spread", 1.01, 100, "The stereo sweep tries depths from the network's / N to its x N",
-                     [](GeometryOptions& o) -> double& { return o.measured_surface.stereo.spread; }));
+                     [](auto& o) -> auto& { return o.measured_surface.stereo.spread; }));
   t.push_back(integer("stereo-rows", 16, 4096, "The stereo sweep matches the pictures at about this many rows",
-                      [](GeometryOptions& o) -> int& { return o.measured_surface.stereo.rows; }));
+                      [](auto& o) -> auto& { return o.measured_surface.stereo.rows; }));
   t.push_back(number("stereo-min-ncc", -1, 1,
                      "A stereo depth whose best match correlates less (normalised cross-correlation) is unknown",
-                     [](GeometryOptions& o) -> double& { return o.measured_surface.stereo.min_ncc; }));
+                     [](auto& o) -> auto& { return o.measured_surface.stereo.min_ncc; }));
   t.push_back(number("stereo-consistency", 0, 10,
                      "Another view's stereo depth must agree within this relative difference",
-                     [](GeometryOptions& o) -> double& { return o.measured_surface.stereo.consistency; }));
+                     [](auto& o) -> auto& { return o.measured_surface.stereo.consistency; }));
   t.push_back(number("fade-floaters", 0, 1,
                      "Gaussians on a depth edge of their view (a blend of the near and the far surface) that lie in "
                      "front of another context view's depth there keep this fraction of their opacity, so that "
                      "they do not smear across other views; 1 = none faded (the paper's)",
-                     [](GeometryOptions& o) -> double& { return o.floaters.fade; }, "1"));
+                     [](auto& o) -> auto& { return o.floaters.fade; }, "1"));
   t.push_back(number("frame-margin", 0, 1,
                      "Continue each context view's Gaussians past the edges of its picture by this fraction of its "
                      "height (its border pixels repeated outward along their rays), so that views a little beside "
                      "the context cameras show the scene's edge instead of the background; 0 = none (the paper's)",
-                     [](GeometryOptions& o) -> double& { return o.frame_margin.fraction; }, "0"));
+                     [](auto& o) -> auto& { return o.frame_margin.fraction; }, "0"));
   t.push_back(number("frame-margin-outer", 0, 1,
                      "Past --frame-margin, continue the margin out to this fraction of the height more sparsely: "
                      "one Gaussian per --frame-margin-stride pixels square, as wide as that square (no more than "
                      "--frame-margin: none)",
-                     [](GeometryOptions& o) -> double& { return o.frame_margin.outer_fraction; }));
+                     [](auto& o) -> auto& { return o.frame_margin.outer_fraction; }));
   t.push_back(integer("frame-margin-stride", 1, 16, "The outer frame margin's pixels per Gaussian along each side",
-                      [](GeometryOptions& o) -> int64_t& { return o.frame_margin.outer_stride; }));
+                      [](auto& o) -> auto& { return o.frame_margin.outer_stride; }));
   t.push_back(boolean("frame-margin-drop-seen",
                       "Drop the frame margin's Gaussians that another context view sees through (they lie in front "
                       "of the depth it saw there), so that a repeated border does not stand in front of what the "
                       "other views saw (false: keep the whole margin)",
-                      [](GeometryOptions& o) -> bool& { return o.frame_margin.drop_seen_through; }));
+                      [](auto& o) -> auto& { return o.frame_margin.drop_seen_through; }));
   t.push_back(number("behind-edges", 0, 1,
                      "Continue the far side of each context view's depth edges under the near side by this fraction "
                      "of its height (those another context view sees through dropped), so that a camera beside it "
                      "sees the ground behind an object's edge instead of the background; twice as far where the "
                      "depth is the views' depth maps; 0 = none (the paper's)",
-                     [](GeometryOptions& o) -> double& { return o.behind_edges.fraction; }, "0"));
+                     [](auto& o) -> auto& { return o.behind_edges.fraction; }, "0"));
   t.push_back(number("behind-edges-jump", 0.001, 10,
                      "A depth edge for --behind-edges: the far side more than this fraction farther than its "
                      "neighbour",
-                     [](GeometryOptions& o) -> double& { return o.behind_edges.jump; }));
+                     [](auto& o) -> auto& { return o.behind_edges.jump; }));
   t.push_back(number("region-surface", 0, 1,
                      "With --measured-surface: put the reference's region on the measured depth around it (each "
                      "pixel on the surrounding surface its colour resembles: the hedge's green on the hedge, the "
                      "bench's grey on the bench) as flat splats at least this opaque, in the reference's colours; "
                      "0 = none (the network's depth there); off for --mode insert",
-                     [](GeometryOptions& o) -> double& { return o.region_surface.opacity; }, "0",
+                     [](auto& o) -> auto& { return o.region_surface.opacity; }, "0",
                      /*off_for_insertion=*/true));
   t.push_back(number("region-surface-colour", 0.001, 2,
                      "With --region-surface: how far (RGB distance, 0-1) a surrounding pixel's colour may be from a "
                      "region pixel's and still lend it its depth",
-                     [](GeometryOptions& o) -> double& { return o.region_surface.colour; }));
+                     [](auto& o) -> auto& { return o.region_surface.colour; }));
   t.push_back(number("region-cover", 0, 1,
                      "Cover the reference's region with flat splats of this opacity on its depth, beside the "
                      "network's Gaussians, so that views from elsewhere show no background between them where the "
                      "object stood; 0 = none (the paper's)",
-                     [](GeometryOptions& o) -> double& { return o.region_cover.opacity; }, "0"));
+                     [](auto& o) -> auto& { return o.region_cover.opacity; }, "0"));
   return t;
 }
 
