@@ -111,9 +111,9 @@ struct RefineOptions {
   std::function<void(const RefineProgress&)> progress;  // after each step
   // refine_prediction: each view's mask (the object, which the reference's region replaces) is
   // fitted to what the prediction draws there, instead of being left free: the moved Gaussians
-  // then do not grow over the region where only masked views see it (make demo's room: the
-  // test views 28.05 / 23.63 dB whole / masked refined without, 29.25 / 26.10 with, the
-  // feed-forward 29.01 / 27.86; docs/benchmarks.md, session 44).
+  // then do not grow over the region where only masked views see it (make demo's room at 2,300
+  // steps: the test views 28.79 / 24.12 dB whole / masked refined without, 29.85 / 26.73 with,
+  // the feed-forward 29.01 / 27.86; docs/benchmarks.md, session 44).
   bool start_in_masks = true;
   // Gaussians drawn with the optimised ones and never changed (a fill optimises its new
   // Gaussians alone in front of the rest of the scene; refine_prediction keeps the reference's
