@@ -51,7 +51,8 @@ GeometrySetting integer(std::string name, int64_t min, int64_t max, std::string 
   GeometrySetting s = row(std::move(name), std::move(help), "integer", double(min), double(max));
   s.get = [field](const GeometryOptions& o) { return fmt::format("{}", field(o)); };
   s.put = [field](GeometryOptions& o, const std::string& text) {
-    field(o) = static_cast<std::remove_reference_t<decltype(field(o))>>(std::strtoll(text.c_str(), nullptr, 10));
+    // Read as check_geometry_setting read it ("1e2" is 100).
+    field(o) = static_cast<std::remove_reference_t<decltype(field(o))>>(std::llround(std::strtod(text.c_str(), nullptr)));
   };
   return s;
 }

@@ -102,6 +102,8 @@ TEST(GeometrySettings, BadValuesAndNamesAreClearErrors) {
   EXPECT_EQ(message("fade-floaters", "nan"), "--fade-floaters 'nan': a number from 0 to 1");
   EXPECT_EQ(message("frame-margins", "0").rfind("geometry: no setting 'frame-margins' (the settings: align-depth, ", 0), 0u);
   EXPECT_EQ(o.frame_margin.fraction, GeometryOptions().frame_margin.fraction);  // nothing was set
+  set_geometry_setting(o, "stereo-planes", "1e2");  // an integer read as the check read it
+  EXPECT_EQ(o.measured_surface.stereo.planes, 100);
 }
 
 }  // namespace ii
