@@ -32,7 +32,6 @@ from . import _core
 from ._core import Camera, Error, Scene, set_log_level, set_threads
 
 
-
 def _geometry_value(kind: str, text: str) -> Any:
     if kind == "bool":
         return text == "true"
