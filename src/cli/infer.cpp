@@ -115,9 +115,9 @@ void run(const InferArgs& a) {
     stages.lap("write " + name);
   }
   nlohmann::json depth_files = nlohmann::json::array();
-  for (int64_t v = 0; v < p.maps.depth.size(1); ++v) {
+  for (int64_t v = 0; v < p.maps().depth.size(1); ++v) {
     const std::string file = fmt::format("depth/{}_{}.png", v, p.input.views[v].name);
-    write_png(out / file, depth_colours(p.maps.depth[0][v][0]));
+    write_png(out / file, depth_colours(p.maps().depth[0][v][0]));
     depth_files.push_back(file);
   }
   stages.lap("write depth pictures");

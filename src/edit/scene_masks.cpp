@@ -86,7 +86,7 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
   o.geometry.region_surface.opacity = 0;  // the region's depth is the object's here
   const Prediction p = predictor.predict(scene, o);
   Stopwatch watch;
-  const Image depth = depth_at_image_size(p.maps.depth[0][0][0], p.input.normalization.scale, marked, o.preprocess);
+  const Image depth = depth_at_image_size(p.maps().depth[0][0][0], p.input.normalization.scale, marked, o.preprocess);
   if (stages) {
     stages->merge(p.stages, "masks: ");
     stages->add("masks: depth map", watch.ms());

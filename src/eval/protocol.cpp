@@ -87,7 +87,7 @@ json own_views(const Prediction& p, const GaussianSet& g) {
   torch::NoGradGuard no_grad;
   json views = json::array();
   // g's rows: each view's pixels in turn (the maps' order), then those past the frames.
-  const int64_t pixels = p.maps.depth.size(3) * p.maps.depth.size(4);
+  const int64_t pixels = p.maps().depth.size(3) * p.maps().depth.size(4);
   const torch::Tensor view_of_row = torch::arange(g.size(), g.means.device()).div(pixels, "floor");
   double sum = 0;
   for (size_t v = 0; v < p.input.views.size(); ++v) {

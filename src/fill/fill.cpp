@@ -373,7 +373,7 @@ Prediction predict_holes(const std::vector<CameraViews>& views, const ChosenCame
 GaussianSet hole_gaussians(const Prediction& p, const std::vector<CameraViews>& views, const FillOptions& options,
                            FillResult& result) {
   const PoseNormalization& norm = p.input.normalization;
-  const GaussianMaps& maps = p.maps;
+  const GaussianMaps& maps = p.maps();
   const torch::Tensor mean = torch::tensor({norm.mean.x(), norm.mean.y(), norm.mean.z()}, torch::kFloat64);
   std::vector<torch::Tensor> means, scales, quats, opacities, colours;
   for (size_t v = 0; v < views.size(); ++v) {

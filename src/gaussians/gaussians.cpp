@@ -59,9 +59,12 @@ GaussianSet joined(const GaussianSet& kept, const GaussianSet& added) {
   return out;
 }
 
-GaussianMaps cloned(const GaussianMaps& maps) {
-  auto copy = [](const torch::Tensor& t) { return t.defined() ? t.clone(torch::MemoryFormat::Contiguous) : t; };
-  return {copy(maps.depth), copy(maps.rgb), copy(maps.opacity), copy(maps.scale), copy(maps.rotation), copy(maps.xyz)};
+GaussianMaps cloned(const GaussianMaps& maps, unsigned which) {
+  auto copy = [which](const torch::Tensor& t, MapAttribute a) {
+    return t.defined() && (which & a) ? t.clone(torch::MemoryFormat::Contiguous) : t;
+  };
+  return {copy(maps.depth, kDepthMap), copy(maps.rgb, kRgbMap),           copy(maps.opacity, kOpacityMap),
+          copy(maps.scale, kScaleMap), copy(maps.rotation, kRotationMap), copy(maps.xyz, kXyzMap)};
 }
 
 GaussianMaps narrowed(const GaussianMaps& maps, int64_t dim, int64_t index) {

@@ -28,8 +28,20 @@ struct GaussianMaps {
   torch::Tensor xyz;       // C=3, world position
 };
 
-// A copy of every attribute that is there (contiguous, on the same device).
-GaussianMaps cloned(const GaussianMaps& maps);
+// Attributes of GaussianMaps, or-ed together: which of them a copy makes its own.
+enum MapAttribute : unsigned {
+  kDepthMap = 1,
+  kRgbMap = 2,
+  kOpacityMap = 4,
+  kScaleMap = 8,
+  kRotationMap = 16,
+  kXyzMap = 32,
+  kEveryMap = 63,
+};
+
+// A copy of each attribute in `which` that is there (contiguous, on the same device); the others
+// are the same tensors as `maps`' (a step that writes some attributes copies only those).
+GaussianMaps cloned(const GaussianMaps& maps, unsigned which = kEveryMap);
 
 // Index `index` of dimension `dim` (0: the sample, 1: the view) of every attribute that is
 // there, kept as a dimension of size 1: views of `maps`.

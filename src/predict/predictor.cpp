@@ -1,6 +1,7 @@
 #include "predict/predictor.h"
 
 #include <future>
+#include <optional>
 
 #include "common/error.h"
 #include "data/masks.h"
@@ -59,12 +60,12 @@ ScenePoints gather_scene_points(const Scene& scene, DepthPoints which, const std
 
 // Each view's Gaussians past the edges of its picture, less those another view sees through.
 GeometryLayer frame_margin_layer(Prediction& p, const FrameMarginOptions& options) {
-  GaussianSet beyond = gaussians_beyond_frame(p.maps, p.input.input, options);
+  GaussianSet beyond = gaussians_beyond_frame(p.maps(), p.input.input, options);
   const int64_t continued = beyond.size();
   if (options.drop_seen_through)
-    beyond = without_seen_through(beyond, p.maps, p.input.views, p.input.input.view_cameras);
+    beyond = without_seen_through(beyond, p.maps(), p.input.views, p.input.input.view_cameras);
   nlohmann::json record =
-      describe_frame_margin(options, p.maps.depth.size(3), beyond.size(), continued - beyond.size());
+      describe_frame_margin(options, p.maps().depth.size(3), beyond.size(), continued - beyond.size());
   if (beyond.size() > 0) p.stages.lap("Gaussians past the frames");
   return {"frame_margin", std::move(beyond), std::move(record)};
 }
@@ -73,10 +74,10 @@ GeometryLayer frame_margin_layer(Prediction& p, const FrameMarginOptions& option
 GeometryLayer behind_edges_layer(Prediction& p, const BehindEdgesOptions& given) {
   const BehindEdgesOptions options =
       behind_edges_for(given, p.measured_from == MeasuredFrom::depth_maps);
-  GaussianSet behind = gaussians_behind_edges(p.maps, p.input.input, p.input.views, options);
+  GaussianSet behind = gaussians_behind_edges(p.maps(), p.input.input, p.input.views, options);
   const int64_t found = behind.size();
-  behind = without_seen_through(behind, p.maps, p.input.views, p.input.input.view_cameras);
-  nlohmann::json record = describe_behind_edges(options, p.maps.depth.size(3), behind.size(), found - behind.size());
+  behind = without_seen_through(behind, p.maps(), p.input.views, p.input.input.view_cameras);
+  nlohmann::json record = describe_behind_edges(options, p.maps().depth.size(3), behind.size(), found - behind.size());
   if (found > 0) p.stages.lap("Gaussians behind depth edges");
   return {"behind_edges", std::move(behind), std::move(record)};
 }
@@ -84,47 +85,90 @@ GeometryLayer behind_edges_layer(Prediction& p, const BehindEdgesOptions& given)
 // Flat splats over the reference's region.
 GeometryLayer region_cover_layer(Prediction& p, const RegionCoverOptions& options) {
   GaussianSet cover = region_cover_gaussians(p.input.views.front(), p.input.input.view_cameras.front(),
-                                             p.maps.depth[0][0][0], options, p.maps.xyz);
+                                             p.maps().depth[0][0][0], options, p.maps().xyz);
   nlohmann::json record = describe_region_cover(options, cover.size());
   if (cover.size() > 0) p.stages.lap("the region's cover");
   return {"region_cover", std::move(cover), std::move(record)};
 }
 
-// Whether a step of `geometry` changes the network's maps in place (the others add layers).
-bool changes_the_maps(const GeometryOptions& geometry) {
-  return geometry.align_depth != DepthPoints::none || geometry.floaters.fade < 1;
+// Each context view's depth, positions and sizes moved onto the scene's points (the network's
+// maps as they came when the scene has none or alignment is off).
+MapsLayer depth_alignment_layer(Prediction& p, const GaussianMaps& network, const ScenePoints* gathered,
+                                const DepthDetailOptions& options) {
+  MapsLayer layer{"depth_alignment", network, {{"source", "off"}, {"detail", 0.0}, {"views", nlohmann::json::array()}}};
+  if (!gathered) return layer;
+  p.geometry_kind = gathered->origin.kind;
+  layer.record["source"] = gathered->origin.description;
+  layer.record["detail"] = options.detail;
+  if (!gathered->points.empty()) {
+    layer.maps = cloned(network, kDepthMap | kXyzMap | kScaleMap);
+    for (const DepthAlignment& a : align_depth_to_points(layer.maps, p.input, gathered->points, options))
+      layer.record["views"].push_back(
+          {{"view", a.view}, {"scale", a.scale}, {"points", a.points}, {"detail_mean", a.detail_mean}});
+  }
+  p.stages.lap("align depth to the scene's points");
+  return layer;
 }
 
-// The steps GeometryOptions names, on the network's output in `p`, in order; each recorded.
+// Outside each view's mask, the measured surface in place of the network's Gaussians.
+MapsLayer measured_surface_layer(Prediction& p, const GaussianMaps& aligned, const MeasuredDepth& measured,
+                                 const MeasuredSurfaceOptions& options) {
+  MapsLayer layer{"measured_surface", aligned, nlohmann::json::object()};
+  if (!measured.source.empty()) p.stages.lap("the measured depth (" + measured.source + ")");
+  if (options.opacity > 0 && !measured.depth.empty()) layer.maps = cloned(aligned);
+  const MeasuredSurface surface = put_on_measured_surface(layer.maps, p.input, measured, options);
+  layer.record = describe_measured_surface(options, surface);
+  p.measured_from = surface.from;
+  if (!surface.views.empty()) p.stages.lap("the measured surface");
+  return layer;
+}
+
+// The reference's region on the measured surface around it.
+MapsLayer region_surface_layer(Prediction& p, const GaussianMaps& surfaced, const MeasuredDepth& measured,
+                               int mask_margin, const RegionSurfaceOptions& options) {
+  MapsLayer layer{"region_surface", surfaced, nlohmann::json::object()};
+  const bool may_write = options.opacity > 0 && !measured.depth.empty() && !p.input.views.empty() &&
+                         p.input.views.front().mask.has_value();
+  if (may_write) layer.maps = cloned(surfaced);
+  const RegionSurface region = put_region_on_surface(layer.maps, p.input, measured, mask_margin, options);
+  layer.record = describe_region_surface(options, region);
+  p.region_surface_pixels = region.pixels;
+  if (region.gaussians > 0) p.stages.lap("the region on the surface around it");
+  return layer;
+}
+
+// What another view sees through, faded.
+MapsLayer floaters_layer(Prediction& p, const GaussianMaps& before, const FloaterOptions& options) {
+  MapsLayer layer{"floaters", options.fade < 1 ? cloned(before, kOpacityMap) : before, nlohmann::json::object()};
+  const int64_t faded = fade_floaters(layer.maps, p.input.views, p.input.input.view_cameras, options);
+  layer.record = describe_floaters(options, faded);
+  if (options.fade < 1) p.stages.lap("fade floaters");
+  return layer;
+}
+
+// The steps GeometryOptions names, on the network's output in `p`, in order; each a layer.
 void after_the_network(Prediction& p, const Scene& scene, const SceneInputOptions& options,
                        std::future<ScenePoints>& points) {
   const GeometryOptions& geometry = options.geometry;
-  if (geometry.align_depth != DepthPoints::none) {
-    const ScenePoints gathered =
-        points.valid() ? points.get() : gather_scene_points(scene, geometry.align_depth, p.input.context);
+  const bool aligned = geometry.align_depth != DepthPoints::none;
+  std::optional<ScenePoints> gathered;
+  if (aligned) {
+    gathered = points.valid() ? points.get() : gather_scene_points(scene, geometry.align_depth, p.input.context);
     p.stages.lap(points.valid() ? "the scene's points (waited)" : "the scene's points");
-    p.geometry = gathered.origin.description;
-    p.geometry_kind = gathered.origin.kind;
-    p.depth_detail = geometry.depth_detail.detail;
-    if (!gathered.points.empty())
-      p.depth_alignment = align_depth_to_points(p.maps, p.input, gathered.points, geometry.depth_detail);
-    p.stages.lap("align depth to the scene's points");
-    const MeasuredDepth measured =
-        measured_depth(scene, p.input, options.preprocess, p.maps, geometry.measured_surface);
-    if (!measured.source.empty()) p.stages.lap("the measured depth (" + measured.source + ")");
-    const MeasuredSurface surface = put_on_measured_surface(p.maps, p.input, measured, geometry.measured_surface);
-    p.measured_surface = describe_measured_surface(geometry.measured_surface, surface);
-    p.measured_from = surface.from;
-    if (!p.measured_surface["views"].empty()) p.stages.lap("the measured surface");
-    const RegionSurface region = put_region_on_surface(p.maps, p.input, measured,
-                                                       geometry.measured_surface.mask_margin, geometry.region_surface);
-    p.region_surface = describe_region_surface(geometry.region_surface, region);
-    p.region_surface_pixels = region.pixels;
-    if (region.gaussians > 0) p.stages.lap("the region on the surface around it");
   }
-  const int64_t faded = fade_floaters(p.maps, p.input.views, p.input.input.view_cameras, geometry.floaters);
-  p.floaters = describe_floaters(geometry.floaters, faded);
-  if (geometry.floaters.fade < 1) p.stages.lap("fade floaters");
+  p.corrections = {depth_alignment_layer(p, p.network, gathered ? &*gathered : nullptr, geometry.depth_detail)};
+  // The measured surface and the region on it need the aligned depth: off without the alignment.
+  if (aligned) {
+    const MeasuredDepth measured =
+        measured_depth(scene, p.input, options.preprocess, p.maps(), geometry.measured_surface);
+    p.corrections.push_back(measured_surface_layer(p, p.maps(), measured, geometry.measured_surface));
+    p.corrections.push_back(region_surface_layer(p, p.maps(), measured, geometry.measured_surface.mask_margin,
+                                                 geometry.region_surface));
+  } else {
+    p.corrections.push_back({"measured_surface", p.maps(), nlohmann::json::object()});
+    p.corrections.push_back({"region_surface", p.maps(), nlohmann::json::object()});
+  }
+  p.corrections.push_back(floaters_layer(p, p.maps(), geometry.floaters));
   p.layers = {frame_margin_layer(p, geometry.frame_margin),
               behind_edges_layer(p, geometry.behind_edges),
               region_cover_layer(p, geometry.region_cover)};
@@ -149,11 +193,6 @@ Prediction Predictor::predict(const Scene& scene, const SceneInputOptions& optio
   p.network = run_network(network_, p.input.input, precision_);
   synchronize(device_);
   p.stages.lap("network");
-  p.maps = p.network;
-  if (changes_the_maps(options.geometry)) {
-    p.maps = cloned(p.network);
-    p.stages.lap("the network's maps kept");
-  }
   after_the_network(p, scene, options, points);
   return p;
 }
@@ -167,23 +206,23 @@ const GaussianSet& Prediction::layer(const std::string& name) const {
   fail("prediction: no layer '{}' (it has: {})", name, names.empty() ? "none" : names);
 }
 
+const GaussianMaps& Prediction::maps() const { return corrections.empty() ? network : corrections.back().maps; }
+
 GaussianSet Prediction::gaussians() const {
-  GaussianSet all = gaussians_from_maps(maps);
+  GaussianSet all = gaussians_from_maps(maps());
   for (const GeometryLayer& l : layers)
     if (l.gaussians.size() > 0) all = joined(all, l.gaussians);
   return all;
 }
 
 nlohmann::json Prediction::describe_geometry() const {
-  nlohmann::json views = nlohmann::json::array();
-  for (const DepthAlignment& a : depth_alignment)
-    views.push_back({{"view", a.view}, {"scale", a.scale}, {"points", a.points}, {"detail_mean", a.detail_mean}});
-  nlohmann::json d = {{"source", geometry},
-                      {"detail", depth_detail},
-                      {"views", views},
-                      {"floaters", floaters},
-                      {"measured_surface", measured_surface},
-                      {"region_surface", region_surface}};
+  nlohmann::json d = nlohmann::json::object();
+  for (const MapsLayer& l : corrections) {
+    if (l.name == "depth_alignment")
+      d.update(l.record);  // at the top, as run.json has had it since before the other steps
+    else
+      d[l.name] = l.record;
+  }
   for (const GeometryLayer& l : layers) d[l.name] = l.record;
   return d;
 }

@@ -37,28 +37,23 @@ struct Prediction {
   // The network's output as it came, (1, V, C, H, W) on the predictor's device, in the
   // pose-normalised frame: no step changes it.
   GaussianMaps network;
-  // The network's Gaussians after the steps that move, replace or fade them in place (the depth
-  // alignment, the measured surface, the region surface, the floaters); the same tensors as
-  // `network` when every such step is off.
-  GaussianMaps maps;
+  // The steps that move, replace or fade the network's Gaussians, in this order and always all
+  // four, each the maps after it (geometry/layer.h): "depth_alignment" (each view's depth moved onto
+  // the scene's points, geometry/depth_alignment.h), "measured_surface" (geometry/measured_surface.h),
+  // "region_surface" (the reference's region on the surface around it, geometry/region_surface.h),
+  // "floaters" (what another view sees through, faded: geometry/floaters.h).
+  std::vector<MapsLayer> corrections;
+  // The network's Gaussians after every correction (`network` when there is none).
+  const GaussianMaps& maps() const;
   // Where predict's time went: prepare_scene_input's stages, then "upload" and "network".
   StageTimes stages;
-  // With GeometryOptions::align_depth: each context view's depth scaled to the scene's points.
-  std::vector<DepthAlignment> depth_alignment;
-  std::string geometry = "off";  // the points' source, "none" when the scene has none, or "off"
-  PointsSource geometry_kind = PointsSource::None;  // which it was (None when off)
-  double depth_detail = 0;  // DepthDetailOptions::detail when aligned (0: one scale per view)
 
-  // With GeometryOptions::measured_surface: what run.json and metrics.json record of it.
-  nlohmann::json measured_surface = nlohmann::json::object();
+  // Typed results of the corrections that later steps and commands act on.
+  PointsSource geometry_kind = PointsSource::None;     // the scene points' source (None when not aligned)
   MeasuredFrom measured_from = MeasuredFrom::nothing;  // where the measured surface's depth came from
-  // With GeometryOptions::region_surface: what run.json and metrics.json record of it, and the
-  // reference's pixels it put on the surface (flat indices; refinement keeps them as they are).
-  nlohmann::json region_surface = nlohmann::json::object();
+  // The reference's pixels the region surface put on the surface (flat indices; refinement keeps
+  // their splats as they are).
   torch::Tensor region_surface_pixels;
-
-  // With GeometryOptions::floaters: what run.json and metrics.json record of them.
-  nlohmann::json floaters;
 
   // The steps' Gaussians beside the network's own, in this order and always all three, empty when
   // off: "frame_margin" (past the edges of each view's picture, geometry/frame_margin.h),
@@ -68,10 +63,11 @@ struct Prediction {
   // The Gaussians of the layer `name` (an Error naming the layers when there is none such).
   const GaussianSet& layer(const std::string& name) const;
 
-  // What run.json and metrics.json record of the depth alignment.
+  // What run.json and metrics.json record of the geometry: the depth alignment's record at the top,
+  // then each other step's under its name.
   nlohmann::json describe_geometry() const;
 
-  // One Gaussian per input pixel, rows in the official order (views of `maps`), then each layer's.
+  // One Gaussian per input pixel, rows in the official order (views of `maps()`), then each layer's.
   GaussianSet gaussians() const;
 };
 

@@ -163,7 +163,7 @@ TEST(BehindEdges, APredictionJoinsThemAfterTheMarginAndRecordsThem) {
   const BehindEdgesOptions used = behind_edges_for(options.geometry.behind_edges, true);
   EXPECT_EQ(used.fraction, 0.0625);
   EXPECT_EQ(behind_edges_for(options.geometry.behind_edges, false).fraction, 0.03125);
-  const int64_t found = gaussians_behind_edges(with.maps, with.input.input, with.input.views, used).size();
+  const int64_t found = gaussians_behind_edges(with.maps(), with.input.input, with.input.views, used).size();
   const int64_t kept = with.layer("behind_edges").size();
   EXPECT_GT(kept, 0);  // the room's table stands in front of its floor
   const nlohmann::json recorded = with.describe_geometry()["behind_edges"];

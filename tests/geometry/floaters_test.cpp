@@ -105,10 +105,10 @@ TEST(Floaters, APredictionRecordsThem) {
   EXPECT_GT(recorded["faded"].get<int64_t>(), 0);
   EXPECT_EQ(kept.describe_geometry()["floaters"]["faded"], 0);
   // Only opacities change, and only those recorded, each to 0.3 of what it was.
-  EXPECT_TRUE(torch::equal(faded.maps.xyz, kept.maps.xyz));
-  const torch::Tensor changed = faded.maps.opacity.ne(kept.maps.opacity);
+  EXPECT_TRUE(torch::equal(faded.maps().xyz, kept.maps().xyz));
+  const torch::Tensor changed = faded.maps().opacity.ne(kept.maps().opacity);
   EXPECT_EQ(changed.sum().item<int64_t>(), recorded["faded"].get<int64_t>());
-  EXPECT_TRUE(torch::allclose(faded.maps.opacity.index({changed}), kept.maps.opacity.index({changed}) * 0.3));
+  EXPECT_TRUE(torch::allclose(faded.maps().opacity.index({changed}), kept.maps().opacity.index({changed}) * 0.3));
 }
 
 }  // namespace floaters_test

@@ -43,8 +43,8 @@ torch::Tensor away_from_mask(const PreparedView& view, int margin) {
 
 // PSNR of each view's own pixel rows rendered at its camera against its picture, outside its mask.
 double own_view_psnr(const Prediction& p, size_t v) {
-  const int64_t h = p.maps.depth.size(3), w = p.maps.depth.size(4);
-  const GaussianSet all = gaussians_from_maps(narrowed(p.maps, 1, static_cast<int64_t>(v)));
+  const int64_t h = p.maps().depth.size(3), w = p.maps().depth.size(4);
+  const GaussianSet all = gaussians_from_maps(narrowed(p.maps(), 1, static_cast<int64_t>(v)));
   RenderCamera camera;
   camera.camera = p.input.input.view_cameras[v];
   const torch::Tensor rendered = render(all, camera).rgb.permute({2, 0, 1}).unsqueeze(0);
@@ -83,16 +83,16 @@ TEST(MeasuredSurface, PutsTheGaussiansOutsideTheMaskOnTheMeasuredDepth) {
     const int64_t vi = static_cast<int64_t>(v);
     taken += take.sum().item<int64_t>();
     // On the measured depth, opaque, flat (the third axis a tenth of the narrower one or less).
-    const torch::Tensor depth = with.maps.depth[0][vi][0];
+    const torch::Tensor depth = with.maps().depth[0][vi][0];
     EXPECT_TRUE(torch::allclose(depth.index({take}), measured.index({take}), 1e-5, 1e-6));
-    EXPECT_GE(with.maps.opacity[0][vi][0].index({take}).min().item<float>(), 0.95f);
-    const torch::Tensor scales = with.maps.scale[0][vi].permute({1, 2, 0}).index({take});  // (N, 3)
+    EXPECT_GE(with.maps().opacity[0][vi][0].index({take}).min().item<float>(), 0.95f);
+    const torch::Tensor scales = with.maps().scale[0][vi].permute({1, 2, 0}).index({take});  // (N, 3)
     EXPECT_TRUE(scales.select(1, 2).le(0.1001 * std::get<0>(scales.narrow(1, 0, 2).min(1))).all().item<bool>());
     // In and beside the mask: the network's Gaussians, untouched.
     const torch::Tensor kept = take.logical_not();
     for (auto member : {&GaussianMaps::xyz, &GaussianMaps::scale, &GaussianMaps::opacity, &GaussianMaps::rotation}) {
-      const torch::Tensor a = (with.maps.*member)[0][vi].permute({1, 2, 0}).index({kept});
-      const torch::Tensor b = (without.maps.*member)[0][vi].permute({1, 2, 0}).index({kept});
+      const torch::Tensor a = (with.maps().*member)[0][vi].permute({1, 2, 0}).index({kept});
+      const torch::Tensor b = (without.maps().*member)[0][vi].permute({1, 2, 0}).index({kept});
       EXPECT_TRUE(torch::equal(a, b));
     }
     // The view's own Gaussians give its picture back more closely.
@@ -136,15 +136,15 @@ TEST(MeasuredSurface, TheSceneBesideTheObjectInsideAWideMask) {
     const PreparedView& view = with.input.views[v];
     const int64_t vi = static_cast<int64_t>(v);
     const torch::Tensor changed =
-        with.maps.xyz[0][vi].ne(without.maps.xyz[0][vi]).any(0).logical_or(
-            with.maps.rgb[0][vi].ne(without.maps.rgb[0][vi]).any(0));
+        with.maps().xyz[0][vi].ne(without.maps().xyz[0][vi]).any(0).logical_or(
+            with.maps().rgb[0][vi].ne(without.maps().rgb[0][vi]).any(0));
     beside += changed.sum().item<int64_t>();
     // Only inside the wide mask and its margin.
     EXPECT_FALSE(changed.logical_and(away_from_mask(view, MeasuredSurfaceOptions().mask_margin)).any().item<bool>())
         << view.name;
     // The object's own pixels that the reference's picture holds (what it does not see, it
     // cannot remove) stay the network's: their points lie in the reference's mask's cone.
-    const PixelHit hit = project(with.input.input.view_cameras.front(), with.maps.xyz[0][vi].flatten(1).t());
+    const PixelHit hit = project(with.input.input.view_cameras.front(), with.maps().xyz[0][vi].flatten(1).t());
     const torch::Tensor seen_by_reference = hit.inside.view({64, 64});
     EXPECT_FALSE(changed.logical_and(object.at(view.name)).logical_and(seen_by_reference).any().item<bool>())
         << view.name;
@@ -152,9 +152,9 @@ TEST(MeasuredSurface, TheSceneBesideTheObjectInsideAWideMask) {
     const Image map = *load_view_depth(scene, scene.views[static_cast<size_t>(with.input.context[v])]);
     const FarSide far = flying_pixels_to_far_side(image_to_tensor(map)[0][0], FlyingPixelOptions());
     const torch::Tensor measured = far.depth / with.input.normalization.scale;
-    EXPECT_TRUE(torch::allclose(with.maps.depth[0][vi][0].index({changed}), measured.index({changed}), 1e-5, 1e-6));
+    EXPECT_TRUE(torch::allclose(with.maps().depth[0][vi][0].index({changed}), measured.index({changed}), 1e-5, 1e-6));
     const torch::Tensor photo = far_side_colours(image_to_tensor(view.rgb)[0], far).clamp(0, 1);
-    EXPECT_TRUE(torch::allclose(with.maps.rgb[0][vi].permute({1, 2, 0}).index({changed}),
+    EXPECT_TRUE(torch::allclose(with.maps().rgb[0][vi].permute({1, 2, 0}).index({changed}),
                                 photo.permute({1, 2, 0}).index({changed}), 1e-6, 1e-6));
   }
   EXPECT_GT(beside, 50);

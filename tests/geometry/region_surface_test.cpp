@@ -151,18 +151,18 @@ TEST(RegionSurface, APredictionPutsTheReferencesRegionOnTheSurfaceAroundIt) {
     return map[0][0].reshape({map.size(2), -1}).to(torch::kFloat32);
   };
   for (auto member : {&GaussianMaps::xyz, &GaussianMaps::opacity, &GaussianMaps::rgb, &GaussianMaps::scale}) {
-    const torch::Tensor a = reference_map(with.maps.*member), b = reference_map(without.maps.*member);
+    const torch::Tensor a = reference_map(with.maps().*member), b = reference_map(without.maps().*member);
     EXPECT_TRUE(torch::equal(a.index({Slice(), outside}), b.index({Slice(), outside})));
     EXPECT_FALSE(torch::equal(a.index({Slice(), region.flatten()}), b.index({Slice(), region.flatten()})));
   }
-  for (int64_t v = 1; v < 4; ++v) EXPECT_TRUE(torch::equal(with.maps.xyz[0][v], without.maps.xyz[0][v]));
+  for (int64_t v = 1; v < 4; ++v) EXPECT_TRUE(torch::equal(with.maps().xyz[0][v], without.maps().xyz[0][v]));
   const torch::Tensor inside = region.flatten();
-  EXPECT_GE(reference_map(with.maps.opacity).index({Slice(), inside}).min().item<float>(), 0.95f);
+  EXPECT_GE(reference_map(with.maps().opacity).index({Slice(), inside}).min().item<float>(), 0.95f);
   const torch::Tensor photo =
       torch::from_blob(const_cast<float*>(reference.rgb.pixels.data()), {64 * 64, reference.rgb.channels})
           .index({Slice(), Slice(0, 3)})
           .t();
-  EXPECT_TRUE(torch::allclose(reference_map(with.maps.rgb).index({Slice(), inside}),
+  EXPECT_TRUE(torch::allclose(reference_map(with.maps().rgb).index({Slice(), inside}),
                               photo.index({Slice(), inside}).clamp(0, 1)));
   // Region pixels whose weighted depth fell between two surfaces went to the far one: only they
   // differ from a run that keeps them, each farther than it was.
@@ -172,7 +172,7 @@ TEST(RegionSurface, APredictionPutsTheReferencesRegionOnTheSurfaceAroundIt) {
   const int64_t moved = recorded["far_side"].get<int64_t>();
   EXPECT_GT(moved, 0);
   EXPECT_EQ(kept.describe_geometry()["region_surface"]["far_side"], 0);
-  const torch::Tensor depth_moved = reference_map(with.maps.depth)[0], depth_kept = reference_map(kept.maps.depth)[0];
+  const torch::Tensor depth_moved = reference_map(with.maps().depth)[0], depth_kept = reference_map(kept.maps().depth)[0];
   const torch::Tensor differ = depth_moved.ne(depth_kept);
   EXPECT_EQ(differ.sum().item<int64_t>(), moved);
   EXPECT_FALSE(differ.logical_and(inside.logical_not()).any().item<bool>());
