@@ -163,7 +163,7 @@ class Gaussians:
         every 8th input view is held out to choose the result: the prediction itself comes back
         when no iterate beats it there.
 
-        preset: "fast" (1 minute), "balanced" (5), "best" (10), a time ("90s", "2m") or a step count.
+        preset: "fast" (1 minute), "balanced" (9), "best" (20), a time ("90s", "2m") or a step count.
         position_rate: the position learning rate in multiples of 3DGS's (default 30).
         progress: called after each step with {"step", "fraction", "loss", "eta_s", "gaussians"};
         an exception it raises stops the refinement and propagates.

@@ -13,15 +13,15 @@
 namespace ii::cli {
 
 namespace {
-// What `--refine` alone means: the best result in about 5 minutes on 2 CPU cores.
+// What `--refine` alone means: the best result in about 9 minutes on 2 CPU cores.
 constexpr const char* kDefaultRefinement = "balanced";
 }  // namespace
 
 void add_refine_options(CLI::App* cmd, RefineArgs& args) {
   cmd->add_option("--refine", args.setting,
                   "Optimise the predicted Gaussians against every view of the scene (outside the object masks; the "
-                  "reference everywhere), 3DGS-style with densification: fast (1 minute), balanced (5 minutes), best "
-                  "(10 minutes), a time (90s, 2m) or a number of steps. --refine alone: balanced; without it (or 0): "
+                  "reference everywhere), 3DGS-style with densification: fast (1 minute), balanced (9 minutes), best "
+                  "(20 minutes), a time (90s, 2m) or a number of steps. --refine alone: balanced; without it (or 0): "
                   "the feed-forward result, as the paper")
       ->expected(0, 1)
       ->default_str(kDefaultRefinement)  // the value of `--refine` given alone

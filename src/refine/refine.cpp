@@ -120,7 +120,7 @@ std::string refine_length(const RefineOptions& options) {
 RefineOptions refine_setting(const std::string& text) {
   RefineOptions o;
   if (text == "fast" || text == "balanced" || text == "best") {
-    o.time_budget_s = text == "fast" ? 60 : text == "balanced" ? 300 : 600;
+    o.time_budget_s = text == "fast" ? 60 : text == "balanced" ? 540 : 1200;
     return o;
   }
   // A number of steps, or a time: digits with an optional fraction and the unit s or m.

@@ -125,8 +125,9 @@ struct RefineOptions {
   GaussianSet whole_start;
 };
 
-// `--refine`'s settings by name: "fast" (1 minute), "balanced" (5 minutes, what a user gets by
-// default), "best" (10 minutes), a time budget ("90s", "2m", "1.5m"), or a number of steps
+// `--refine`'s settings by name: "fast" (1 minute), "balanced" (9 minutes, what a user gets by
+// default: on 2 cores the step count where scene 1's refined whole gains its 1 dB, docs/benchmarks.md
+// session 45), "best" (20 minutes), a time budget ("90s", "2m", "1.5m"), or a number of steps
 // ("300"; "0" = no refinement). Error naming the text otherwise.
 RefineOptions refine_setting(const std::string& text);
 // Whether the options ask for any optimisation.

@@ -217,7 +217,7 @@ struct JobRequest {
   ClassicalInpainter inpainter = ClassicalInpainter::Telea;  // fill without a reference: its built-in one
 };
 
-// The form's `refine`: fast, balanced, best, a time up to 10 minutes or up to 5000 steps.
+// The form's `refine`: fast, balanced, best, a time up to 20 minutes or up to 5000 steps.
 std::optional<Refusal> parse_refine(const httplib::Request& req, RefineOptions& refine) {
   if (!req.has_file("refine")) return std::nullopt;
   try {
@@ -225,8 +225,8 @@ std::optional<Refusal> parse_refine(const httplib::Request& req, RefineOptions& 
   } catch (const Error&) {
     refine.steps = -1;
   }
-  if (refine.steps < 0 || refine.steps > 5000 || refine.time_budget_s > 600)
-    return Refusal{400, "refine must be fast, balanced or best, a time up to 10m, or a number of steps up to 5000"};
+  if (refine.steps < 0 || refine.steps > 5000 || refine.time_budget_s > 1200)
+    return Refusal{400, "refine must be fast, balanced or best, a time up to 20m, or a number of steps up to 5000"};
   return std::nullopt;
 }
 

@@ -336,14 +336,14 @@ TEST(Refine, ATimeBudgetIsKept) {
 
 TEST(Refine, SettingsByNameTimeOrSteps) {
   EXPECT_EQ(refine_setting("fast").time_budget_s, 60);
-  EXPECT_EQ(refine_setting("balanced").time_budget_s, 300);
-  EXPECT_EQ(refine_setting("best").time_budget_s, 600);
+  EXPECT_EQ(refine_setting("balanced").time_budget_s, 540);
+  EXPECT_EQ(refine_setting("best").time_budget_s, 1200);
   EXPECT_EQ(refine_setting("90s").time_budget_s, 90);
   EXPECT_EQ(refine_setting("1.5m").time_budget_s, 90);
   EXPECT_EQ(refine_setting("300").steps, 300);
   EXPECT_EQ(refine_setting("300").time_budget_s, 0);
   EXPECT_FALSE(refine_requested(refine_setting("0")));
-  EXPECT_EQ(refine_length(refine_setting("balanced")), "5 minutes");
+  EXPECT_EQ(refine_length(refine_setting("balanced")), "9 minutes");
   EXPECT_EQ(refine_length(refine_setting("1")), "1 step");
   for (const char* bad : {"", "quick", "-5", "5h", "0s", "1e9", "2m30", "1234567"})
     EXPECT_EQ(test::error_message([&] { refine_setting(bad); }),

@@ -222,10 +222,10 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
   r = s.client->Post("/api/masks", edit_form("view_001", mask, "mode", "paint"));
   EXPECT_EQ(r->status, 400);
   EXPECT_EQ(error_of(r), "mode must be remove or insert");
-  for (const char* refine : {"1e9", "5001", "11m", "quick", ""}) {
+  for (const char* refine : {"1e9", "5001", "21m", "quick", ""}) {
     r = s.client->Post("/api/edit", edit_form("view_001", mask, "refine", refine));
     EXPECT_EQ(r->status, 400) << refine;
-    EXPECT_EQ(error_of(r), "refine must be fast, balanced or best, a time up to 10m, or a number of steps up to 5000")
+    EXPECT_EQ(error_of(r), "refine must be fast, balanced or best, a time up to 20m, or a number of steps up to 5000")
         << refine;
   }
   r = s.client->Post("/api/edit", edit_form("view_001", mask, "mode", "insert"));
