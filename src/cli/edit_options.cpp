@@ -38,6 +38,12 @@ void add_edit_options(CLI::App* cmd, EditArgs& args) {
   cmd->add_option("--dilate", args.dilate,
                   "Pixels added around every propagated mask (default: 1 % of the view's larger side, at least 2)")
       ->check(CLI::Range(0, 64));
+  cmd->add_option("--carve", args.carve,
+                  "Remove with the network's depth: carve each propagated mask to the object it holds (the "
+                  "reconstruction's points inside the marked volume, then GrabCut by colour); off: the "
+                  "propagated masks as they are")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
 }
 
 void add_reference_options(CLI::App* cmd, EditArgs& args) {
@@ -105,6 +111,7 @@ std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene
   if (args.depth_margin >= 0) request.depth_margin = args.depth_margin;
   if (!args.depth.empty()) request.depth_file = args.depth;
   request.depth_png_scale = args.depth_scale;
+  request.carve = args.carve == "on";
   return request;
 }
 

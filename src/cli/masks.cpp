@@ -10,6 +10,7 @@
 #include "cli/commands.h"
 #include "cli/edit_options.h"
 #include "common/files.h"
+#include "common/stage_times.h"
 #include "common/stopwatch.h"
 #include "edit/scene_masks.h"
 #include "io/image.h"
@@ -41,7 +42,8 @@ void run(const MasksArgs& a) {
   input.num_views = a.views;
   input.preprocess.height = a.height;
   input.geometry = a.edit.geometry;
-  const SceneMasks masks = masks_from_one(scene, request, predictor.source(), input);
+  StageTimes stages;
+  const SceneMasks masks = masks_from_one(scene, request, predictor.source(), input, &stages);
 
   // Masks as the --masks option reads them; against the scene's own masks when it has them.
   const fs::path out(a.out);
@@ -79,6 +81,7 @@ void run(const MasksArgs& a) {
                            {"mean_precision", precision_sum / compared},
                            {"worst_precision", worst_precision}};
   if (const Predictor* model = predictor.loaded()) report["model"] = model->describe();
+  report["stages"] = stages.to_json();
   report["total_ms"] = total.ms();
   write_file_atomic(out / "masks.json", report.dump(2) + "\n");
 

@@ -140,6 +140,8 @@ PropagatedMasks propagate_mask(const Image& region, const Image& depth, const Ca
 
   const double m = options.depth_margin;
   PropagatedMasks out;
+  out.near = Image(W, H, 1);
+  out.far = Image(W, H, 1);
   // Every region pixel's world segment, drawn afterwards into each view (the views side by side).
   struct Segment {
     Eigen::Vector3d a, b;
@@ -210,6 +212,8 @@ PropagatedMasks propagate_mask(const Image& region, const Image& depth, const Ca
           t0 = std::max(1e-3 * d, d * (1 - m) - extent);
         }
         segments.push_back({point_at(x, y, t0), point_at(x, y, t1), min_z});
+        out.near.at(y, x) = static_cast<float>(t0);
+        out.far.at(y, x) = static_cast<float>(t1);
       }
     out.regions.push_back(lifted);
   }
@@ -223,6 +227,24 @@ PropagatedMasks propagate_mask(const Image& region, const Image& depth, const Ca
     out.masks[static_cast<size_t>(v)] = finish_mask(canvas, options.dilation >= 0 ? options.dilation : automatic);
   });
   return out;
+}
+
+std::vector<uint8_t> inside_lifted(const PropagatedMasks& lifted, const Camera& camera,
+                                   const std::vector<Eigen::Vector3d>& points) {
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  const Intrinsics& K = camera.K;
+  std::vector<uint8_t> inside(points.size(), 0);
+  if (lifted.near.width != K.width || lifted.near.height != K.height) return inside;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d c = w2c.topLeftCorner<3, 3>() * points[i] + w2c.topRightCorner<3, 1>();
+    if (!(c.z() > 0)) continue;
+    const auto x = static_cast<int>(std::floor(K.fx * c.x() / c.z() + K.cx));
+    const auto y = static_cast<int>(std::floor(K.fy * c.y() / c.z() + K.cy));
+    if (x < 0 || y < 0 || x >= K.width || y >= K.height) continue;
+    const float near = lifted.near.at(y, x), far = lifted.far.at(y, x);
+    inside[i] = far > 0 && c.z() >= near && c.z() <= far;
+  }
+  return inside;
 }
 
 MaskAgreement mask_agreement(const Image& propagated, const Image& truth) {

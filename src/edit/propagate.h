@@ -8,6 +8,7 @@
 // extent (default: the region's width in 3D at that depth). Each ray segment is projected
 // and drawn into every view, then holes are filled and the mask is dilated. Disjoint
 // regions (connected components) are lifted one by one. Torch-free.
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -48,7 +49,14 @@ struct LiftedRegion {
 struct PropagatedMasks {
   std::vector<Image> masks;  // one per target camera, at its size, values 0/1
   std::vector<LiftedRegion> regions;
+  // The lifted volume: each marked pixel's ray segment, from `near` to `far` (camera z, scene
+  // units) at the marked view's size; 0 off the region.
+  Image near, far;
 };
+
+// Whether each point (world) lies in the lifted volume of `lifted` (marked from `camera`).
+std::vector<uint8_t> inside_lifted(const PropagatedMasks& lifted, const Camera& camera,
+                                   const std::vector<Eigen::Vector3d>& points);
 
 // `region` (1 channel, > 0.5 = marked) and `depth` (1 channel z-depth in scene units; 0,
 // negative or non-finite = unknown) are at `camera`'s size. Errors: sizes that differ, an

@@ -65,8 +65,9 @@ Image depth_at_image_size(const torch::Tensor& working_depth, double normalizati
   return depth;
 }
 
-Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const std::string& view,
-                           const SceneInputOptions& options, StageTimes* stages) {
+ViewReconstruction predicted_view_reconstruction(const Predictor& predictor, const Scene& scene,
+                                                 const std::string& view, const SceneInputOptions& options,
+                                                 StageTimes* stages, int64_t max_points) {
   const View& marked = marked_view(scene, view);
   SceneInputOptions o;
   o.num_views = options.num_views;
@@ -79,19 +80,37 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
   o.geometry.align_depth =
       options.geometry.align_depth == DepthPoints::photos ? DepthPoints::depth_maps : options.geometry.align_depth;
   o.geometry.depth_detail = options.geometry.depth_detail;
-  o.geometry.frame_margin.fraction = 0;  // only the marked view's depth map is read
+  o.geometry.frame_margin.fraction = 0;  // only the context views' own pixels are read
   o.geometry.behind_edges.fraction = 0;
   o.geometry.floaters.fade = 1;          // (nor its opacities)
   o.geometry.region_cover.opacity = 0;
   o.geometry.region_surface.opacity = 0;  // the region's depth is the object's here
   const Prediction p = predictor.predict(scene, o);
   Stopwatch watch;
-  const Image depth = depth_at_image_size(p.maps().depth[0][0][0], p.input.normalization.scale, marked, o.preprocess);
+  ViewReconstruction out;
+  out.depth = depth_at_image_size(p.maps().depth[0][0][0], p.input.normalization.scale, marked, o.preprocess);
   if (stages) {
     stages->merge(p.stages, "masks: ");
     stages->add("masks: depth map", watch.ms());
   }
-  return depth;
+  if (max_points > 0) {
+    watch = Stopwatch();
+    const GaussianSet g = in_scene_frame(gaussians_from_maps(p.maps()), p.input.normalization);
+    const torch::Tensor opaque = g.opacities.reshape({-1}).gt(0.5).nonzero().squeeze(1);
+    const int64_t step = std::max<int64_t>(1, (opaque.numel() + max_points - 1) / max_points);
+    const torch::Tensor means =
+        g.means.index_select(0, opaque.slice(0, 0, opaque.numel(), step)).to(torch::kCPU, torch::kDouble).contiguous();
+    const auto m = means.accessor<double, 2>();
+    out.points.reserve(static_cast<size_t>(means.size(0)));
+    for (int64_t i = 0; i < means.size(0); ++i) out.points.emplace_back(m[i][0], m[i][1], m[i][2]);
+    if (stages) stages->add("masks: the reconstruction's points", watch.ms());
+  }
+  return out;
+}
+
+Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const std::string& view,
+                           const SceneInputOptions& options, StageTimes* stages) {
+  return predicted_view_reconstruction(predictor, scene, view, options, stages, 0).depth;
 }
 
 nlohmann::json SceneMasks::describe(const OneMask& request) const {
@@ -106,13 +125,46 @@ nlohmann::json SceneMasks::describe(const OneMask& request) const {
           {"mode", edit_mode_name(request.propagation.mode)},
           {"depth_source", depth_source},
           {"notes", notes},
-          {"regions", regions_json}};
+          {"regions", regions_json},
+          {"carved", carved}};
 }
 
 void SceneMasks::apply_to(SceneInputOptions& options, const OneMask& request) const {
   options.masks = masks;
   if (options.reference_view.empty() && options.context.empty()) options.reference_view = request.view;
 }
+
+namespace {
+
+// Each view's propagated mask (not the marked one's) carved to the object inside it: the
+// reconstruction's points inside the lifted volume are the object's.
+void carve_to_the_object(const Scene& scene, const OneMask& request, const PropagatedMasks& lifted,
+                         const std::vector<Eigen::Vector3d>& points, StageTimes& times, SceneMasks& out) {
+  const View& marked = marked_view(scene, request.view);
+  const std::vector<uint8_t> object = inside_lifted(lifted, marked.camera, points);
+  std::vector<Image> photos, masks;
+  std::vector<const Image*> photo_of;
+  std::vector<Camera> cameras;
+  std::vector<std::string> names;
+  times.time("masks: photos", [&] {
+    for (const View& v : scene.views) {
+      if (v.name == marked.name) continue;
+      photos.push_back(load_view_image(v));
+      masks.push_back(out.masks.at(v.name));
+      cameras.push_back(v.camera);
+      names.push_back(v.name);
+    }
+  });
+  for (const Image& p : photos) photo_of.push_back(&p);
+  const std::vector<CarvedMask> carved =
+      times.time("masks: carve", [&] { return carve_masks(masks, photo_of, cameras, points, object, request.carving); });
+  for (size_t i = 0; i < carved.size(); ++i) {
+    out.masks[names[i]] = carved[i].mask;
+    out.carved += carved[i].carved;
+  }
+}
+
+}  // namespace
 
 SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
                           const SceneInputOptions& options, StageTimes* stages) {
@@ -167,8 +219,14 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
          "reconstruct it{}",
          marked.name, out.notes.empty() ? "" : fmt::format(" ({})", fmt::join(out.notes, "; ")));
   for (const std::string& note : out.notes) spdlog::info("{}: using the network's depth", note);
-  const Image depth = predicted_view_depth(predictor(), scene, marked.name, options, stages);
-  return finish(lift(depth, kNetworkDepthMargin, false), "network");
+  const ViewReconstruction reconstruction =
+      predicted_view_reconstruction(predictor(), scene, marked.name, options, stages,
+                                    request.carve && request.propagation.mode == EditMode::Remove ? 400000 : 0);
+  const PropagatedMasks lifted = lift(reconstruction.depth, kNetworkDepthMargin, false);
+  finish(lifted, "network");
+  if (request.carve && request.propagation.mode == EditMode::Remove && !reconstruction.points.empty())
+    carve_to_the_object(scene, request, lifted, reconstruction.points, times, out);
+  return out;
 }
 
 }  // namespace ii

@@ -19,6 +19,7 @@
 
 #include "data/scene.h"
 #include "common/stage_times.h"
+#include "edit/carve.h"
 #include "edit/propagate.h"
 #include "predict/predictor.h"
 
@@ -36,6 +37,10 @@ struct OneMask {
   // network's would be (its margin), before the network runs; `working_depth_source` names it.
   std::optional<torch::Tensor> working_depth;
   std::string working_depth_source = "given depth";
+  // With the network's reconstruction: each propagated mask carved to the object it holds
+  // (edit/carve.h); false: the propagated masks as they are.
+  bool carve = false;
+  CarveOptions carving;
 };
 
 // A region mask file for a view: read_mask, then checked against the view's image size.
@@ -57,12 +62,22 @@ std::optional<Image> colmap_points_depth(const Scene& scene, const View& view);
 // `stages` (optional) gets the prediction's stages, prefixed "masks: ".
 Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const std::string& view,
                            const SceneInputOptions& options, StageTimes* stages = nullptr);
+// The same reconstruction's depth of `view` and its Gaussians' centres (scene frame, the opaque
+// ones, at most `max_points` of them evenly taken).
+struct ViewReconstruction {
+  Image depth;
+  std::vector<Eigen::Vector3d> points;
+};
+ViewReconstruction predicted_view_reconstruction(const Predictor& predictor, const Scene& scene,
+                                                 const std::string& view, const SceneInputOptions& options,
+                                                 StageTimes* stages = nullptr, int64_t max_points = 400000);
 
 struct SceneMasks {
   std::map<std::string, Image> masks;  // every view of the scene by name; the marked one = its region
   std::string depth_source;            // "file <path>", "colmap points" or "network"
   std::vector<std::string> notes;      // why a preferred depth source was passed over
   std::vector<LiftedRegion> regions;
+  int carved = 0;  // views whose masks were carved to the object (edit/carve.h)
   // {"view", "mode", "depth_source", "notes", "regions": [{pixels, depth_inside, depth_ring, near, far}]}
   nlohmann::json describe(const OneMask& request) const;
   // Gives the network these masks; the marked view becomes the reference unless the caller

@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 
 #include "camera/camera.h"
+#include "edit/carve.h"
 #include "edit/propagate.h"
 #include "test_support.h"
 
@@ -40,8 +41,13 @@ Camera camera_at(const Eigen::Vector3d& position, const Eigen::Vector3d& target,
 struct Traced {
   Image depth, mask;
 };
-Traced trace(const Camera& cam, const std::vector<Sphere>& spheres) {
+// With `objects`: only the first `objects` spheres are masked (the others stand in front or beside).
+// `photo` and `points`, when given, receive each pixel's colour (the object red, other spheres
+// blue, the wall a green checkerboard) and the world point it sees.
+Traced trace(const Camera& cam, const std::vector<Sphere>& spheres, size_t objects = SIZE_MAX, Image* photo = nullptr,
+             std::vector<Eigen::Vector3d>* points = nullptr) {
   Traced t{Image(cam.K.width, cam.K.height, 1), Image(cam.K.width, cam.K.height, 1)};
+  if (photo) *photo = Image(cam.K.width, cam.K.height, 3);
   const Eigen::Matrix4d c2w = opengl_to_opencv(cam.c2w);
   const Eigen::Vector3d o = cam.center();
   for (int y = 0; y < cam.K.height; ++y)
@@ -50,7 +56,9 @@ Traced trace(const Camera& cam, const std::vector<Sphere>& spheres) {
       const Eigen::Vector3d d = c2w.topLeftCorner<3, 3>() * local;  // z-depth 1 along this ray
       double best = d.z() < 0 ? (kWallZ - o.z()) / d.z() : 1e9;
       bool object = false;
-      for (const Sphere& s : spheres) {
+      int hit_sphere = -1;
+      for (size_t k = 0; k < spheres.size(); ++k) {
+        const Sphere& s = spheres[k];
         const Eigen::Vector3d oc = o - s.centre;
         const double a = d.squaredNorm(), b = 2 * oc.dot(d), c = oc.squaredNorm() - s.radius * s.radius;
         const double disc = b * b - 4 * a * c;
@@ -58,11 +66,23 @@ Traced trace(const Camera& cam, const std::vector<Sphere>& spheres) {
         const double hit = (-b - std::sqrt(disc)) / (2 * a);
         if (hit > 0 && hit < best) {
           best = hit;
-          object = true;
+          object = k < objects;
+          hit_sphere = static_cast<int>(k);
         }
       }
       t.depth.at(y, x) = static_cast<float>(best);
       t.mask.at(y, x) = object ? 1.f : 0.f;
+      const Eigen::Vector3d at = o + best * d;
+      if (points) points->push_back(at);
+      if (photo) {
+        const bool light = (static_cast<int>(std::floor(4 * at.x())) + static_cast<int>(std::floor(4 * at.y()))) % 2;
+        const float shade = 0.8f + 0.2f * static_cast<float>(std::sin(7 * at.x() + 5 * at.y()));
+        const Eigen::Vector3f colour = hit_sphere == 0  ? Eigen::Vector3f(0.85f, 0.15f, 0.1f) * shade
+                                       : hit_sphere > 0 ? Eigen::Vector3f(0.1f, 0.2f, 0.9f) * shade
+                                       : light          ? Eigen::Vector3f(0.3f, 0.7f, 0.3f)
+                                                        : Eigen::Vector3f(0.2f, 0.5f, 0.25f);
+        for (int c = 0; c < 3; ++c) photo->at(y, x, c) = colour[c];
+      }
     }
   return t;
 }
@@ -179,6 +199,54 @@ TEST(Propagate, TheMarkedViewGetsItsRegionBack) {
   const MaskAgreement a = mask_agreement(p.masks[0], marked.mask);
   EXPECT_EQ(a.recall, 1.0);
   EXPECT_GT(a.precision, 0.97);  // the closing may round the staircase of the outline
+}
+
+// Carving: the points every view sees (its traced surface), those inside the lifted volume the
+// object's. The carved masks hold the object and little else, and a sphere standing in front of
+// the object is not masked where it hides it.
+TEST(Propagate, CarvedMasksHoldTheObjectAndNotWhatStandsInFront) {
+  const std::vector<Sphere> spheres = {{{0, 0, -3}, 0.6}, {{0.55, 0.1, -1.9}, 0.18}};
+  const std::vector<Camera> cams = cameras_around(spheres[0].centre);
+  std::vector<Image> photos(cams.size());
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Traced> truth;
+  for (size_t v = 0; v < cams.size(); ++v) truth.push_back(trace(cams[v], spheres, 1, &photos[v], &points));
+  const PropagatedMasks p = propagate_mask(truth[0].mask, truth[0].depth, cams[0], cams);
+  const std::vector<uint8_t> object = inside_lifted(p, cams[0], points);
+  std::vector<const Image*> photo_of;
+  for (const Image& photo : photos) photo_of.push_back(&photo);
+  const std::vector<CarvedMask> carved = carve_masks(p.masks, photo_of, cams, points, object);
+  ASSERT_EQ(carved.size(), cams.size());
+  int occluded_views = 0;
+  for (size_t v = 1; v < cams.size(); ++v) {
+    const MaskAgreement before = mask_agreement(p.masks[v], truth[v].mask);
+    const MaskAgreement after = mask_agreement(carved[v].mask, truth[v].mask);
+    EXPECT_TRUE(carved[v].carved) << "view " << v;
+    EXPECT_GT(carved[v].object_seeds, 0) << "view " << v;
+    EXPECT_GE(after.recall, 0.97) << "view " << v;
+    EXPECT_GE(after.precision, 0.9) << "view " << v;
+    EXPECT_GT(after.precision, before.precision + 0.1) << "view " << v;
+    // Where the small sphere hides the object, its pixels are not the object's.
+    int hidden = 0, masked = 0;
+    for (int y = 0; y < truth[v].mask.height; ++y)
+      for (int x = 0; x < truth[v].mask.width; ++x)
+        if (p.masks[v].at(y, x) > 0.5f && photos[v].at(y, x, 2) > 0.5f) {
+          ++hidden;
+          masked += carved[v].mask.at(y, x) > 0.5f;
+        }
+    if (hidden > 20) {
+      ++occluded_views;
+      EXPECT_LT(masked, hidden / 5) << "view " << v;
+    }
+  }
+  EXPECT_GT(occluded_views, 0) << "the small sphere should stand in front of the object in some view";
+  // A view that sees none of the object's points keeps its propagated mask.
+  const std::vector<CarvedMask> unseen =
+      carve_masks({p.masks[3]}, {&photos[3]}, {cams[3]}, points, std::vector<uint8_t>(points.size(), 0));
+  EXPECT_FALSE(unseen[0].carved);
+  EXPECT_EQ(unseen[0].mask.pixels, p.masks[3].pixels);
+  EXPECT_EQ(test::error_message([&] { carve_masks(p.masks, {}, cams, points, object); }),
+            "carve: 6 masks, 0 photos and 6 cameras (one each per view expected)");
 }
 
 TEST(Propagate, AgreementCountsPixels) {

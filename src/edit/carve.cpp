@@ -1,0 +1,141 @@
+#include "edit/carve.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <opencv2/imgproc.hpp>
+
+#include "common/error.h"
+#include "common/parallel.h"
+
+namespace ii {
+
+namespace {
+
+struct Projected {
+  int x, y;
+  float z;
+  bool object;
+};
+
+// The points in front of `camera` that land in its picture, with their pixels and depths.
+std::vector<Projected> projected(const Camera& camera, const std::vector<Eigen::Vector3d>& points,
+                                 const std::vector<uint8_t>& object) {
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  const Intrinsics& K = camera.K;
+  std::vector<Projected> out;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d c = w2c.topLeftCorner<3, 3>() * points[i] + w2c.topRightCorner<3, 1>();
+    if (!(c.z() > 0)) continue;
+    const double u = K.fx * c.x() / c.z() + K.cx, v = K.fy * c.y() / c.z() + K.cy;
+    if (!(u >= 0 && v >= 0 && u < K.width && v < K.height)) continue;
+    out.push_back({static_cast<int>(u), static_cast<int>(v), static_cast<float>(c.z()), object[i] != 0});
+  }
+  return out;
+}
+
+cv::Mat to_bgr(const Image& photo) {
+  cv::Mat out(photo.height, photo.width, CV_8UC3);
+  for (int y = 0; y < photo.height; ++y)
+    for (int x = 0; x < photo.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const float v = photo.at(y, x, std::min(c, photo.channels - 1));
+        out.at<cv::Vec3b>(y, x)[2 - c] = static_cast<uint8_t>(std::lround(std::clamp(v, 0.f, 1.f) * 255));
+      }
+  return out;
+}
+
+CarvedMask carve_one(const Image& mask, const Image& photo, const Camera& camera,
+                     const std::vector<Eigen::Vector3d>& points, const std::vector<uint8_t>& object,
+                     const CarveOptions& options) {
+  CarvedMask out{mask, 0, 0, false};
+  const int W = mask.width, H = mask.height;
+  cv::Mat inside(H, W, CV_8UC1);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) inside.at<uint8_t>(y, x) = mask.at(y, x) > 0.5f;
+  if (cv::countNonZero(inside) == 0) return out;
+
+  // The nearest point of each cell: what the view sees there.
+  const std::vector<Projected> seen = projected(camera, points, object);
+  const int cell = std::max(1, options.cell);
+  const int cw = (W + cell - 1) / cell, ch = (H + cell - 1) / cell;
+  std::vector<float> nearest(static_cast<size_t>(cw) * ch, std::numeric_limits<float>::infinity());
+  for (const Projected& p : seen) {
+    float& n = nearest[static_cast<size_t>(p.y / cell) * cw + p.x / cell];
+    n = std::min(n, p.z);
+  }
+  // GrabCut's labels: outside the mask the background for certain, inside probably the object;
+  // the seen points' pixels as they are.
+  cv::Mat labels(H, W, CV_8UC1);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) labels.at<uint8_t>(y, x) = inside.at<uint8_t>(y, x) ? cv::GC_PR_FGD : cv::GC_BGD;
+  for (const Projected& p : seen) {
+    if (!inside.at<uint8_t>(p.y, p.x)) continue;
+    const float n = nearest[static_cast<size_t>(p.y / cell) * cw + p.x / cell];
+    if (p.z > n * (1 + options.seen_tolerance)) continue;  // hidden behind what the cell sees
+    uint8_t& label = labels.at<uint8_t>(p.y, p.x);
+    if (p.object) {
+      if (label != cv::GC_BGD) label = cv::GC_FGD, ++out.object_seeds;
+    } else if (label != cv::GC_FGD) {
+      label = cv::GC_BGD, ++out.other_seeds;
+    }
+  }
+  if (out.object_seeds == 0) return out;
+  // Near the object's seeds, a point of the rest may be one the object hides where its own points
+  // are missing: there it says "probably not the object" only.
+  if (options.near_object > 0) {
+    const double near_px = options.near_object * std::max(W, H);
+    cv::Mat not_seed = labels != cv::GC_FGD, distance;
+    cv::distanceTransform(not_seed, distance, cv::DIST_L2, 3);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        if (inside.at<uint8_t>(y, x) && labels.at<uint8_t>(y, x) == cv::GC_BGD && distance.at<float>(y, x) < near_px)
+          labels.at<uint8_t>(y, x) = cv::GC_PR_BGD;
+  }
+
+  // GrabCut over the mask's box and a margin around it (its colour models need some background).
+  const cv::Rect box = cv::boundingRect(inside);
+  const int margin = std::max(8, std::max(box.width, box.height) / 4);
+  const cv::Rect crop = (box + cv::Size(2 * margin, 2 * margin) - cv::Point(margin, margin)) & cv::Rect(0, 0, W, H);
+  cv::Mat crop_labels = labels(crop).clone();
+  cv::Mat background_model, object_model;
+  cv::grabCut(to_bgr(photo)(crop), crop_labels, cv::Rect(), background_model, object_model, options.iterations,
+              cv::GC_INIT_WITH_MASK);
+  cv::Mat carved(H, W, CV_8UC1, cv::Scalar(0));
+  cv::Mat object_pixels = (crop_labels == cv::GC_FGD) | (crop_labels == cv::GC_PR_FGD);
+  object_pixels.copyTo(carved(crop));
+  if (options.dilation > 0)
+    cv::dilate(carved, carved,
+               cv::getStructuringElement(cv::MORPH_ELLIPSE,
+                                         cv::Size(2 * options.dilation + 1, 2 * options.dilation + 1)));
+  carved &= inside;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) out.mask.at(y, x) = carved.at<uint8_t>(y, x) ? 1.f : 0.f;
+  out.carved = true;
+  return out;
+}
+
+}  // namespace
+
+std::vector<CarvedMask> carve_masks(const std::vector<Image>& masks, const std::vector<const Image*>& photos,
+                                    const std::vector<Camera>& cameras, const std::vector<Eigen::Vector3d>& points,
+                                    const std::vector<uint8_t>& object, const CarveOptions& options) {
+  if (photos.size() != masks.size() || cameras.size() != masks.size())
+    fail("carve: {} masks, {} photos and {} cameras (one each per view expected)", masks.size(), photos.size(),
+         cameras.size());
+  if (object.size() != points.size())
+    fail("carve: {} points but {} object flags", points.size(), object.size());
+  for (size_t i = 0; i < masks.size(); ++i)
+    if (photos[i]->width != masks[i].width || photos[i]->height != masks[i].height)
+      fail("carve: view {}'s photo is {}x{} but its mask {}x{}", i, photos[i]->width, photos[i]->height,
+           masks[i].width, masks[i].height);
+  std::vector<CarvedMask> out(masks.size());
+  parallel_dynamic(static_cast<int64_t>(masks.size()), thread_plan().cores, [&](int64_t v) {
+    const auto i = static_cast<size_t>(v);
+    out[i] = carve_one(masks[i], *photos[i], cameras[i], points, object, options);
+  });
+  return out;
+}
+
+}  // namespace ii
