@@ -46,6 +46,39 @@ cv::Mat to_bgr(const Image& photo) {
   return out;
 }
 
+// GrabCut of `labels` (seeds as they are; `inside`: the propagated mask) over `image`, at most options.grabcut_size pixels on a
+// side: the seeds carried to the smaller picture (the object's first, then the rest's), the
+// answer brought back to the picture's size. 255 where the object is.
+cv::Mat grab_cut(const cv::Mat& image, const cv::Mat& labels, const cv::Mat& inside, const CarveOptions& options) {
+  const int side = std::max(image.cols, image.rows);
+  const double s = options.grabcut_size > 0 && side > options.grabcut_size
+                       ? static_cast<double>(options.grabcut_size) / side : 1.0;
+  cv::Mat small_image = image, small_labels = labels.clone();
+  if (s < 1) {
+    const cv::Size size(std::max(1, static_cast<int>(std::lround(image.cols * s))),
+                        std::max(1, static_cast<int>(std::lround(image.rows * s))));
+    cv::resize(image, small_image, size, 0, 0, cv::INTER_AREA);
+    cv::resize(labels, small_labels, size, 0, 0, cv::INTER_NEAREST);
+    // Probable labels from the nearest pixel; a seed wins over them, the object's over the rest's.
+    for (const uint8_t seed : {cv::GC_PR_BGD, cv::GC_BGD, cv::GC_FGD})
+      for (int y = 0; y < labels.rows; ++y)
+        for (int x = 0; x < labels.cols; ++x) {
+          if (labels.at<uint8_t>(y, x) != seed || !inside.at<uint8_t>(y, x)) continue;
+          const int sx = std::min(size.width - 1, static_cast<int>(x * s)), sy = std::min(size.height - 1, static_cast<int>(y * s));
+          small_labels.at<uint8_t>(sy, sx) = seed;
+        }
+  }
+  cv::Mat background_model, object_model;
+  cv::grabCut(small_image, small_labels, cv::Rect(), background_model, object_model, options.iterations,
+              cv::GC_INIT_WITH_MASK);
+  cv::Mat object = ((small_labels == cv::GC_FGD) | (small_labels == cv::GC_PR_FGD));
+  if (s < 1) {
+    cv::resize(object, object, image.size(), 0, 0, cv::INTER_LINEAR);
+    object = object > 127;
+  }
+  return object;
+}
+
 CarvedMask carve_one(const Image& mask, const Image& photo, const Camera& camera,
                      const std::vector<Eigen::Vector3d>& points, const std::vector<uint8_t>& object,
                      const CarveOptions& options) {
@@ -98,13 +131,8 @@ CarvedMask carve_one(const Image& mask, const Image& photo, const Camera& camera
   const cv::Rect box = cv::boundingRect(inside);
   const int margin = std::max(8, std::max(box.width, box.height) / 4);
   const cv::Rect crop = (box + cv::Size(2 * margin, 2 * margin) - cv::Point(margin, margin)) & cv::Rect(0, 0, W, H);
-  cv::Mat crop_labels = labels(crop).clone();
-  cv::Mat background_model, object_model;
-  cv::grabCut(to_bgr(photo)(crop), crop_labels, cv::Rect(), background_model, object_model, options.iterations,
-              cv::GC_INIT_WITH_MASK);
   cv::Mat carved(H, W, CV_8UC1, cv::Scalar(0));
-  cv::Mat object_pixels = (crop_labels == cv::GC_FGD) | (crop_labels == cv::GC_PR_FGD);
-  object_pixels.copyTo(carved(crop));
+  grab_cut(to_bgr(photo)(crop), labels(crop), inside(crop), options).copyTo(carved(crop));
   if (options.dilation > 0)
     cv::dilate(carved, carved,
                cv::getStructuringElement(cv::MORPH_ELLIPSE,

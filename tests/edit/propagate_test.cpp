@@ -240,6 +240,15 @@ TEST(Propagate, CarvedMasksHoldTheObjectAndNotWhatStandsInFront) {
     }
   }
   EXPECT_GT(occluded_views, 0) << "the small sphere should stand in front of the object in some view";
+  // GrabCut on a smaller picture (the seeds carried to it, the answer brought back) keeps most of it.
+  CarveOptions coarse;
+  coarse.grabcut_size = 32;
+  const std::vector<CarvedMask> small = carve_masks(p.masks, photo_of, cams, points, object, coarse);
+  for (size_t v = 1; v < cams.size(); ++v) {
+    const MaskAgreement a = mask_agreement(small[v].mask, truth[v].mask);
+    EXPECT_GE(a.recall, 0.9) << "view " << v;
+    EXPECT_GE(a.precision, 0.85) << "view " << v;
+  }
   // A view that sees none of the object's points keeps its propagated mask.
   const std::vector<CarvedMask> unseen =
       carve_masks({p.masks[3]}, {&photos[3]}, {cams[3]}, points, std::vector<uint8_t>(points.size(), 0));
