@@ -69,6 +69,7 @@ cv::Mat grab_cut(const cv::Mat& image, const cv::Mat& labels, const cv::Mat& ins
         }
   }
   cv::Mat background_model, object_model;
+  cv::theRNG() = cv::RNG(74);  // its colour models start from k-means: the same masks every run
   cv::grabCut(small_image, small_labels, cv::Rect(), background_model, object_model, options.iterations,
               cv::GC_INIT_WITH_MASK);
   cv::Mat object = ((small_labels == cv::GC_FGD) | (small_labels == cv::GC_PR_FGD));
