@@ -46,13 +46,14 @@ cv::Mat to_bgr(const Image& photo) {
   return out;
 }
 
-// GrabCut of `labels` (seeds as they are; `inside`: the propagated mask) over `image`, at most options.grabcut_size pixels on a
-// side: the seeds carried to the smaller picture (the object's first, then the rest's), the
-// answer brought back to the picture's size. 255 where the object is.
+// GrabCut of `labels` (seeds as they are; `inside`: the propagated mask) over `image`, at most
+// options.grabcut_size pixels on a side: the seeds carried to the smaller picture (the object's
+// over the rest's), the answer brought back to the picture's size. 255 where the object is.
 cv::Mat grab_cut(const cv::Mat& image, const cv::Mat& labels, const cv::Mat& inside, const CarveOptions& options) {
   const int side = std::max(image.cols, image.rows);
   const double s = options.grabcut_size > 0 && side > options.grabcut_size
-                       ? static_cast<double>(options.grabcut_size) / side : 1.0;
+                       ? static_cast<double>(options.grabcut_size) / side
+                       : 1.0;
   cv::Mat small_image = image, small_labels = labels.clone();
   if (s < 1) {
     const cv::Size size(std::max(1, static_cast<int>(std::lround(image.cols * s))),
@@ -64,7 +65,8 @@ cv::Mat grab_cut(const cv::Mat& image, const cv::Mat& labels, const cv::Mat& ins
       for (int y = 0; y < labels.rows; ++y)
         for (int x = 0; x < labels.cols; ++x) {
           if (labels.at<uint8_t>(y, x) != seed || !inside.at<uint8_t>(y, x)) continue;
-          const int sx = std::min(size.width - 1, static_cast<int>(x * s)), sy = std::min(size.height - 1, static_cast<int>(y * s));
+          const int sx = std::min(size.width - 1, static_cast<int>(x * s));
+          const int sy = std::min(size.height - 1, static_cast<int>(y * s));
           small_labels.at<uint8_t>(sy, sx) = seed;
         }
   }

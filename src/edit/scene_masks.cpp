@@ -156,8 +156,8 @@ void carve_to_the_object(const Scene& scene, const OneMask& request, const Propa
     }
   });
   for (const Image& p : photos) photo_of.push_back(&p);
-  const std::vector<CarvedMask> carved =
-      times.time("masks: carve", [&] { return carve_masks(masks, photo_of, cameras, points, object, request.carving); });
+  const std::vector<CarvedMask> carved = times.time(
+      "masks: carve", [&] { return carve_masks(masks, photo_of, cameras, points, object, request.carving); });
   for (size_t i = 0; i < carved.size(); ++i) {
     out.masks[names[i]] = carved[i].mask;
     out.carved += carved[i].carved;
