@@ -3,6 +3,7 @@
 // y up, z backward; the camera looks along -z), intrinsics in pixels with the principal
 // point in continuous image coordinates (pixel centres at +0.5).
 #include <array>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -44,6 +45,22 @@ struct Camera {
   // The same camera for the sub-image with top-left (x0, y0) and the given size.
   Camera cropped(int x0, int y0, int new_width, int new_height) const;
 };
+
+// Where a world point lands in a camera's picture: the pixel it falls in (column x, row y) and its
+// camera z. nullopt when it is behind the camera or outside the picture. `w2c` is the camera's
+// w2c_opencv(), computed once by callers that project many points.
+struct PixelOfPoint {
+  int x = 0, y = 0;
+  double z = 0;
+};
+inline std::optional<PixelOfPoint> pixel_of_point(const Intrinsics& K, const Eigen::Matrix4d& w2c,
+                                                  const Eigen::Vector3d& point) {
+  const Eigen::Vector3d c = w2c.topLeftCorner<3, 3>() * point + w2c.topRightCorner<3, 1>();
+  if (!(c.z() > 0)) return std::nullopt;
+  const double u = K.fx * c.x() / c.z() + K.cx, v = K.fy * c.y() / c.z() + K.cy;
+  if (!(u >= 0 && v >= 0 && u < K.width && v < K.height)) return std::nullopt;
+  return PixelOfPoint{static_cast<int>(u), static_cast<int>(v), c.z()};
+}
 
 // Conversions between camera axis conventions of a camera-to-world matrix: OpenCV/COLMAP
 // (y down, z forward) <-> OpenGL (y up, z backward) negate rotation columns 1 and 2.

@@ -260,12 +260,10 @@ Image points_depth(const std::vector<Eigen::Vector3d>& points, const Camera& cam
   Image depth(camera.K.width, camera.K.height, 1, 0.f);
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
   for (const Eigen::Vector3d& p : points) {
-    const Eigen::Vector3d c = w2c.block<3, 3>(0, 0) * p + w2c.block<3, 1>(0, 3);
-    if (!(c.z() > 0)) continue;
-    const double u = camera.K.fx * c.x() / c.z() + camera.K.cx, v = camera.K.fy * c.y() / c.z() + camera.K.cy;
-    if (!(u >= 0 && v >= 0 && u < camera.K.width && v < camera.K.height)) continue;
-    float& d = depth.at(static_cast<int>(v), static_cast<int>(u));
-    if (d == 0 || c.z() < d) d = static_cast<float>(c.z());
+    const std::optional<PixelOfPoint> hit = pixel_of_point(camera.K, w2c, p);
+    if (!hit) continue;
+    float& d = depth.at(hit->y, hit->x);
+    if (d == 0 || hit->z < d) d = static_cast<float>(hit->z);
   }
   return depth;
 }

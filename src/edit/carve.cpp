@@ -23,15 +23,10 @@ struct Projected {
 std::vector<Projected> projected(const Camera& camera, const std::vector<Eigen::Vector3d>& points,
                                  const std::vector<uint8_t>& object) {
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
-  const Intrinsics& K = camera.K;
   std::vector<Projected> out;
-  for (size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector3d c = w2c.topLeftCorner<3, 3>() * points[i] + w2c.topRightCorner<3, 1>();
-    if (!(c.z() > 0)) continue;
-    const double u = K.fx * c.x() / c.z() + K.cx, v = K.fy * c.y() / c.z() + K.cy;
-    if (!(u >= 0 && v >= 0 && u < K.width && v < K.height)) continue;
-    out.push_back({static_cast<int>(u), static_cast<int>(v), static_cast<float>(c.z()), object[i] != 0});
-  }
+  for (size_t i = 0; i < points.size(); ++i)
+    if (const std::optional<PixelOfPoint> hit = pixel_of_point(camera.K, w2c, points[i]))
+      out.push_back({hit->x, hit->y, static_cast<float>(hit->z), object[i] != 0});
   return out;
 }
 

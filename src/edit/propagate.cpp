@@ -232,17 +232,13 @@ PropagatedMasks propagate_mask(const Image& region, const Image& depth, const Ca
 std::vector<uint8_t> inside_lifted(const PropagatedMasks& lifted, const Camera& camera,
                                    const std::vector<Eigen::Vector3d>& points) {
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
-  const Intrinsics& K = camera.K;
   std::vector<uint8_t> inside(points.size(), 0);
-  if (lifted.near.width != K.width || lifted.near.height != K.height) return inside;
+  if (lifted.near.width != camera.K.width || lifted.near.height != camera.K.height) return inside;
   for (size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector3d c = w2c.topLeftCorner<3, 3>() * points[i] + w2c.topRightCorner<3, 1>();
-    if (!(c.z() > 0)) continue;
-    const auto x = static_cast<int>(std::floor(K.fx * c.x() / c.z() + K.cx));
-    const auto y = static_cast<int>(std::floor(K.fy * c.y() / c.z() + K.cy));
-    if (x < 0 || y < 0 || x >= K.width || y >= K.height) continue;
-    const float near = lifted.near.at(y, x), far = lifted.far.at(y, x);
-    inside[i] = far > 0 && c.z() >= near && c.z() <= far;
+    const std::optional<PixelOfPoint> hit = pixel_of_point(camera.K, w2c, points[i]);
+    if (!hit) continue;
+    const float near = lifted.near.at(hit->y, hit->x), far = lifted.far.at(hit->y, hit->x);
+    inside[i] = far > 0 && hit->z >= near && hit->z <= far;
   }
   return inside;
 }

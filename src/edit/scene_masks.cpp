@@ -219,12 +219,13 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
          "reconstruct it{}",
          marked.name, out.notes.empty() ? "" : fmt::format(" ({})", fmt::join(out.notes, "; ")));
   for (const std::string& note : out.notes) spdlog::info("{}: using the network's depth", note);
-  const ViewReconstruction reconstruction =
-      predicted_view_reconstruction(predictor(), scene, marked.name, options, stages,
-                                    request.carve && request.propagation.mode == EditMode::Remove ? 400000 : 0);
+  // Carving cuts to an object that is there: not for an insertion.
+  const bool carve = request.carve && request.propagation.mode == EditMode::Remove;
+  const ViewReconstruction reconstruction = predicted_view_reconstruction(
+      predictor(), scene, marked.name, options, stages, carve ? kReconstructionPoints : 0);
   const PropagatedMasks lifted = lift(reconstruction.depth, kNetworkDepthMargin, false);
   finish(lifted, "network");
-  if (request.carve && request.propagation.mode == EditMode::Remove && !reconstruction.points.empty())
+  if (carve && !reconstruction.points.empty())
     carve_to_the_object(scene, request, lifted, reconstruction.points, times, out);
   return out;
 }

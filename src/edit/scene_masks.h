@@ -64,13 +64,15 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
                            const SceneInputOptions& options, StageTimes* stages = nullptr);
 // The same reconstruction's depth of `view` and its Gaussians' centres (scene frame, the opaque
 // ones, at most `max_points` of them evenly taken).
+constexpr int64_t kReconstructionPoints = 400000;
 struct ViewReconstruction {
   Image depth;
   std::vector<Eigen::Vector3d> points;
 };
 ViewReconstruction predicted_view_reconstruction(const Predictor& predictor, const Scene& scene,
                                                  const std::string& view, const SceneInputOptions& options,
-                                                 StageTimes* stages = nullptr, int64_t max_points = 400000);
+                                                 StageTimes* stages = nullptr,
+                                                 int64_t max_points = kReconstructionPoints);
 
 struct SceneMasks {
   std::map<std::string, Image> masks;  // every view of the scene by name; the marked one = its region
