@@ -66,7 +66,7 @@ MaskAgreement mean_agreement(const Scene& scene, const SceneMasks& m) {
 }
 
 // Carved (edit/carve.h), the statue's masks hold much less of what is not the statue and nearly
-// all of it (at full size, docs/editing.md: recall 1.000 -> 0.956, precision 0.565 -> 0.781).
+// all of it (at full size, docs/editing.md: recall 1.000 -> 0.946, precision 0.565 -> 0.786).
 TEST(SceneMasks, CarvedMasksHoldLessBesideTheStatue) {
   II_REQUIRE_SHARED(dir, "data/statue");
   const Scene scene = load_scene(dir);
