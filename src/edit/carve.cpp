@@ -16,17 +16,17 @@ namespace {
 struct Projected {
   int x, y;
   float z;
-  bool object;
+  PointRole role;
 };
 
 // The points in front of `camera` that land in its picture, with their pixels and depths.
 std::vector<Projected> projected(const Camera& camera, const std::vector<Eigen::Vector3d>& points,
-                                 const std::vector<uint8_t>& object) {
+                                 const std::vector<PointRole>& roles) {
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
   std::vector<Projected> out;
   for (size_t i = 0; i < points.size(); ++i)
     if (const std::optional<PixelOfPoint> hit = pixel_of_point(camera.K, w2c, points[i]))
-      out.push_back({hit->x, hit->y, static_cast<float>(hit->z), object[i] != 0});
+      out.push_back({hit->x, hit->y, static_cast<float>(hit->z), roles[i]});
   return out;
 }
 
@@ -78,8 +78,10 @@ cv::Mat grab_cut(const cv::Mat& image, const cv::Mat& labels, const cv::Mat& ins
 }
 
 CarvedMask carve_one(const Image& mask, const Image& photo, const Camera& camera,
-                     const std::vector<Eigen::Vector3d>& points, const std::vector<uint8_t>& object,
+                     const std::vector<Eigen::Vector3d>& points, const std::vector<PointRole>& roles,
                      const CarveOptions& options) {
+  if (photo.width != mask.width || photo.height != mask.height)
+    fail("carve: a photo is {}x{} but its mask {}x{}", photo.width, photo.height, mask.width, mask.height);
   CarvedMask out{mask, 0, 0, false};
   const int W = mask.width, H = mask.height;
   cv::Mat inside(H, W, CV_8UC1);
@@ -88,7 +90,7 @@ CarvedMask carve_one(const Image& mask, const Image& photo, const Camera& camera
   if (cv::countNonZero(inside) == 0) return out;
 
   // The nearest point of each cell: what the view sees there.
-  const std::vector<Projected> seen = projected(camera, points, object);
+  const std::vector<Projected> seen = projected(camera, points, roles);
   const int cell = std::max(1, options.cell);
   const int cw = (W + cell - 1) / cell, ch = (H + cell - 1) / cell;
   std::vector<float> nearest(static_cast<size_t>(cw) * ch, std::numeric_limits<float>::infinity());
@@ -106,7 +108,8 @@ CarvedMask carve_one(const Image& mask, const Image& photo, const Camera& camera
     const float n = nearest[static_cast<size_t>(p.y / cell) * cw + p.x / cell];
     if (p.z > n * (1 + options.seen_tolerance)) continue;  // hidden behind what the cell sees
     uint8_t& label = labels.at<uint8_t>(p.y, p.x);
-    if (p.object) {
+    if (p.role == PointRole::unsure) continue;
+    if (p.role == PointRole::object) {
       if (label != cv::GC_BGD) label = cv::GC_FGD, ++out.object_seeds;
     } else if (label != cv::GC_FGD) {
       label = cv::GC_BGD, ++out.other_seeds;
@@ -144,22 +147,33 @@ CarvedMask carve_one(const Image& mask, const Image& photo, const Camera& camera
 
 }  // namespace
 
-std::vector<CarvedMask> carve_masks(const std::vector<Image>& masks, const std::vector<const Image*>& photos,
+std::vector<PointRole> point_roles(const PropagatedMasks& lifted, const Image& depth, const Camera& marked,
+                                   const std::vector<Eigen::Vector3d>& points, const CarveOptions& options) {
+  const std::vector<uint8_t> inside = inside_lifted(lifted, marked, points);
+  const Eigen::Matrix4d w2c = marked.w2c_opencv();
+  const bool sized = depth.width == marked.K.width && depth.height == marked.K.height;
+  std::vector<PointRole> roles(points.size(), PointRole::other);
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (!inside[i]) continue;
+    roles[i] = PointRole::unsure;
+    const std::optional<PixelOfPoint> hit = pixel_of_point(marked.K, w2c, points[i]);
+    const float d = sized && hit ? depth.at(hit->y, hit->x) : 0.f;
+    if (d > 0 && hit->z >= d * (1 - options.surface_in_front) && hit->z <= d * (1 + options.surface_behind))
+      roles[i] = PointRole::object;
+  }
+  return roles;
+}
+
+std::vector<CarvedMask> carve_masks(const std::vector<Image>& masks, const PhotoSource& photo,
                                     const std::vector<Camera>& cameras, const std::vector<Eigen::Vector3d>& points,
-                                    const std::vector<uint8_t>& object, const CarveOptions& options) {
-  if (photos.size() != masks.size() || cameras.size() != masks.size())
-    fail("carve: {} masks, {} photos and {} cameras (one each per view expected)", masks.size(), photos.size(),
-         cameras.size());
-  if (object.size() != points.size())
-    fail("carve: {} points but {} object flags", points.size(), object.size());
-  for (size_t i = 0; i < masks.size(); ++i)
-    if (photos[i]->width != masks[i].width || photos[i]->height != masks[i].height)
-      fail("carve: view {}'s photo is {}x{} but its mask {}x{}", i, photos[i]->width, photos[i]->height,
-           masks[i].width, masks[i].height);
+                                    const std::vector<PointRole>& roles, const CarveOptions& options) {
+  if (cameras.size() != masks.size())
+    fail("carve: {} masks and {} cameras (one each per view expected)", masks.size(), cameras.size());
+  if (roles.size() != points.size()) fail("carve: {} points but {} roles", points.size(), roles.size());
   std::vector<CarvedMask> out(masks.size());
   parallel_dynamic(static_cast<int64_t>(masks.size()), thread_plan().cores, [&](int64_t v) {
     const auto i = static_cast<size_t>(v);
-    out[i] = carve_one(masks[i], *photos[i], cameras[i], points, object, options);
+    out[i] = carve_one(masks[i], photo(i), cameras[i], points, roles, options);
   });
   return out;
 }

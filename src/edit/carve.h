@@ -9,11 +9,13 @@
 // between the seeds by their colour. A view in which no point of the object is seen keeps its
 // propagated mask. Torch-free.
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "camera/camera.h"
+#include "edit/propagate.h"
 #include "io/image.h"
 
 namespace ii {
@@ -36,7 +38,22 @@ struct CarveOptions {
   // Pixels added around each carved mask (0.5 % of the larger side gave scene 1 1.000 / 0.727
   // against 1.000 / 0.791 without).
   int dilation = 0;
+  // A point of the lifted volume is the object's when it lies this close to the marked view's
+  // depth at its pixel (fractions of that depth, in front and behind: the object's own surface
+  // and its hidden back); the volume's others seed nothing. Scene 1 from the true mask
+  // (docs/editing.md, session 46): the whole volume's points 0.997 / 0.789; 0.1 / 0.2 0.984 /
+  // 0.917, 0.1 / 0.3 0.988 / 0.901, 0.1 / 0.5 0.994 / 0.822.
+  double surface_in_front = 0.1, surface_behind = 0.25;
 };
+
+// What a point says to the carving: the object is here, something else is, or nothing.
+enum class PointRole : uint8_t { other, object, unsure };
+
+// The roles of `points` (world) for a region lifted from `marked` (edit/propagate.h) with
+// `depth` (the marked view's, its size; 0 = unknown): inside the lifted volume and near the
+// depth at their pixel the object, elsewhere in the volume unsure, outside it other.
+std::vector<PointRole> point_roles(const PropagatedMasks& lifted, const Image& depth, const Camera& marked,
+                                   const std::vector<Eigen::Vector3d>& points, const CarveOptions& options = {});
 
 struct CarvedMask {
   Image mask;                   // values 0/1, the view's size
@@ -45,10 +62,11 @@ struct CarvedMask {
   bool carved = false;          // false: the propagated mask, kept (no object seed)
 };
 
-// `masks` (propagated, one per view), `photos` (RGB, the same sizes) and `cameras` per view;
-// `points` (world) with `object` (1: inside the lifted volume, edit/propagate.h's inside_lifted).
-std::vector<CarvedMask> carve_masks(const std::vector<Image>& masks, const std::vector<const Image*>& photos,
+// `masks` (propagated, one per view), `photo(i)` (view i's RGB photo, at its mask's size; loaded
+// as each view is carved, a few at a time) and `cameras` per view; `points` (world) with their roles.
+using PhotoSource = std::function<Image(size_t)>;
+std::vector<CarvedMask> carve_masks(const std::vector<Image>& masks, const PhotoSource& photo,
                                     const std::vector<Camera>& cameras, const std::vector<Eigen::Vector3d>& points,
-                                    const std::vector<uint8_t>& object, const CarveOptions& options = {});
+                                    const std::vector<PointRole>& roles, const CarveOptions& options = {});
 
 }  // namespace ii

@@ -137,29 +137,27 @@ void SceneMasks::apply_to(SceneInputOptions& options, const OneMask& request) co
 namespace {
 
 // Each view's propagated mask (not the marked one's) carved to the object inside it: the
-// reconstruction's points inside the lifted volume are the object's.
+// reconstruction's points on the marked view's surface inside the lifted volume are the object's.
 void carve_to_the_object(const Scene& scene, const OneMask& request, const PropagatedMasks& lifted,
-                         const std::vector<Eigen::Vector3d>& points, StageTimes& times, SceneMasks& out) {
+                         const ViewReconstruction& reconstruction, StageTimes& times, SceneMasks& out) {
   const View& marked = marked_view(scene, request.view);
-  const std::vector<uint8_t> object = inside_lifted(lifted, marked.camera, points);
-  std::vector<Image> photos, masks;
-  std::vector<const Image*> photo_of;
+  const std::vector<PointRole> roles =
+      point_roles(lifted, reconstruction.depth, marked.camera, reconstruction.points, request.carving);
+  std::vector<const View*> views;
+  std::vector<Image> masks;
   std::vector<Camera> cameras;
-  std::vector<std::string> names;
-  times.time("masks: photos", [&] {
-    for (const View& v : scene.views) {
-      if (v.name == marked.name) continue;
-      photos.push_back(load_view_image(v));
-      masks.push_back(out.masks.at(v.name));
-      cameras.push_back(v.camera);
-      names.push_back(v.name);
-    }
+  for (const View& v : scene.views) {
+    if (v.name == marked.name) continue;
+    views.push_back(&v);
+    masks.push_back(out.masks.at(v.name));
+    cameras.push_back(v.camera);
+  }
+  const std::vector<CarvedMask> carved = times.time("masks: carve (with the photos)", [&] {
+    return carve_masks(masks, [&](size_t i) { return load_view_image(*views[i]); }, cameras, reconstruction.points,
+                       roles, request.carving);
   });
-  for (const Image& p : photos) photo_of.push_back(&p);
-  const std::vector<CarvedMask> carved = times.time(
-      "masks: carve", [&] { return carve_masks(masks, photo_of, cameras, points, object, request.carving); });
   for (size_t i = 0; i < carved.size(); ++i) {
-    out.masks[names[i]] = carved[i].mask;
+    out.masks[views[i]->name] = carved[i].mask;
     out.carved += carved[i].carved;
   }
 }
@@ -226,7 +224,7 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
   const PropagatedMasks lifted = lift(reconstruction.depth, kNetworkDepthMargin, false);
   finish(lifted, "network");
   if (carve && !reconstruction.points.empty())
-    carve_to_the_object(scene, request, lifted, reconstruction.points, times, out);
+    carve_to_the_object(scene, request, lifted, reconstruction, times, out);
   return out;
 }
 

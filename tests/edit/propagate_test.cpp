@@ -6,6 +6,7 @@
 #include <optional>
 
 #include <Eigen/Dense>
+#include <fmt/core.h>
 
 #include "camera/camera.h"
 #include "edit/carve.h"
@@ -212,10 +213,9 @@ TEST(Propagate, CarvedMasksHoldTheObjectAndNotWhatStandsInFront) {
   std::vector<Traced> truth;
   for (size_t v = 0; v < cams.size(); ++v) truth.push_back(trace(cams[v], spheres, 1, &photos[v], &points));
   const PropagatedMasks p = propagate_mask(truth[0].mask, truth[0].depth, cams[0], cams);
-  const std::vector<uint8_t> object = inside_lifted(p, cams[0], points);
-  std::vector<const Image*> photo_of;
-  for (const Image& photo : photos) photo_of.push_back(&photo);
-  const std::vector<CarvedMask> carved = carve_masks(p.masks, photo_of, cams, points, object);
+  const std::vector<PointRole> roles = point_roles(p, truth[0].depth, cams[0], points);
+  const PhotoSource photo_of = [&](size_t v) { return photos[v]; };
+  const std::vector<CarvedMask> carved = carve_masks(p.masks, photo_of, cams, points, roles);
   ASSERT_EQ(carved.size(), cams.size());
   int occluded_views = 0;
   for (size_t v = 1; v < cams.size(); ++v) {
@@ -243,7 +243,7 @@ TEST(Propagate, CarvedMasksHoldTheObjectAndNotWhatStandsInFront) {
   // GrabCut on a smaller picture (the seeds carried to it, the answer brought back) keeps most of it.
   CarveOptions coarse;
   coarse.grabcut_size = 32;
-  const std::vector<CarvedMask> small = carve_masks(p.masks, photo_of, cams, points, object, coarse);
+  const std::vector<CarvedMask> small = carve_masks(p.masks, photo_of, cams, points, roles, coarse);
   for (size_t v = 1; v < cams.size(); ++v) {
     const MaskAgreement a = mask_agreement(small[v].mask, truth[v].mask);
     EXPECT_GE(a.recall, 0.9) << "view " << v;
@@ -251,11 +251,42 @@ TEST(Propagate, CarvedMasksHoldTheObjectAndNotWhatStandsInFront) {
   }
   // A view that sees none of the object's points keeps its propagated mask.
   const std::vector<CarvedMask> unseen =
-      carve_masks({p.masks[3]}, {&photos[3]}, {cams[3]}, points, std::vector<uint8_t>(points.size(), 0));
+      carve_masks({p.masks[3]}, [&](size_t) { return photos[3]; }, {cams[3]}, points,
+                  std::vector<PointRole>(points.size(), PointRole::other));
   EXPECT_FALSE(unseen[0].carved);
   EXPECT_EQ(unseen[0].mask.pixels, p.masks[3].pixels);
-  EXPECT_EQ(test::error_message([&] { carve_masks(p.masks, {}, cams, points, object); }),
-            "carve: 6 masks, 0 photos and 6 cameras (one each per view expected)");
+  EXPECT_EQ(test::error_message([&] { carve_masks(p.masks, photo_of, {}, points, roles); }),
+            "carve: 6 masks and 0 cameras (one each per view expected)");
+  EXPECT_EQ(test::error_message([&] { carve_masks({p.masks[1]}, [](size_t) { return Image(3, 2, 3); }, {cams[1]},
+                                                  points, roles); }),
+            fmt::format("carve: a photo is 3x2 but its mask {}x{}", p.masks[1].width, p.masks[1].height));
+}
+
+// A point of the lifted volume is the object's only near the marked view's surface at its pixel:
+// its own surface and the hidden back within surface_behind; the rest of the volume seeds nothing.
+TEST(Propagate, PointsOnTheMarkedSurfaceAreTheObjects) {
+  const Camera camera = cameras_around({0, 0, -3})[0];
+  const int x = camera.K.width / 2, y = camera.K.height / 2;
+  PropagatedMasks lifted;
+  lifted.near = lifted.far = Image(camera.K.width, camera.K.height, 1);
+  lifted.near.at(y, x) = 1;
+  lifted.far.at(y, x) = 4;
+  Image depth(camera.K.width, camera.K.height, 1);
+  depth.at(y, x) = 2;
+  const Eigen::Matrix4d c2w = opengl_to_opencv(camera.c2w);
+  auto at_depth = [&](double z) -> Eigen::Vector3d {
+    const Eigen::Vector3d local(z * (x + 0.5 - camera.K.cx) / camera.K.fx, z * (y + 0.5 - camera.K.cy) / camera.K.fy,
+                                z);
+    return c2w.topLeftCorner<3, 3>() * local + c2w.topRightCorner<3, 1>();
+  };
+  const std::vector<Eigen::Vector3d> points = {at_depth(2), at_depth(1.85), at_depth(2.45), at_depth(1.5),
+                                               at_depth(3), at_depth(5)};
+  const std::vector<PointRole> roles = point_roles(lifted, depth, camera, points);
+  EXPECT_EQ(roles, (std::vector<PointRole>{PointRole::object, PointRole::object, PointRole::object,
+                                           PointRole::unsure, PointRole::unsure, PointRole::other}));
+  // Without the marked view's depth there, the volume says nothing for certain.
+  EXPECT_EQ(point_roles(lifted, Image(camera.K.width, camera.K.height, 1), camera, {at_depth(2)}),
+            std::vector<PointRole>{PointRole::unsure});
 }
 
 TEST(Propagate, AgreementCountsPixels) {
