@@ -10,11 +10,17 @@ namespace ii::cli {
 
 void add_edit_options(CLI::App* cmd, EditArgs& args) {
   auto* view = cmd->add_option("--view", args.view,
-                               "The view the region is marked on: masks for every other view are made from it");
+                               "The view the region is marked (or clicked) on: masks for every other view are made "
+                               "from it");
   auto* mask = cmd->add_option("--mask", args.mask, "The region on that view (white = object or edit region)")
                    ->check(CLI::ExistingFile);
-  view->needs(mask);
+  auto* click = cmd->add_option("--click", args.clicks,
+                                "X,Y: a click on the object in that view (pixels of its image as stored), in place "
+                                "of --mask: the object is selected in the network's reconstruction and every "
+                                "view's mask carved to it; repeat to add objects or parts of another colour");
   mask->needs(view);
+  click->needs(view);
+  click->excludes(mask);
   cmd->add_option("--mode", args.mode,
                   "remove: the region shows an object to take out; insert: the edited reference shows a new "
                   "object there")
@@ -102,9 +108,17 @@ void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
 
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene) {
   if (args.view.empty()) return std::nullopt;
+  if (args.mask.empty() && args.clicks.empty())
+    fail("--view {}: give the region on it, --mask FILE or --click X,Y", args.view);
   OneMask request;
   request.view = args.view;
-  request.region = read_region_mask(args.mask, scene.views[static_cast<size_t>(input_view_index(scene, args.view))]);
+  const View& view = scene.views[static_cast<size_t>(input_view_index(scene, args.view))];
+  if (!args.clicks.empty()) {
+    if (args.mode != "remove") fail("--click selects an object to remove: --mode insert needs --mask");
+    for (const std::string& click : args.clicks) request.clicks.push_back(parse_click(click, "--click"));
+  } else {
+    request.region = read_region_mask(args.mask, view);
+  }
   request.propagation.mode = parse_edit_mode(args.mode);
   if (args.extent > 0) request.propagation.extent = args.extent;
   request.propagation.dilation = args.dilate;

@@ -3,6 +3,7 @@
 // view (--view, --mask) stands in for a mask on every view.
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -13,6 +14,7 @@ namespace ii::cli {
 
 struct EditArgs {
   std::string view, mask;
+  std::vector<std::string> clicks;  // --click X,Y (repeatable)
   std::string mode = "remove";
   std::string depth;
   double depth_scale = 0.001;
@@ -25,7 +27,7 @@ struct EditArgs {
   GeometryOptions geometry;  // add_geometry_options
 };
 
-// --view, --mask, --mode, --depth, --depth-scale, --extent, --dilate.
+// --view, --mask, --click, --mode, --depth, --depth-scale, --extent, --dilate.
 void add_edit_options(CLI::App* cmd, EditArgs& args);
 // --reference-view, --reference-inpainter and add_geometry_options (commands that build the
 // network's input).

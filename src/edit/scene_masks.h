@@ -21,6 +21,7 @@
 #include "common/stage_times.h"
 #include "edit/carve.h"
 #include "edit/propagate.h"
+#include "edit/select.h"
 #include "predict/predictor.h"
 
 namespace ii {
@@ -41,6 +42,10 @@ struct OneMask {
   // (edit/carve.h); false: the propagated masks as they are.
   bool carve = false;
   CarveOptions carving;
+  // Clicks on the view in place of `region`: the object under each selected in the network's
+  // reconstruction (edit/select.h), each view's mask carved to them.
+  std::vector<Click> clicks;
+  SelectOptions selecting;
 };
 
 // A region mask file for a view: read_mask, then checked against the view's image size.
@@ -68,6 +73,7 @@ constexpr int64_t kReconstructionPoints = 400000;
 struct ViewReconstruction {
   Image depth;
   std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector3f> colours;  // RGB of each point
 };
 ViewReconstruction predicted_view_reconstruction(const Predictor& predictor, const Scene& scene,
                                                  const std::string& view, const SceneInputOptions& options,
@@ -80,6 +86,7 @@ struct SceneMasks {
   std::vector<std::string> notes;      // why a preferred depth source was passed over
   std::vector<LiftedRegion> regions;
   int carved = 0;  // views whose masks were carved to the object (edit/carve.h)
+  int64_t selected = 0, points = 0;  // clicks': the reconstruction's points selected, of all
   // {"view", "mode", "depth_source", "notes", "regions": [{pixels, depth_inside, depth_ring, near, far}]}
   nlohmann::json describe(const OneMask& request) const;
   // Gives the network these masks; the marked view becomes the reference unless the caller
