@@ -211,9 +211,8 @@ void select_the_clicked_object(const Scene& scene, const OneMask& request, const
   const std::vector<uint8_t> selected = times.time("masks: select", [&] {
     std::vector<uint8_t> all(reconstruction.points.size(), 0);
     for (const Click& click : request.clicks) {
-      const size_t seed = clicked_point(marked.camera, marked.name, reconstruction.points, click, request.selecting);
-      const std::vector<uint8_t> one =
-          grow_selection(reconstruction.points, reconstruction.colours, seed, marked.camera, request.selecting);
+      const std::vector<uint8_t> one = select_object(marked.camera, marked.name, reconstruction.points,
+                                                     reconstruction.colours, click, request.selecting);
       for (size_t i = 0; i < all.size(); ++i) all[i] |= one[i];
     }
     return all;

@@ -161,6 +161,24 @@ std::vector<uint8_t> grow_selection(const std::vector<Eigen::Vector3d>& points,
   return selected;
 }
 
+std::vector<uint8_t> select_object(const Camera& camera, const std::string& view,
+                                   const std::vector<Eigen::Vector3d>& points,
+                                   const std::vector<Eigen::Vector3f>& colours, const Click& click,
+                                   const SelectOptions& options) {
+  const size_t seed = clicked_point(camera, view, points, click, options);
+  std::vector<uint8_t> selected = grow_selection(points, colours, seed, camera, options);
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
+  size_t seen = 0, taken = 0;
+  for (size_t i = 0; i < points.size(); ++i)
+    if (pixel_of_point(camera.K, w2c, points[i])) ++seen, taken += selected[i];
+  const double share = static_cast<double>(taken) / static_cast<double>(std::max<size_t>(1, seen));
+  if (share > options.max_share)
+    fail("the click ({}, {}) on view {} selects {:.0f} % of what the view sees (the ground, a wall or the sky?): "
+         "click on an object",
+         click.x, click.y, view, 100 * share);
+  return selected;
+}
+
 Image selection_mask(const Camera& camera, const std::vector<Eigen::Vector3d>& points,
                      const std::vector<uint8_t>& selected, int radius, int dilation) {
   cv::Mat canvas(camera.K.height, camera.K.width, CV_8UC1, cv::Scalar(0));

@@ -4,8 +4,9 @@
 // selection drawn into any view as a mask that OpenCV's GrabCut makes tight (edit/carve.h).
 // Torch-free.
 //
-//   const size_t seed = clicked_point(camera, "IMG_2707", points, parse_click("512,300", "--click"));
-//   const std::vector<uint8_t> object = grow_selection(points, colours, seed, camera);
+//   const std::vector<uint8_t> object =
+//       select_object(camera, "IMG_2707", points, colours, parse_click("512,300", "--click"));
+//   const Image mask = selection_mask(camera, points, object, 1, 8);  // then carve_masks (edit/carve.h)
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -42,6 +43,9 @@ struct SelectOptions {
   // Each view's mask before carving: the selection's image and this fraction of the view's
   // larger side around it (room for GrabCut to find the outline).
   double mask_margin = 0.02;
+  // A selection that holds more than this share of the points the clicked view sees is the
+  // ground, a wall or the sky: an error.
+  double max_share = 0.5;
 };
 
 // The index of the point the click lands on in `camera`'s view (named `view` in errors). Errors
@@ -54,6 +58,12 @@ size_t clicked_point(const Camera& camera, const std::string& view, const std::v
 std::vector<uint8_t> grow_selection(const std::vector<Eigen::Vector3d>& points,
                                     const std::vector<Eigen::Vector3f>& colours, size_t seed, const Camera& camera,
                                     const SelectOptions& options = {});
+
+// clicked_point, grow_selection from it, and the check that the selection is not most of the view.
+std::vector<uint8_t> select_object(const Camera& camera, const std::string& view,
+                                   const std::vector<Eigen::Vector3d>& points,
+                                   const std::vector<Eigen::Vector3f>& colours, const Click& click,
+                                   const SelectOptions& options = {});
 
 // Where the selected points fall in `camera`'s view: each a disc of `radius` pixels, gaps closed,
 // holes filled, then `dilation` pixels added around (values 0/1, the camera's size).

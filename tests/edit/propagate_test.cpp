@@ -11,6 +11,7 @@
 #include "camera/camera.h"
 #include "edit/carve.h"
 #include "edit/propagate.h"
+#include "edit/select.h"
 #include "test_support.h"
 
 namespace ii {
@@ -287,6 +288,83 @@ TEST(Propagate, PointsOnTheMarkedSurfaceAreTheObjects) {
   // Without the marked view's depth there, the volume says nothing for certain.
   EXPECT_EQ(point_roles(lifted, Image(camera.K.width, camera.K.height, 1), camera, {at_depth(2)}),
             std::vector<PointRole>{PointRole::unsure});
+}
+
+// One click: the object under it is selected among the points (a blue sphere grown into it and
+// the wall behind are not), and its selection's image carved in every view is its mask.
+TEST(Select, OneClickSelectsTheObjectAndNothingItTouches) {
+  const std::vector<Sphere> spheres = {{{0, 0, -3}, 0.6}, {{0.7, -0.1, -3}, 0.3}};
+  const std::vector<Camera> cams = cameras_around(spheres[0].centre);
+  std::vector<Image> photos(cams.size());
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Traced> truth;
+  for (size_t v = 0; v < cams.size(); ++v) truth.push_back(trace(cams[v], spheres, 1, &photos[v], &points));
+  std::vector<Eigen::Vector3f> colours;
+  for (const Image& photo : photos)
+    for (int y = 0; y < photo.height; ++y)
+      for (int x = 0; x < photo.width; ++x) colours.emplace_back(photo.at(y, x, 0), photo.at(y, x, 1), photo.at(y, x, 2));
+  ASSERT_EQ(colours.size(), points.size());
+
+  // The click at the object's middle in view 0 (left of the blue sphere).
+  const Eigen::Matrix4d w2c = cams[0].w2c_opencv();
+  const std::optional<PixelOfPoint> middle =
+      pixel_of_point(cams[0].K, w2c, spheres[0].centre + Eigen::Vector3d(-0.2, 0, 0.6));
+  ASSERT_TRUE(middle);
+  const Click click{middle->x + 0.5, middle->y + 0.5};
+  const size_t seed = clicked_point(cams[0], "front", points, click);
+  EXPECT_NEAR((points[seed] - spheres[0].centre).norm(), spheres[0].radius, 1e-6);
+  const std::vector<uint8_t> selected = grow_selection(points, colours, seed, cams[0]);
+  size_t on_object = 0, object_taken = 0, others_taken = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const bool object = std::abs((points[i] - spheres[0].centre).norm() - spheres[0].radius) < 1e-6 &&
+                        (points[i] - spheres[1].centre).norm() > spheres[1].radius + 1e-6;
+    on_object += object;
+    object_taken += object && selected[i];
+    others_taken += !object && selected[i];
+  }
+  EXPECT_GE(object_taken, on_object * 95 / 100);
+  EXPECT_EQ(others_taken, 0u);
+
+  // Each view: the selection's image, carved to the object (the blue sphere hides part of it).
+  std::vector<Image> masks;
+  std::vector<PointRole> roles;
+  for (const Camera& camera : cams) masks.push_back(selection_mask(camera, points, selected, 1, 4));
+  for (const uint8_t s : selected) roles.push_back(s ? PointRole::object : PointRole::other);
+  const std::vector<CarvedMask> carved =
+      carve_masks(masks, [&](size_t v) { return photos[v]; }, cams, points, roles);
+  for (size_t v = 0; v < cams.size(); ++v) {
+    const MaskAgreement a = mask_agreement(carved[v].mask, truth[v].mask);
+    EXPECT_GE(a.recall, 0.97) << "view " << v;
+    EXPECT_GE(a.precision, 0.95) << "view " << v;
+  }
+
+  // Clicks that select nothing say where they were.
+  EXPECT_EQ(test::error_message([&] { clicked_point(cams[0], "front", points, {96, 10}); }),
+            "the click (96, 10) is outside view front's image (96x72)");
+  EXPECT_EQ(test::error_message([&] { clicked_point(cams[0], "front", {}, click); }),
+            fmt::format("nothing was reconstructed at the click ({}, {}) on view front: click on an object", click.x,
+                        click.y));
+  SelectOptions loose;  // the wall's checkerboard taken as one colour
+  loose.colour_step = loose.colour_spread = 0.1;
+  EXPECT_EQ(test::error_message([&] { select_object(cams[0], "front", points, colours, {2.5, 2.5}, loose); }),
+            "the click (2.5, 2.5) on view front selects 88 % of what the view sees (the ground, a wall or the "
+            "sky?): click on an object");
+  SelectOptions near_is_far;
+  near_is_far.far_background = 0.5;
+  const std::string on_wall =
+      test::error_message([&] { clicked_point(cams[0], "front", points, {2.5, 2.5}, near_is_far); });
+  EXPECT_EQ(on_wall.rfind("the click (2.5, 2.5) on view front is on the sky or the far background (6.21 deep, ", 0),
+            0u)
+      << on_wall;
+  // The whole of it: the click's point grown, the same selection.
+  EXPECT_EQ(select_object(cams[0], "front", points, colours, click), selected);
+  EXPECT_EQ(test::error_message([] { parse_click("12;30", "--click"); }),
+            "--click: '12;30' is not a point: X,Y in pixels of the view's image (e.g. 512,300)");
+  EXPECT_EQ(test::error_message([] { parse_click("12,", "--click"); }),
+            "--click: '12,' is not a point: X,Y in pixels of the view's image (e.g. 512,300)");
+  const Click parsed = parse_click("12.5,30", "--click");
+  EXPECT_EQ(parsed.x, 12.5);
+  EXPECT_EQ(parsed.y, 30);
 }
 
 TEST(Propagate, AgreementCountsPixels) {
