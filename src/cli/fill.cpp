@@ -32,6 +32,7 @@ struct FillArgs {
   std::string selection;
   std::string view;
   std::string mask;
+  std::vector<std::string> clicks;  // --click X,Y (repeatable)
   std::string scene_dir;
   SceneOptions scene;
   std::string cameras;
@@ -122,7 +123,10 @@ void run(const FillArgs& a) {
   splat_format_of(a.out);  // a bad output name fails before the work
   if (a.views < 1) fail("--views: at least 1, got {}", a.views);
   if (a.height < 32 || a.height % 8 != 0) fail("--height: a multiple of 8 of at least 32, got {}", a.height);
-  if (!a.view.empty() != !a.mask.empty()) fail("--view and --mask go together: the mask is drawn on that view");
+  if (!a.view.empty() && a.mask.empty() && a.clicks.empty())
+    fail("--view {}: give the region on it, --mask FILE or --click X,Y", a.view);
+  if (a.view.empty() && (!a.mask.empty() || !a.clicks.empty()))
+    fail("--{} is on a view: name it with --view", a.mask.empty() ? "click" : "mask");
   FillOptions o;
   o.scene_name = a.splats;
   o.camera_options.views = a.views;
@@ -142,7 +146,8 @@ void run(const FillArgs& a) {
   }
   if (!a.view.empty()) {
     o.stroke_view = a.view;
-    o.stroke = read_mask(a.mask);
+    if (!a.mask.empty()) o.stroke = read_mask(a.mask);
+    for (const std::string& click : a.clicks) o.clicks.push_back(parse_click(click, "--click"));
   }
   const Runtime runtime = apply_runtime_options(a.runtime);
   spdlog::info("[1/3] reading {}", a.splats);
@@ -192,9 +197,13 @@ void add_fill_command(CLI::App& app) {
   region->add_option("--selection", a->selection, "The same scene with the region already deleted (e.g. SuperSplat's "
                                                   "export): the splats it lacks")
       ->check(CLI::ExistingFile);
-  region->add_option("--view", a->view, "A camera (from --scene or --cameras) that --mask is drawn on");
-  cmd->add_option("--mask", a->mask, "With --view: one stroke over the object (white), at that camera's size")
-      ->check(CLI::ExistingFile);
+  region->add_option("--view", a->view, "A camera (from --scene or --cameras) that --mask is drawn on or --click is on");
+  auto* mask = cmd->add_option("--mask", a->mask, "With --view: one stroke over the object (white), at that camera's size")
+                   ->check(CLI::ExistingFile);
+  cmd->add_option("--click", a->clicks,
+                  "With --view: X,Y in that camera's pixels, a click on the object: the splat there and its "
+                  "neighbours alike in colour (repeat to add)")
+      ->excludes(mask);
   region->require_option(1);
   cmd->add_option("--scene", a->scene_dir, "The capture the splats were trained from (any format we read): its cameras");
   cmd->add_option("--scene-format", a->scene.format, "auto, llff, nerfstudio or colmap")->capture_default_str();
@@ -230,6 +239,7 @@ void add_fill_command(CLI::App& app) {
       "Examples:\n"
       "  instainpaint fill scene.ply --box 0.1,0.4,2.0,0.6,0.8,0.6 --out filled.ply\n"
       "  instainpaint fill scene.spz --scene capture/ --view IMG_0012 --mask stroke.png --out filled.spz\n"
+      "  instainpaint fill scene.spz --scene capture/ --view IMG_0012 --click 512,300 --out filled.spz\n"
       "  instainpaint fill scene.ply --selection scene-without-chair.ply --refine fast --out filled.ply\n"
       "  instainpaint fill scene.ply --box 0,0,0,1,1,1 --scene capture/ --reference-view IMG_0003 \\\n"
       "      --reference my-inpainted-IMG_0003.png --out filled.ply");

@@ -204,9 +204,10 @@ FillPlacement parse_fill_placement(const std::string& name) {
 }
 
 RegionMask choose_region(const SplatCloud& cloud, const FillOptions& options) {
-  const int ways = (options.box ? 1 : 0) + (options.selection ? 1 : 0) + (options.stroke ? 1 : 0);
+  const int ways =
+      (options.box ? 1 : 0) + (options.selection ? 1 : 0) + (options.stroke ? 1 : 0) + (options.clicks.empty() ? 0 : 1);
   if (ways != 1)
-    fail("fill: name the region one way: a box, a selection file, or a view and its mask ({} given)", ways);
+    fail("fill: name the region one way: a box, a selection file, or a view and its mask or clicks ({} given)", ways);
   RegionMask region;
   std::string what;
   if (options.box) {
@@ -220,8 +221,13 @@ RegionMask choose_region(const SplatCloud& cloud, const FillOptions& options) {
                                     [&](const NamedCamera& c) { return c.name == options.stroke_view; });
     if (named == options.cameras.end())
       fail("--view {}: no camera of that name (the cameras come from --scene or --cameras)", options.stroke_view);
-    region = region_under_stroke(cloud, named->camera, *options.stroke);
-    what = "the mask on view " + options.stroke_view;
+    if (options.stroke) {
+      region = region_under_stroke(cloud, named->camera, *options.stroke);
+      what = "the mask on view " + options.stroke_view;
+    } else {
+      region = region_from_clicks(cloud, named->camera, options.stroke_view, options.clicks);
+      what = "the click on view " + options.stroke_view;
+    }
   }
   const int64_t n = region_count(region);
   if (n == 0)
@@ -632,7 +638,9 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   result.removed = region_count(region);
   result.region_how = options.box ? "box: " + options.box->describe()
                       : options.selection ? "selection: the splats missing from " + options.selection_name
-                                          : "mask on view " + options.stroke_view;
+                      : options.stroke    ? "mask on view " + options.stroke_view
+                                          : fmt::format("{} click{} on view {}", options.clicks.size(),
+                                                        options.clicks.size() == 1 ? "" : "s", options.stroke_view);
   stages.lap("select region");
 
   torch::NoGradGuard no_grad;
@@ -642,7 +650,8 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
 
   FillCameraOptions camera_options = options.camera_options;
   // The stroke's view is the reference unless another is named: the user drew on it.
-  if (camera_options.reference.empty() && options.stroke) camera_options.reference = options.stroke_view;
+  if (camera_options.reference.empty() && (options.stroke || !options.clicks.empty()))
+    camera_options.reference = options.stroke_view;
   if (options.cameras.empty() && camera_options.up.norm() == 0) camera_options.up = guess_up(cloud, region);
   result.cameras = options.cameras.empty()
                        ? choose_automatic_cameras(sets.scene, region, camera_options, &stages)

@@ -31,12 +31,14 @@ FillPlacement parse_fill_placement(const std::string& name);  // an Error naming
 
 struct FillOptions {
   // The region, exactly one of: a box; the same scene with the region deleted (`selection`,
-  // named `selection_name`); a stroke (at that camera's size) on the given camera `stroke_view`.
+  // named `selection_name`); a stroke (at that camera's size) or clicks on the given camera
+  // `stroke_view`.
   std::optional<OrientedBox> box;
   std::optional<SplatCloud> selection;
   std::string selection_name;
   std::string stroke_view;
   std::optional<Image> stroke;
+  std::vector<Click> clicks;
   // Cameras to look from (a capture's, a camera list); empty: automatic ones around the region.
   std::vector<NamedCamera> cameras;
   FillCameraOptions camera_options;

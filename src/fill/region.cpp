@@ -159,6 +159,33 @@ RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, co
   return region;
 }
 
+RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
+                              const std::vector<Click>& clicks, const SelectOptions& options) {
+  // Grown over the opaque splats: faint ones float around every object and bridge it to the rest.
+  std::vector<size_t> opaque;
+  for (size_t i = 0; i < cloud.size(); ++i)
+    if (cloud.opacity_logit[i] > 0) opaque.push_back(i);
+  std::vector<Eigen::Vector3d> points(opaque.size());
+  std::vector<Eigen::Vector3f> colours(opaque.size());
+  for (size_t k = 0; k < opaque.size(); ++k) {
+    const size_t i = opaque[k];
+    points[k] = position(cloud, i);
+    for (int c = 0; c < 3; ++c) colours[k][c] = 0.5f + static_cast<float>(kSh0) * cloud.sh_dc[3 * i + c];
+  }
+  std::vector<uint8_t> selected(opaque.size(), 0);
+  for (const Click& click : clicks) {
+    const std::vector<uint8_t> one = select_object(camera, view, points, colours, click, options);
+    for (size_t k = 0; k < selected.size(); ++k) selected[k] |= one[k];
+  }
+  // The selection's outline in the view taken as a stroke: with it go the splats it misses
+  // (faint ones, another shade of the object, its hidden back), as a stroke over it would take.
+  const int side = std::max(camera.K.width, camera.K.height);
+  const Image outline = selection_mask(camera, points, selected, std::max(1, side / 300), 0);
+  RegionMask region = region_under_stroke(cloud, camera, outline);
+  for (size_t k = 0; k < opaque.size(); ++k) region[opaque[k]] = region[opaque[k]] || selected[k];
+  return region;
+}
+
 int64_t region_count(const RegionMask& region) {
   return static_cast<int64_t>(std::count(region.begin(), region.end(), true));
 }

@@ -1,7 +1,7 @@
 #pragma once
 // The region of a splat scene to remove, chosen one of three ways: a box in the scene's own
 // frame, the Gaussians another file lacks (the same scene with the object deleted in another
-// tool), or one stroke on one camera's view.
+// tool), one stroke or clicks on one camera's view.
 #include <Eigen/Dense>
 
 #include <filesystem>
@@ -10,6 +10,7 @@
 
 #include "camera/box.h"
 #include "camera/camera.h"
+#include "edit/select.h"
 #include "io/image.h"
 #include "io/ply.h"
 
@@ -32,6 +33,11 @@ RegionMask region_missing_from(const SplatCloud& cloud, const SplatCloud& kept, 
 // centres project into the stroke, from the nearest of the surface the camera sees there to as
 // far behind it as the marked surface is wide.
 RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, const Image& stroke);
+
+// The objects under `clicks` on `camera`'s view (named `view` in errors): each the splat the click
+// lands on, grown over its neighbours alike in colour (edit/select.h).
+RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
+                              const std::vector<Click>& clicks, const SelectOptions& options = {});
 
 int64_t region_count(const RegionMask& region);
 

@@ -154,6 +154,27 @@ TEST(FillRegion, AStrokeSelectsTheSurfaceItCoversAndWhatIsBehindIt) {
             "--mask: the stroke covers no surface of the scene in this view (nothing is drawn there)");
 }
 
+// One click on the box: its splats, all of them (its hidden back too), and little of the floor it
+// stands on (what the box's outline hides of it) and nothing of the wall behind it.
+TEST(FillRegion, AClickSelectsTheObjectAndNotWhatItStandsOn) {
+  const SplatCloud with = room(true, false);
+  const Camera camera = camera_at({0, 0.9, 1.6});
+  const std::optional<PixelOfPoint> front = pixel_of_point(camera.K, camera.w2c_opencv(), {0.05, 0.2, 0.2});
+  ASSERT_TRUE(front);
+  const RegionMask picked = region_from_clicks(with, camera, "cam", {{front->x + 0.5, front->y + 0.5}});
+  const RegionMask truth = region_in_box(with, kObjectBox);
+  int64_t both = 0, wall = 0;
+  for (size_t i = 0; i < truth.size(); ++i) {
+    both += truth[i] && picked[i];
+    wall += picked[i] && with.means[3 * i + 2] < -1.4f;
+  }
+  EXPECT_EQ(both, region_count(truth));
+  EXPECT_GT(double(both) / double(region_count(picked)), 0.75);
+  EXPECT_EQ(wall, 0);
+  EXPECT_EQ(error_message([&] { region_from_clicks(with, camera, "cam", {{-1, 5}}); }),
+            "the click (-1, 5) is outside view cam's image (96x72)");
+}
+
 TEST(FillCameras, GivenCamerasThatSeeTheRegionBestComeFirst) {
   const SplatCloud with = room(true, false);
   std::vector<NamedCamera> cameras = capture_cameras();
