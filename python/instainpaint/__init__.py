@@ -26,7 +26,7 @@ from __future__ import annotations
 import inspect
 import json
 import os
-from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 from . import _core
 from ._core import Camera, Error, Scene, set_log_level, set_threads
@@ -68,7 +68,7 @@ def _geometry_texts(geometry: Mapping[str, Any]) -> Dict[str, str]:
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
-    "masks_from_one", "set_log_level", "set_threads",
+    "masks_from_one", "select", "set_log_level", "set_threads",
 ]
 __version__ = "0.1.0"
 
@@ -175,6 +175,12 @@ class Gaussians:
         return Gaussians(self._g._refine(scene, str(preset), sh_degree, position_rate, exposure, call))
 
 
+    def select(self, camera: Camera, click, *, view: str = "the camera"):
+        """The splats of the object under click=(x, y) (pixels of camera's view; a list of points adds
+        more), as `fill --click` selects them: a bool array, one per splat."""
+        import numpy as np
+        return np.asarray(_core._select_splats(self._g, camera, view, _clicks(click)), dtype=bool)
+
     @property
     def fill_report(self) -> Optional[dict]:
         """What the fill that made these did (splats removed and added, cameras, stage times), or None."""
@@ -182,7 +188,7 @@ class Gaussians:
         return json.loads(text) if text else None
 
     def fill(self, *, box: Optional[Sequence[float]] = None, selection: Optional["Gaussians"] = None,
-             view: Optional[str] = None, mask: Union[PathLike, Any, None] = None,
+             view: Optional[str] = None, mask: Union[PathLike, Any, None] = None, click=None,
              scene: Optional[Scene] = None, cameras: Optional[Mapping[str, Camera]] = None,
              reference: Union[PathLike, Any, None] = None, reference_view: Optional[str] = None,
              views: int = 4, height: int = 256, up: Optional[Sequence[float]] = None,
@@ -193,7 +199,8 @@ class Gaussians:
 
         The region, one of: box=(cx, cy, cz, sx, sy, sz[, rx, ry, rz]) in the scene's frame;
         selection= the same Gaussians with the region deleted; view= a camera's name and mask= a
-        stroke over the object on it (an H x W array or a file). Cameras: scene= (its views and
+        stroke over the object on it (an H x W array or a file) or click=(x, y) on the object (a
+        list of points adds more). Cameras: scene= (its views and
         object-free test views) and/or
         cameras= {name: Camera}; none: automatic views around the region (up= the scene's up).
         reference= the reference view's hole painted by any 2D inpainter (array or file), for
@@ -214,7 +221,7 @@ class Gaussians:
             predictor = Predictor()
         return Gaussians(_core._fill(
             self._g, None if box is None else [float(v) for v in box],
-            None if selection is None else selection._g, view or "", mask, given, reference,
+            None if selection is None else selection._g, view or "", mask, _clicks(click), given, reference,
             reference_view or "", views, height, None if up is None else [float(v) for v in up],
             "" if refine is None else str(refine), all_views, placement, inpainter, predictor._p))
 
@@ -296,7 +303,35 @@ def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,
     """
     if isinstance(region, str) or hasattr(region, "__fspath__"):
         region = os.fspath(region)
-    masks, report = _core._masks_from_one(scene, view, region, predictor._p if predictor else None, height, views)
+    masks, report = _core._masks_from_one(scene, view, region, [], predictor._p if predictor else None, height, views)
+    return masks, json.loads(report)
+
+
+def _clicks(click) -> List[Tuple[float, float]]:
+    """(x, y) or a list of them, as (float, float) pairs."""
+    if click is None:
+        return []
+    points = [click] if len(click) == 2 and all(isinstance(v, (int, float)) for v in click) else list(click)
+    out = []
+    for p in points:
+        if len(p) != 2:
+            raise ValueError(f"click: {p!r} is not a point (x, y)")
+        out.append((float(p[0]), float(p[1])))
+    return out
+
+
+def select(scene: Scene, view: str, click, *, predictor: Optional[Predictor] = None, height: int = 512,
+           views: int = 4) -> Tuple[Dict[str, Any], dict]:
+    """The object under a click, masked in every view (`instainpaint masks --click`).
+
+    click: (x, y) in pixels of the view's photo as stored, or a list of such points (each adds the
+    object under it). The object is selected in the network's reconstruction of the scene
+    (predictor: default the built-in model) and each view's mask carved to it. Returns
+    ({view name: H x W float32 mask}, a report: the points selected, the carved views).
+    """
+    if predictor is None:
+        predictor = Predictor()
+    masks, report = _core._masks_from_one(scene, view, None, _clicks(click), predictor._p, height, views)
     return masks, json.loads(report)
 
 

@@ -32,6 +32,7 @@
 #include "edit/scene_masks.h"
 #include "eval/protocol.h"
 #include "fill/fill.h"
+#include "fill/region.h"
 #include "geometry/settings.h"
 #include "io/image.h"
 #include "io/splat_file.h"
@@ -389,8 +390,9 @@ NB_MODULE(_core, m) {
 
   m.def("_fill",
         [](const PyGaussians& g, const std::optional<std::vector<double>>& box, const PyGaussians* selection,
-           const std::string& view, const nb::object& mask, const std::map<std::string, Camera>& cameras,
-           const nb::object& reference, const std::string& reference_view, int views, int height,
+           const std::string& view, const nb::object& mask, const std::vector<std::pair<double, double>>& clicks,
+           const std::map<std::string, Camera>& cameras, const nb::object& reference,
+           const std::string& reference_view, int views, int height,
            const std::optional<std::vector<double>>& up, const std::string& refine, bool all_views,
            const std::string& placement, const std::string& inpainter, const Predictor& predictor) {
           FillOptions o;
@@ -409,8 +411,12 @@ NB_MODULE(_core, m) {
           for (const auto& [name, camera] : cameras) o.cameras.push_back({name, camera});
           if (!view.empty()) {
             o.stroke_view = view;
-            if (mask.is_none()) fail("fill: view= needs mask= (the stroke drawn on that view)");
-            o.stroke = image_or_file(mask, "mask", 1);
+            for (const auto& [x, y] : clicks) o.clicks.push_back({x, y});
+            if (mask.is_none() == o.clicks.empty())
+              fail("fill: view= needs mask= (the stroke drawn on that view) or click= (a point on the object), one of them");
+            if (!mask.is_none()) o.stroke = image_or_file(mask, "mask", 1);
+          } else if (!clicks.empty()) {
+            fail("fill: click= is on a view: name it with view=");
           }
           if (!reference.is_none()) o.reference_image = image_or_file(reference, "reference", 3);
           o.camera_options.reference = reference_view;
@@ -432,9 +438,19 @@ NB_MODULE(_core, m) {
           }
           return out;
         },
-        "gaussians"_a, "box"_a.none(), "selection"_a.none(), "view"_a, "mask"_a.none(), "cameras"_a,
+        "gaussians"_a, "box"_a.none(), "selection"_a.none(), "view"_a, "mask"_a.none(), "clicks"_a, "cameras"_a,
         "reference"_a.none(), "reference_view"_a, "views"_a, "height"_a, "up"_a.none(), "refine"_a,
         "all_views"_a, "placement"_a, "inpainter"_a, "predictor"_a);
+
+  m.def("_select_splats",
+        [](const PyGaussians& g, const Camera& camera, const std::string& view,
+           const std::vector<std::pair<double, double>>& clicks) {
+          std::vector<Click> c;
+          for (const auto& [x, y] : clicks) c.push_back({x, y});
+          nb::gil_scoped_release release;
+          return region_from_clicks(scene_splats(g), camera, view, c);
+        },
+        "gaussians"_a, "camera"_a, "view"_a, "clicks"_a);
 
   m.def("_read_splats", [](const std::string& path) {
     PyGaussians g;
@@ -477,12 +493,15 @@ NB_MODULE(_core, m) {
            "masks"_a, "geometry"_a);
 
   m.def("_masks_from_one",
-        [](const Scene& scene, const std::string& view, const nb::object& region, const Predictor* predictor,
-           int height, int views) {
+        [](const Scene& scene, const std::string& view, const nb::object& region,
+           const std::vector<std::pair<double, double>>& clicks, const Predictor* predictor, int height, int views) {
           const View* v = &view_of(scene, view);
           OneMask request;
           request.view = view;
-          if (nb::isinstance<nb::str>(region) || nb::hasattr(region, "__fspath__"))
+          for (const auto& [x, y] : clicks) request.clicks.push_back({x, y});
+          if (!clicks.empty()) {
+            // the clicks select
+          } else if (nb::isinstance<nb::str>(region) || nb::hasattr(region, "__fspath__"))
             request.region = read_region_mask(nb::cast<std::string>(nb::str(region)), *v);
           else
             request.region = image_of(nb::cast<AnyArray>(region), "region", 1);
@@ -500,7 +519,7 @@ NB_MODULE(_core, m) {
           for (const auto& [name, mask] : masks.masks) out[name] = array_of(mask);
           return std::make_pair(out, masks.describe(request).dump());
         },
-        "scene"_a, "view"_a, "region"_a, "predictor"_a.none(), "height"_a, "views"_a);
+        "scene"_a, "view"_a, "region"_a.none(), "clicks"_a, "predictor"_a.none(), "height"_a, "views"_a);
 
   m.def("_evaluate",
         [](const std::string& scene, const std::string& out, const std::string& method,

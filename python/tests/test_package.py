@@ -238,6 +238,32 @@ def test_masks_from_one_region(statue, predictor):
         assert (own & propagated).sum() / (own | propagated).sum() > 0.4, other
 
 
+def test_select_masks_the_clicked_object_in_every_view(tmp_path, statue, predictor):
+    view = statue.views[0]
+    own = statue.mask(view) > 0.5
+    ys, xs = np.nonzero(own)
+    click = (float(np.median(xs)), float(np.median(ys)))
+    masks, report = ii.select(statue, view, click, predictor=predictor, height=128)
+    assert set(masks) == set(statue.views)
+    assert report["clicks"] == [list(click)] and 0 < report["selected_points"] < report["points"]
+    # The marked view's mask holds mostly the statue (the drape the click is on).
+    mine = masks[view] > 0.5
+    assert (mine & own).sum() / mine.sum() > 0.7
+    with pytest.raises(ii.Error, match=f"the click \\(-5, 3\\) is outside view {view}'s image"):
+        ii.select(statue, view, (-5, 3), predictor=predictor, height=128)
+    with pytest.raises(ValueError, match="is not a point"):
+        ii.select(statue, view, [(1, 2, 3)], predictor=predictor, height=128)
+    # The splats of a splat scene: the same click on its camera.
+    predictor.predict(statue, height=HEIGHT).save(tmp_path / "scene.ply")
+    scene = ii.load_gaussians(tmp_path / "scene.ply")
+    chosen = scene.select(statue.camera(view), click, view=view)
+    assert chosen.dtype == bool and chosen.shape == (len(scene),) and 0 < chosen.sum() < len(scene)
+    filled = scene.fill(view=view, click=click, scene=statue, views=2, height=HEIGHT, predictor=predictor)
+    assert filled.fill_report["splats"]["removed"] == chosen.sum()
+    with pytest.raises(ii.Error, match="click= is on a view: name it with view="):
+        scene.fill(click=click, scene=statue, predictor=predictor)
+
+
 def test_evaluate_writes_what_the_cli_writes(tmp_path, cli, statue_dir):
     args = ["--hold-out-every", "8", "--height", str(HEIGHT), "--device", "cpu", "--no-report", "--threads", "1"]
     subprocess.run([str(cli), "eval", "--scene", str(statue_dir), "--out", str(tmp_path / "cli"), *args],
