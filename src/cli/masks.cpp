@@ -57,7 +57,8 @@ void run(const MasksArgs& a) {
     nlohmann::json entry = {{"name", view.name},
                             {"coverage", std::count(mask.pixels.begin(), mask.pixels.end(), 1.f) /
                                              static_cast<double>(mask.pixels.size())}};
-    if (view.name != request.view) {
+    // A region marked by hand is its own mask; a click's marked view is made like the others.
+    if (view.name != request.view || !request.clicks.empty()) {
       if (const auto truth = load_view_mask(view)) {
         const MaskAgreement agreement = mask_agreement(mask, *truth);
         entry["recall"] = agreement.recall;
@@ -98,7 +99,7 @@ void run(const MasksArgs& a) {
 
 void add_masks_command(CLI::App& app) {
   auto args = std::make_shared<MasksArgs>();
-  auto* cmd = app.add_subcommand("masks", "Make a mask for every view from one region marked on one view");
+  auto* cmd = app.add_subcommand("masks", "Make a mask for every view from one region marked (or one click) on one view");
   add_scene_options(cmd, args->scene_dir, args->scene);
   add_edit_options(cmd, args->edit);
   cmd->get_option("--view")->required();
@@ -118,8 +119,10 @@ void add_masks_command(CLI::App& app) {
   add_runtime_options(cmd, args->runtime);
   cmd->footer(
       "When the scene has masks of its own, masks.json compares with them (recall, precision per view).\n"
-      "Example: instainpaint masks --scene ../shared/data/statue --view IMG_2707 "
-      "--mask ../shared/data/statue/images_2/label/IMG_2707.png --out masks");
+      "Examples:\n"
+      "  instainpaint masks --scene ../shared/data/statue --view IMG_2707 "
+      "--mask ../shared/data/statue/images_2/label/IMG_2707.png --out masks\n"
+      "  instainpaint masks --scene my_capture --view IMG_0001 --click 512,300 --out masks   # one click on the object");
   cmd->callback([args] { run(*args); });
 }
 

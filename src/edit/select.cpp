@@ -68,6 +68,27 @@ Eigen::Vector3f chromaticity(const Eigen::Vector3f& rgb, double brightness_weigh
   return {c.x() / sum, c.y() / sum, static_cast<float>(brightness_weight) * sum / 3};
 }
 
+// The typical distance between neighbouring points near `seed` (the median of each one's nearest
+// neighbour's, for up to 256 of those within 32 `pixel`s of it; 0 when too few): how far apart a
+// splat file's splats or a coarse reconstruction's points lie, whatever the clicked view's pixels.
+double spacing_near(const std::vector<Eigen::Vector3d>& points, size_t seed, double pixel) {
+  const double reach2 = (32 * pixel) * (32 * pixel);
+  std::vector<size_t> near;
+  for (size_t i = 0; i < points.size(); ++i)
+    if ((points[i] - points[seed]).squaredNorm() <= reach2) near.push_back(i);
+  if (near.size() < 8) return 0;
+  const size_t step = std::max<size_t>(1, near.size() / 256);
+  std::vector<double> nearest;
+  for (size_t a = 0; a < near.size(); a += step) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const size_t b : near)
+      if (b != near[a]) best = std::min(best, (points[b] - points[near[a]]).squaredNorm());
+    nearest.push_back(std::sqrt(best));
+  }
+  std::nth_element(nearest.begin(), nearest.begin() + static_cast<std::ptrdiff_t>(nearest.size() / 2), nearest.end());
+  return nearest[nearest.size() / 2];
+}
+
 double camera_depth(const Camera& camera, const Eigen::Vector3d& point) {
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
   return (w2c.topLeftCorner<3, 3>() * point + w2c.topRightCorner<3, 1>()).z();
@@ -130,7 +151,7 @@ std::vector<uint8_t> grow_selection(const std::vector<Eigen::Vector3d>& points,
   if (seed >= points.size()) fail("select: the seed {} is not one of the {} points", seed, points.size());
   const double z = camera_depth(camera, points[seed]);
   if (!(z > 0)) fail("select: the clicked point is behind the camera");
-  const double link = options.link_pixels * z / camera.K.fx;
+  const double link = std::max(options.link_pixels * z / camera.K.fx, options.link_spacing * spacing_near(points, seed, z / camera.K.fx));
   const double link2 = link * link;
   const PointGrid grid(points, link);
   std::vector<Eigen::Vector3f> hue(colours.size());

@@ -29,8 +29,10 @@ struct SelectOptions {
   // Points this close to the click (fraction of the view's larger side) can be the clicked one;
   // of those the nearest to the camera is.
   double pick_radius = 0.01;
-  // Two points are neighbours within this many pixels of the clicked view at the clicked depth.
-  double link_pixels = 4;
+  // Two points are neighbours within this many pixels of the clicked view at the clicked depth,
+  // or within `link_spacing` times the points' typical spacing there when that is farther (a
+  // splat file's splats, a coarse reconstruction, seen by a camera of many pixels).
+  double link_pixels = 4, link_spacing = 2.5;
   // A neighbour joins when its colour differs by at most `colour_step` from the point it is
   // reached from and by at most `colour_spread` from the colour around the click. Colours are
   // compared as chromaticity (r, g over r + g + b) and brightness (mean of r, g, b) times

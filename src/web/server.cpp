@@ -33,6 +33,7 @@
 #include "edit/scene_masks.h"
 #include "eval/protocol.h"
 #include "fill/fill.h"
+#include "fill/region.h"
 #include "gaussians/gaussians.h"
 #include "io/image.h"
 #include "io/ply.h"
@@ -214,6 +215,7 @@ struct JobRequest {
   fs::path ply;
   std::optional<OrientedBox> box;
   std::optional<Camera> camera;
+  std::vector<Click> clicks;  // fill: in place of `region`, clicks on the object on `camera`
   ClassicalInpainter inpainter = ClassicalInpainter::Telea;  // fill without a reference: its built-in one
 };
 
@@ -268,6 +270,44 @@ std::optional<Refusal> read_upload(const httplib::Request& req, const char* fiel
     std::string what = e.what();
     if (what.rfind(file.string() + ": ", 0) == 0) what.erase(0, file.string().size() + 2);
     return Refusal{400, fmt::format("{}: {}", field, what)};
+  }
+  return std::nullopt;
+}
+
+// The form's `camera`: a camera list of one (render --cameras' JSON, camera/trajectory.h), read by
+// that list's reader from `dir`.
+std::optional<Refusal> read_page_camera(const httplib::Request& req, const fs::path& dir, Camera& camera) {
+  fs::create_directories(dir);
+  write_file_atomic(dir / "camera.json", req.get_file_value("camera").content);
+  try {
+    const std::vector<NamedCamera> cameras = read_camera_json(dir / "camera.json");
+    if (cameras.size() != 1) return Refusal{400, "camera: give one camera"};
+    camera = cameras[0].camera;
+  } catch (const Error& e) {
+    std::string what = e.what();
+    const std::string file = (dir / "camera.json").string() + ": ";
+    if (what.rfind(file, 0) == 0) what.erase(0, file.size());
+    return Refusal{400, "camera: " + what};
+  }
+  const int w = camera.K.width, h = camera.K.height;
+  if (w > 8192 || h > 8192) return Refusal{400, fmt::format("camera: {}x{} pixels, at most 8192 each way", w, h)};
+  return std::nullopt;
+}
+
+// The form's `clicks`: "x,y;x,y..." in the camera's pixels, at most 32.
+constexpr size_t kMaxClicks = 32;
+std::optional<Refusal> read_clicks(const httplib::Request& req, std::vector<Click>& clicks) {
+  const std::string text = req.get_file_value("clicks").content;
+  size_t start = 0;
+  while (start <= text.size()) {
+    const size_t end = std::min(text.find(';', start), text.size());
+    try {
+      clicks.push_back(parse_click(text.substr(start, end - start), "clicks"));
+    } catch (const Error& e) {
+      return Refusal{400, e.what()};
+    }
+    if (clicks.size() > kMaxClicks) return Refusal{400, fmt::format("clicks: at most {}", kMaxClicks)};
+    start = end + 1;
   }
   return std::nullopt;
 }
@@ -369,6 +409,13 @@ struct WebServer::State {
   std::mutex reconstruction_depth_mutex;
   std::map<size_t, torch::Tensor> reconstruction_depth;
   torch::Tensor reconstruction_depth_in(size_t view, const PreprocessOptions& working);
+
+  // The splats the page's clicks select in, read once per file (a click answers in well under a
+  // second on a million splats; reading them again would double that).
+  std::mutex selection_mutex;
+  fs::path selection_file;
+  std::shared_ptr<const SplatCloud> selection_cloud;
+  json select(const httplib::Request& req);
 
   ~State() { stop_worker(); }
   void worker_loop();
@@ -568,28 +615,20 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
     }
     return std::nullopt;
   }
-  if (!req.has_file("camera") || !req.has_file("mask"))
-    return Refusal{400, "give the region: box (cx,cy,cz,sx,sy,sz[,rx,ry,rz]), or camera and mask"};
-  // The camera in the camera-list JSON (camera/trajectory.h), read by that list's reader.
-  fs::create_directories(dir);
-  write_file_atomic(dir / "camera.json", req.get_file_value("camera").content);
-  try {
-    const std::vector<NamedCamera> cameras = read_camera_json(dir / "camera.json");
-    if (cameras.size() != 1) return Refusal{400, "camera: give one camera"};
-    fill.camera = cameras[0].camera;
-  } catch (const Error& e) {
-    std::string what = e.what();
-    const std::string file = (dir / "camera.json").string() + ": ";
-    if (what.rfind(file, 0) == 0) what.erase(0, file.size());
-    return Refusal{400, "camera: " + what};
-  }
+  if (!req.has_file("camera") || !(req.has_file("mask") || req.has_file("clicks")))
+    return Refusal{400, "give the region: box (cx,cy,cz,sx,sy,sz[,rx,ry,rz]), or camera and mask or clicks"};
+  fill.camera.emplace();
+  if (auto r = read_page_camera(req, dir, *fill.camera)) return r;
   const int w = fill.camera->K.width, h = fill.camera->K.height;
-  if (w > 8192 || h > 8192) return Refusal{400, fmt::format("camera: {}x{} pixels, at most 8192 each way", w, h)};
   const auto camera_sized = [w, h](const ImageInfo& info) -> std::optional<std::string> {
     if (info.width == w && info.height == h) return std::nullopt;
     return fmt::format("{}x{} pixels, but the camera is {}x{}", info.width, info.height, w, h);
   };
-  if (auto r = read_upload(req, "mask", dir, camera_sized, read_mask, fill.region)) return r;
+  if (req.has_file("clicks")) {
+    if (auto r = read_clicks(req, fill.clicks)) return r;
+  } else if (auto r = read_upload(req, "mask", dir, camera_sized, read_mask, fill.region)) {
+    return r;
+  }
   if (!reference) return std::nullopt;
   // The view on screen painted out by a 2D inpainter: the page saves that view at the camera's
   // size; as the CLI's fill, the view's working size and the official evaluation's crop of it
@@ -620,7 +659,8 @@ json WebServer::State::run_fill(const JobRequest& fill, const fs::path& dir, int
   if (fill.camera) {
     o.cameras.push_back({"page view", *fill.camera});
     o.stroke_view = "page view";
-    o.stroke = fill.region;
+    if (fill.clicks.empty()) o.stroke = fill.region;
+    o.clicks = fill.clicks;
     o.reference_image = fill.reference;
   }
   o.camera_options.height = options.height;
@@ -1154,6 +1194,59 @@ void serve_reads(WebServer::State& s) {
   });
 }
 
+}  // namespace
+
+// The objects under the page's clicks on the splats on screen: their count and where they are
+// in the view (runs of the view's pixels, row by row, alternately outside and inside).
+json WebServer::State::select(const httplib::Request& req) {
+  Stopwatch watch;
+  if (!req.is_multipart_form_data() || !req.has_file("camera") || !req.has_file("clicks"))
+    throw Refusal{400, "send multipart/form-data with ply, camera and clicks"};
+  const std::string url = exported_url(req);
+  const fs::path ply = splats_of_url(url, /*standard_ply=*/true);
+  if (ply.empty()) throw Refusal{400, fmt::format("ply must be the URL of splats this server serves, not '{}'", url)};
+  Camera camera;
+  if (auto r = read_page_camera(req, out / "select", camera)) throw *r;
+  std::vector<Click> clicks;
+  if (auto r = read_clicks(req, clicks)) throw *r;
+  std::shared_ptr<const SplatCloud> cloud;
+  {
+    std::lock_guard<std::mutex> lock(selection_mutex);
+    if (selection_file != ply || !selection_cloud) {
+      selection_cloud = std::make_shared<const SplatCloud>(read_splats(ply));
+      selection_file = ply;
+    }
+    cloud = selection_cloud;
+  }
+  const double read_ms = watch.lap();
+  RegionMask region;
+  try {
+    region = region_from_clicks(*cloud, camera, "the page's view", clicks);
+  } catch (const Error& e) {
+    throw Refusal{400, e.what()};
+  }
+  const double select_ms = watch.lap();
+  std::vector<Eigen::Vector3d> points;
+  for (size_t i = 0; i < region.size(); ++i)
+    if (region[i]) points.emplace_back(cloud->means[3 * i], cloud->means[3 * i + 1], cloud->means[3 * i + 2]);
+  const int side = std::max(camera.K.width, camera.K.height);
+  const Image mask = selection_mask(camera, points, std::vector<uint8_t>(points.size(), 1), std::max(1, side / 300), 0);
+  json runs = json::array();
+  bool inside = false;
+  int64_t run = 0, pixels = 0;
+  for (const float v : mask.pixels) {
+    if ((v > 0.5f) != inside) runs.push_back(run), run = 0, inside = !inside;
+    ++run;
+    pixels += v > 0.5f;
+  }
+  runs.push_back(run);
+  return {{"selected", points.size()}, {"total", cloud->size()}, {"pixels", pixels}, {"width", mask.width},
+          {"height", mask.height}, {"runs", runs},
+          {"ms", {{"read", read_ms}, {"select", select_ms}, {"draw", watch.lap()}}}};
+}
+
+namespace {
+
 // What the page starts: masks, edits, videos, evaluations and fills, one job at a time.
 void serve_jobs(WebServer::State& s) {
   httplib::Server& http = s.http;
@@ -1193,6 +1286,21 @@ void serve_jobs(WebServer::State& s) {
     };
   };
   for (const char* kind : {"masks", "edit", "video", "eval", "fill"}) http.Post(std::string("/api/") + kind, start_job(kind));
+  // Not a job: answered at once, beside a running job.
+  http.Post("/api/select", [&s](const httplib::Request& req, httplib::Response& res) {
+    // A job's splats, which that job may still be writing behind its answer.
+    static const std::regex job_url(R"(/api/jobs/(\d{1,8})/.*)");
+    std::smatch m;
+    const std::string ply = exported_url(req);
+    if (std::regex_match(ply, m, job_url)) s.wait_for_files(std::stoi(m[1]), "splats");
+    try {
+      reply(res, 200, s.select(req));
+    } catch (const Refusal& r) {
+      refuse(res, r);
+    } catch (const std::exception& e) {
+      refuse(res, {400, e.what()});
+    }
+  });
 }
 
 }  // namespace

@@ -21,8 +21,13 @@
 //   POST /api/edit                 multipart view, mask[, mode, reference, refine]: edit (a job)
 //   POST /api/fill                 multipart ply=<splats on screen>, box=cx,cy,cz,sx,sy,sz[,rx,ry,rz]
 //                                  or camera=<a camera list of one (render --cameras' JSON)> and
-//                                  mask (PNG of the camera's size)[, refine]: remove the region and fill the hole (a job;
+//                                  mask (PNG of the camera's size) or clicks=x,y;x,y (the objects under them)
+//                                  [, refine]: remove the region and fill the hole (a job;
 //                                  no scene needed, its cameras used when there is one)
+//   POST /api/select               multipart ply, camera, clicks=x,y;x,y: the splats of the objects under
+//                                  the clicks (fill/region.h), answered at once: {selected, total,
+//                                  pixels, width, height, runs (the view's pixels row by row,
+//                                  alternately outside and inside the selection), ms}
 //   POST /api/video, /api/eval     ply=<a served splat file's URL>: an orbit video (a job), the
 //                                  SPIn-NeRF evaluation on the scene's test views (a job)
 //   GET  /api/job[?wait=<id>]      the current or last job: state, stage, progress, result, and

@@ -25,6 +25,7 @@ const api = {
   job: null, // the running job's last polled state
   lastRun: null, // the last Run or Preview: {id, state, error, result, seconds (click to splats on screen)}
   lastFill: null, // the last Fill: the job, and seconds from the click to the filled splats on screen
+  lastSelect: null, // the last click's selection: the server's answer, and seconds from the click to it drawn
   fillBox: null, // the box's centre, size and turn (degrees about x, then y, then z), or null
   showPly,
   jumpToView,
@@ -330,7 +331,7 @@ function selectView(i) {
 
 // A brush on `canvas`: red strokes of radius radiusOf() canvas pixels, or erasing while
 // erasingNow(); returns the canvas's context.
-function attachBrush(canvas, erasingNow, radiusOf) {
+function attachBrush(canvas, erasingNow, radiusOf, enabled = () => true) {
   const ctx = canvas.getContext("2d");
   let last = null;
   const point = (event) => {
@@ -356,12 +357,13 @@ function attachBrush(canvas, erasingNow, radiusOf) {
     last = [x, y];
   };
   canvas.addEventListener("pointerdown", (e) => {
+    if (!enabled()) return;
     canvas.setPointerCapture(e.pointerId);
     last = null;
     stroke(e);
   });
   canvas.addEventListener("pointermove", (e) => {
-    if (e.buttons & 1) stroke(e);
+    if (enabled() && e.buttons & 1) stroke(e);
   });
   canvas.addEventListener("pointerup", () => (last = null));
   return ctx;
@@ -528,9 +530,11 @@ $("preview").onclick = () => runJob("/api/masks");
 $("run").onclick = () => runJob("/api/edit");
 
 // ---- remove and fill ------------------------------------------------------------------------
-// The region: a box (three.js transform handles; Spark hides the splats inside at once), or a
-// stroke painted over the view on screen. Fill sends it with the splats on screen to the server.
-let fillMode = null; // "box" | "paint"
+// The region: a box (three.js transform handles; Spark hides the splats inside at once), a
+// stroke painted over the view on screen, or clicks on objects in it (the server selects their
+// splats; shift-click adds). Fill sends it with the splats on screen to the server.
+let fillMode = null; // "box" | "paint" | "click"
+let fillClicks = []; // "click": the clicks so far, in the canvas's pixels
 let region = null; // the box: {object (centre, turn, scale = size), gizmo, sdf, edit}
 // The canvas painted on over the viewer, made when painting first starts.
 let fillCanvas = null, fillPaint = null;
@@ -539,9 +543,57 @@ function paintingCanvas() {
     fillCanvas = document.createElement("canvas");
     fillCanvas.id = "fill-canvas";
     viewer.appendChild(fillCanvas);
-    fillPaint = attachBrush(fillCanvas, () => false, () => Math.max(4, fillCanvas.width / 40));
+    fillPaint = attachBrush(fillCanvas, () => false, () => Math.max(4, fillCanvas.width / 40), () => fillMode === "paint");
+    fillCanvas.addEventListener("pointerdown", (e) => {
+      if (fillMode !== "click") return;
+      const r = fillCanvas.getBoundingClientRect();
+      selectAt(((e.clientX - r.left) * fillCanvas.width) / r.width, ((e.clientY - r.top) * fillCanvas.height) / r.height,
+        e.shiftKey);
+    });
   }
   return fillCanvas;
+}
+
+// A click on the view on screen: the server selects the object's splats under it (and under the
+// clicks before it when `add`), and the selection is drawn over the view in red.
+async function selectAt(x, y, add) {
+  if (!api.loadedUrl) return status("no splats on screen", true);
+  fillClicks = add ? [...fillClicks, [x, y]] : [[x, y]];
+  const form = new FormData();
+  form.append("ply", api.loadedUrl);
+  form.append("camera", JSON.stringify(screenCamera()));
+  form.append("clicks", fillClicks.map(([cx, cy]) => `${cx.toFixed(1)},${cy.toFixed(1)}`).join(";"));
+  const clicked = performance.now();
+  const answer = await fetch("/api/select", { method: "POST", body: form });
+  const selection = await answer.json();
+  if (answer.status !== 200) {
+    fillClicks = fillClicks.slice(0, -1);
+    api.lastSelect = { error: selection.error };
+    return status(selection.error ?? `error ${answer.status}`, true);
+  }
+  drawRuns(fillPaint, selection);
+  const seconds = (performance.now() - clicked) / 1000;
+  api.lastSelect = { ...selection, clicks: fillClicks.length, clientSeconds: seconds };
+  $("fill-result").textContent = `selected ${selection.selected} of ${selection.total} splats (${selection.pixels} ` +
+    `pixels on screen) from ${fillClicks.length} click${fillClicks.length > 1 ? "s" : ""}; ${seconds.toFixed(2)} s`;
+  status("shift-click adds another object; Fill removes the selection");
+}
+
+// The server's runs (the view's pixels row by row, alternately outside and inside) in red.
+function drawRuns(ctx, { width, height, runs }) {
+  ctx.canvas.width = width;
+  ctx.canvas.height = height;
+  const pixels = ctx.createImageData(width, height);
+  let at = 0;
+  runs.forEach((length, k) => {
+    if (k % 2)
+      for (let i = at; i < at + length; ++i) {
+        pixels.data[4 * i] = 255;
+        pixels.data[4 * i + 3] = 255;
+      }
+    at += length;
+  });
+  ctx.putImageData(pixels, 0, 0);
 }
 
 function updateRegionPreview() {
@@ -595,13 +647,16 @@ function setFillMode(mode) {
   if (mode === "box" && !region) makeRegionBox();
   $("fill-box").classList.toggle("on", mode === "box");
   $("fill-paint").classList.toggle("on", mode === "paint");
+  $("fill-click").classList.toggle("on", mode === "click");
+  fillClicks = [];
   $("gizmo-modes").hidden = mode !== "box";
-  // Painting holds the camera still: the stroke is drawn on the view on screen.
-  if (mode === "paint") paintingCanvas();
-  if (fillCanvas) fillCanvas.hidden = mode !== "paint";
-  $("fill-reference-row").hidden = mode !== "paint";
-  if (controls) controls.enabled = mode !== "paint";
-  if (mode === "paint") {
+  // Painting and clicking hold the camera still: the stroke and the clicks are on the view on screen.
+  const onView = mode === "paint" || mode === "click";
+  if (onView) paintingCanvas();
+  if (fillCanvas) fillCanvas.hidden = !onView;
+  $("fill-reference-row").hidden = !onView;
+  if (controls) controls.enabled = !onView;
+  if (onView) {
     fillCanvas.width = renderer.domElement.width;
     fillCanvas.height = renderer.domElement.height;
     fillCanvas.style.width = renderer.domElement.style.width || `${viewer.clientWidth}px`;
@@ -612,6 +667,7 @@ function setFillMode(mode) {
 }
 $("fill-box").onclick = () => setFillMode(fillMode === "box" ? null : "box");
 $("fill-paint").onclick = () => setFillMode(fillMode === "paint" ? null : "paint");
+$("fill-click").onclick = () => setFillMode(fillMode === "click" ? null : "click");
 $("fill-preview").onchange = updateRegionPreview;
 for (const mode of ["translate", "scale", "rotate"])
   $(`gizmo-${mode}`).onclick = () => {
@@ -645,13 +701,14 @@ async function runFill() {
   if (fillMode === "box" && region) {
     const { centre, size, turn } = api.fillBox;
     form.append("box", [...centre, ...size, ...turn].map((v) => +v.toPrecision(7)).join(","));
-  } else if (fillMode === "paint") {
+  } else if (fillMode === "paint" || (fillMode === "click" && fillClicks.length)) {
     form.append("camera", JSON.stringify(screenCamera()));
-    form.append("mask", await maskBlob(fillCanvas), "mask.png");
+    if (fillMode === "click") form.append("clicks", fillClicks.map(([x, y]) => `${x.toFixed(1)},${y.toFixed(1)}`).join(";"));
+    else form.append("mask", await maskBlob(fillCanvas), "mask.png");
     const reference = $("fill-reference").files[0];
     if (reference) form.append("reference", reference, reference.name);
   } else {
-    return status("place a box (box) or paint over the object (paint) first", true);
+    return status("place a box (box), paint over the object (paint) or click on it (click) first", true);
   }
   const clicked = performance.now();
   const job = await startAndWait("/api/fill", form);
@@ -662,7 +719,8 @@ async function runFill() {
   setActive("after");
   await showPly(afterUrl);
   setDownloads();
-  if (fillMode === "paint") fillPaint.clearRect(0, 0, fillCanvas.width, fillCanvas.height);
+  if (fillMode === "paint" || fillMode === "click") fillPaint.clearRect(0, 0, fillCanvas.width, fillCanvas.height);
+  fillClicks = [];
   const seconds = (performance.now() - clicked) / 1000;
   const f = job.result.fill;
   api.lastFill = { ...job, clientSeconds: seconds };
