@@ -415,7 +415,17 @@ struct WebServer::State {
   std::mutex selection_mutex;
   fs::path selection_file;
   std::shared_ptr<const SplatCloud> selection_cloud;
+  // The reconstruction's opaque Gaussians' centres and colours (pose-normalised frame), for
+  // clicks on the scene's views; made at the first such click.
+  struct ReconstructionPoints {
+    std::vector<Eigen::Vector3d> points;
+    std::vector<Eigen::Vector3f> colours;
+  };
+  std::shared_ptr<const ReconstructionPoints> reconstruction_points;
+  static ReconstructionPoints points_of(const GaussianSet& g);
   json select(const httplib::Request& req);
+  json select_splats(const httplib::Request& req, const std::vector<Click>& clicks);
+  json select_on_view(const httplib::Request& req, const std::vector<Click>& clicks);
 
   ~State() { stop_worker(); }
   void worker_loop();
@@ -837,7 +847,12 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   GaussianSet kept = predicted;  // the network's dtype (bf16 on a GPU): the rasterizer draws float32
   for (torch::Tensor* t : {&kept.means, &kept.quats, &kept.scales, &kept.opacities, &kept.colors})
     *t = t->to(render_device(predictor->device()), torch::kFloat32);
-  reconstruction = std::move(kept);
+  {
+    // Under the selection's lock: a click on a view reads it from the server's threads.
+    std::lock_guard<std::mutex> lock(selection_mutex);
+    reconstruction = std::move(kept);
+    reconstruction_points.reset();
+  }
   {
     std::lock_guard<std::mutex> lock(reconstruction_depth_mutex);
     reconstruction_depth.clear();
@@ -1198,17 +1213,42 @@ void serve_reads(WebServer::State& s) {
 
 // The objects under the page's clicks on the splats on screen: their count and where they are
 // in the view (runs of the view's pixels, row by row, alternately outside and inside).
+// A mask as the page draws it: runs of its pixels, row by row, alternately outside and inside.
+json mask_runs(const Image& mask) {
+  json runs = json::array();
+  bool inside = false;
+  int64_t run = 0;
+  for (const float v : mask.pixels) {
+    if ((v > 0.5f) != inside) runs.push_back(run), run = 0, inside = !inside;
+    ++run;
+  }
+  runs.push_back(run);
+  return runs;
+}
+
+int64_t mask_pixels(const Image& mask) {
+  return std::count_if(mask.pixels.begin(), mask.pixels.end(), [](float v) { return v > 0.5f; });
+}
+
 json WebServer::State::select(const httplib::Request& req) {
+  if (!req.is_multipart_form_data() || !req.has_file("clicks") || !(req.has_file("camera") || req.has_file("view")))
+    throw Refusal{400, "send multipart/form-data with clicks, and view (a scene view's index) or ply and camera"};
+  std::vector<Click> clicks;
+  if (auto r = read_clicks(req, clicks)) throw *r;
+  try {
+    return req.has_file("view") ? select_on_view(req, clicks) : select_splats(req, clicks);
+  } catch (const Error& e) {
+    throw Refusal{400, e.what()};
+  }
+}
+
+json WebServer::State::select_splats(const httplib::Request& req, const std::vector<Click>& clicks) {
   Stopwatch watch;
-  if (!req.is_multipart_form_data() || !req.has_file("camera") || !req.has_file("clicks"))
-    throw Refusal{400, "send multipart/form-data with ply, camera and clicks"};
   const std::string url = exported_url(req);
   const fs::path ply = splats_of_url(url, /*standard_ply=*/true);
   if (ply.empty()) throw Refusal{400, fmt::format("ply must be the URL of splats this server serves, not '{}'", url)};
   Camera camera;
   if (auto r = read_page_camera(req, out / "select", camera)) throw *r;
-  std::vector<Click> clicks;
-  if (auto r = read_clicks(req, clicks)) throw *r;
   std::shared_ptr<const SplatCloud> cloud;
   {
     std::lock_guard<std::mutex> lock(selection_mutex);
@@ -1219,30 +1259,74 @@ json WebServer::State::select(const httplib::Request& req) {
     cloud = selection_cloud;
   }
   const double read_ms = watch.lap();
-  RegionMask region;
-  try {
-    region = region_from_clicks(*cloud, camera, "the page's view", clicks);
-  } catch (const Error& e) {
-    throw Refusal{400, e.what()};
-  }
+  const RegionMask region = region_from_clicks(*cloud, camera, "the page's view", clicks);
   const double select_ms = watch.lap();
   std::vector<Eigen::Vector3d> points;
   for (size_t i = 0; i < region.size(); ++i)
     if (region[i]) points.emplace_back(cloud->means[3 * i], cloud->means[3 * i + 1], cloud->means[3 * i + 2]);
   const int side = std::max(camera.K.width, camera.K.height);
   const Image mask = selection_mask(camera, points, std::vector<uint8_t>(points.size(), 1), std::max(1, side / 300), 0);
-  json runs = json::array();
-  bool inside = false;
-  int64_t run = 0, pixels = 0;
-  for (const float v : mask.pixels) {
-    if ((v > 0.5f) != inside) runs.push_back(run), run = 0, inside = !inside;
-    ++run;
-    pixels += v > 0.5f;
-  }
-  runs.push_back(run);
-  return {{"selected", points.size()}, {"total", cloud->size()}, {"pixels", pixels}, {"width", mask.width},
-          {"height", mask.height}, {"runs", runs},
+  return {{"selected", points.size()}, {"total", cloud->size()}, {"pixels", mask_pixels(mask)}, {"width", mask.width},
+          {"height", mask.height}, {"runs", mask_runs(mask)},
           {"ms", {{"read", read_ms}, {"select", select_ms}, {"draw", watch.lap()}}}};
+}
+
+WebServer::State::ReconstructionPoints WebServer::State::points_of(const GaussianSet& g) {
+  const torch::Tensor opaque = g.opacities.reshape({-1}).gt(0.5).nonzero().squeeze(1).to(g.means.device());
+  const torch::Tensor means = g.means.index_select(0, opaque).to(torch::kCPU, torch::kDouble).contiguous();
+  const torch::Tensor rgb = (g.sh_degree < 0 ? g.colors : g.colors.select(1, 0) * kSh0 + 0.5)
+                                .index_select(0, opaque)
+                                .to(torch::kCPU, torch::kFloat)
+                                .contiguous();
+  ReconstructionPoints out;
+  const auto m = means.accessor<double, 2>();
+  const auto c = rgb.accessor<float, 2>();
+  for (int64_t i = 0; i < means.size(0); ++i) {
+    out.points.emplace_back(m[i][0], m[i][1], m[i][2]);
+    out.colours.emplace_back(c[i][0], c[i][1], c[i][2]);
+  }
+  return out;
+}
+
+json WebServer::State::select_on_view(const httplib::Request& req, const std::vector<Click>& clicks) {
+  Stopwatch watch;
+  if (!scene) throw Refusal{400, "the server was started without --scene: no views to click on"};
+  int index = -1;
+  try {
+    index = std::stoi(req.get_file_value("view").content);
+  } catch (const std::exception&) {
+  }
+  if (index < 0 || index >= static_cast<int>(scene->views.size()))
+    throw Refusal{400, fmt::format("view must be the index of one of the scene's {} views", scene->views.size())};
+  std::shared_ptr<const ReconstructionPoints> points;
+  {
+    std::lock_guard<std::mutex> lock(selection_mutex);
+    if (!reconstruction_points) {
+      if (!reconstruction) throw Refusal{409, "the scene's reconstruction is not ready yet: click again in a moment"};
+      reconstruction_points = std::make_shared<const ReconstructionPoints>(points_of(*reconstruction));
+    }
+    points = reconstruction_points;
+  }
+  const View& view = scene->views[static_cast<size_t>(index)];
+  const Camera camera = normalization.apply(view.camera);
+  std::vector<uint8_t> selected(points->points.size(), 0);
+  for (const Click& click : clicks) {
+    const std::vector<uint8_t> one = select_object(camera, view.name, points->points, points->colours, click);
+    for (size_t i = 0; i < selected.size(); ++i) selected[i] |= one[i];
+  }
+  const double select_ms = watch.lap();
+  // The selection's image carved to the object by the view's photo, as `masks --click` does.
+  const int side = std::max(camera.K.width, camera.K.height);
+  const SelectOptions defaults;
+  const Image outline = selection_mask(camera, points->points, selected, std::max(1, static_cast<int>(0.003 * side)),
+                                       std::max(2, static_cast<int>(std::lround(defaults.mask_margin * side))));
+  std::vector<PointRole> roles(selected.size());
+  for (size_t i = 0; i < selected.size(); ++i) roles[i] = selected[i] ? PointRole::object : PointRole::other;
+  const Image mask = carve_masks({outline}, [&](size_t) { return load_view_image(view); }, {camera}, points->points,
+                                 roles)[0].mask;
+  return {{"selected", std::count(selected.begin(), selected.end(), uint8_t{1})}, {"total", selected.size()},
+          {"pixels", mask_pixels(mask)}, {"width", mask.width}, {"height", mask.height}, {"runs", mask_runs(mask)},
+          {"ms", {{"select", select_ms}, {"carve", watch.lap()}}}};
 }
 
 namespace {

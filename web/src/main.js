@@ -327,6 +327,7 @@ function selectView(i) {
   $("paint-image").src = view.image;
   paintCanvas.width = view.width;
   paintCanvas.height = view.height;
+  viewClicks = [];
 }
 
 // A brush on `canvas`: red strokes of radius radiusOf() canvas pixels, or erasing while
@@ -368,17 +369,43 @@ function attachBrush(canvas, erasingNow, radiusOf, enabled = () => true) {
   canvas.addEventListener("pointerup", () => (last = null));
   return ctx;
 }
-const paint = attachBrush(paintCanvas, () => erasing, () => (Number($("size").value) * paintCanvas.width) / 400);
-$("brush").onclick = () => {
-  erasing = false;
-  $("brush").classList.add("on");
-  $("eraser").classList.remove("on");
-};
-$("eraser").onclick = () => {
-  erasing = true;
-  $("eraser").classList.add("on");
-  $("brush").classList.remove("on");
-};
+let picking = false; // the click tool: a click selects the object under it instead of painting
+let viewClicks = []; // its clicks so far on the selected view, in the view's pixels
+const paint = attachBrush(paintCanvas, () => erasing, () => (Number($("size").value) * paintCanvas.width) / 400,
+  () => !picking);
+function setTool(tool) {
+  erasing = tool === "eraser";
+  picking = tool === "pick";
+  for (const t of ["brush", "eraser", "pick"]) $(t).classList.toggle("on", t === tool);
+}
+$("brush").onclick = () => setTool("brush");
+$("eraser").onclick = () => setTool("eraser");
+$("pick").onclick = () => setTool("pick");
+// A click with the click tool: the server selects the object in the scene's reconstruction and
+// carves its outline on this view by the photo; the outline becomes the painted region (Run and
+// Preview use it), shift-click adds another object.
+paintCanvas.addEventListener("pointerdown", async (e) => {
+  if (!picking || selected < 0) return;
+  const r = paintCanvas.getBoundingClientRect();
+  const x = ((e.clientX - r.left) * paintCanvas.width) / r.width, y = ((e.clientY - r.top) * paintCanvas.height) / r.height;
+  viewClicks = e.shiftKey ? [...viewClicks, [x, y]] : [[x, y]];
+  const form = new FormData();
+  form.append("view", String(selected));
+  form.append("clicks", viewClicks.map(([cx, cy]) => `${cx.toFixed(1)},${cy.toFixed(1)}`).join(";"));
+  const clicked = performance.now();
+  const answer = await fetch("/api/select", { method: "POST", body: form });
+  const selection = await answer.json();
+  if (answer.status !== 200) {
+    viewClicks = viewClicks.slice(0, -1);
+    api.lastSelect = { error: selection.error };
+    return status(selection.error ?? `error ${answer.status}`, true);
+  }
+  drawRuns(paint, selection);
+  const seconds = (performance.now() - clicked) / 1000;
+  api.lastSelect = { ...selection, clicks: viewClicks.length, clientSeconds: seconds };
+  status(`selected ${selection.selected} of the reconstruction's ${selection.total} points (${selection.pixels} pixels ` +
+    `of the view); ${seconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds`);
+});
 $("clear").onclick = () => paint.clearRect(0, 0, paintCanvas.width, paintCanvas.height);
 $("mask-file").onchange = async (e) => {
   const file = e.target.files[0];

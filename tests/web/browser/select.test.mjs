@@ -1,8 +1,9 @@
-// One click selects an object in headless Chromium, on the splats of a real capture: serve opens
-// on ../shared/data/statue (the scene reconstructed as captured), the camera on one of its views;
-// a click on the statue selects splats that lie on the statue there and not on the ground below
-// it, shift-click adds, and Fill then removes every selected splat.
-import { existsSync } from "node:fs";
+// One click selects an object in headless Chromium, on a real capture: serve opens on
+// ../shared/data/statue (the scene reconstructed as captured). On a view's photo (the editor), a
+// click with the click tool draws the statue's outline as the region, which Preview masks takes.
+// On the splats (the camera on one of the views), a click selects splats that lie on the statue
+// there and not on the ground below it, shift-click adds, and Fill then removes every one.
+import { existsSync, writeFileSync } from "node:fs";
 import { join, resolve } from "node:path";
 import * as h from "./harness.mjs";
 
@@ -22,6 +23,56 @@ try {
   await page.evaluate(() => window.instainpaint.ready);
   const index = await page.evaluate(() => window.instainpaint.info.scene.views.findIndex((v) => v.name === "IMG_2707"));
   h.check(index >= 0, "the statue's view IMG_2707 is listed");
+
+  // The editor: the view's photo, the click tool, a click inside the statue's own mask.
+  await page.locator(`#strip figure[data-index="${index}"]`).click();
+  await page.waitForFunction(() => document.getElementById("paint-image").complete);
+  const own = await page.evaluate(async (i) => {
+    const bitmap = await createImageBitmap(await (await fetch(`/api/views/${i}/mask`)).blob());
+    const ctx = new OffscreenCanvas(bitmap.width, bitmap.height).getContext("2d");
+    ctx.drawImage(bitmap, 0, 0);
+    const d = ctx.getImageData(0, 0, bitmap.width, bitmap.height).data;
+    const inside = Array.from({ length: bitmap.width * bitmap.height }, (_, k) => (d[4 * k] > 127 ? 1 : 0));
+    let sx = 0, sy = 0, n = 0;
+    inside.forEach((v, k) => v && ((sx += k % bitmap.width), (sy += Math.floor(k / bitmap.width)), n++));
+    return { inside, width: bitmap.width, height: bitmap.height, centre: [sx / n, sy / n] };
+  }, index);
+  await page.locator("#pick").click();
+  const paintBox = await page.locator("#paint-canvas").boundingBox();
+  await page.mouse.click(paintBox.x + (own.centre[0] / own.width) * paintBox.width,
+    paintBox.y + (own.centre[1] / own.height) * paintBox.height);
+  await page.waitForFunction(() => window.instainpaint.lastSelect, null, { timeout: 60000 });
+  const onView = await page.evaluate(() => window.instainpaint.lastSelect);
+  h.check(!onView.error && onView.width === own.width && onView.height === own.height,
+    `a click on the photo selects (${onView.error ?? `${onView.selected} points, ${onView.pixels} pixels`})`);
+  let at = 0, both = 0;
+  onView.runs.forEach((length, k) => {
+    if (k % 2) for (let i = at; i < at + length; i++) both += own.inside[i];
+    at += length;
+  });
+  const ownCount = own.inside.reduce((a, b) => a + b, 0);
+  h.check(both / onView.pixels > 0.8 && both / ownCount > 0.5, `its outline on the photo is the statue's ` +
+    `(precision ${(both / onView.pixels).toFixed(3)}, recall ${(both / ownCount).toFixed(3)} against the view's own mask)`);
+  console.log(`measured: a click on the photo to its outline drawn ${onView.clientSeconds.toFixed(2)} s ` +
+    `(server: select ${onView.ms.select.toFixed(0)} ms, carve ${onView.ms.carve.toFixed(0)} ms)`);
+  const painted = await page.evaluate(() => {
+    const c = document.getElementById("paint-canvas");
+    const d = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+    let n = 0;
+    for (let k = 3; k < d.length; k += 4) n += d[k] > 0;
+    return n;
+  });
+  writeFileSync(join(dir, "outline.png"), await page.screenshot());
+  console.log(`picture: ${join(dir, "outline.png")}`);
+  h.check(painted === onView.pixels, `the outline is the painted region Run and Preview send (${painted} pixels)`);
+  await page.locator("#preview").click();
+  await page.waitForFunction(() => window.instainpaint.lastRun, null, { timeout: 300000 });
+  const preview = await page.evaluate(() => window.instainpaint.lastRun);
+  h.check(preview.state === "done" && Object.keys(preview.result.masks).length > 1,
+    `Preview masks propagates the clicked region (${preview.state}${preview.error ? ": " + preview.error : ""})`);
+
+  // The splats: the camera on that view, a click on the statue there.
+  await page.evaluate(() => (window.instainpaint.lastSelect = null));
   await page.evaluate((i) => window.instainpaint.jumpToView(i), index);
   await page.locator("#fill-click").click();
 
@@ -83,6 +134,8 @@ try {
   h.check(first.below < 0.02, `and not on the ground below it (${(100 * first.below).toFixed(1)} %)`);
   console.log(`measured: click to the drawn selection ${one.clientSeconds.toFixed(2)} s on ${one.total} splats ` +
     `(server: read ${one.ms.read.toFixed(0)} ms, select ${one.ms.select.toFixed(0)} ms, draw ${one.ms.draw.toFixed(0)} ms)`);
+  writeFileSync(join(dir, "selected.png"), await page.screenshot());
+  console.log(`picture: ${join(dir, "selected.png")}`);
   const shown = await page.locator("#fill-result").textContent();
   h.check(shown.includes(`selected ${one.selected} of ${one.total} splats`), `the counts are shown (${shown})`);
 
