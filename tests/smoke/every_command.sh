@@ -6,6 +6,7 @@
 #   tests/smoke/every_command.sh BUILD/instainpaint
 set -euo pipefail
 exe=$(realpath "$1")
+click_inside="$(dirname "$(realpath "$0")")/../../scripts/click-inside.py"
 work=$(mktemp -d "${TMPDIR:-/tmp}/instainpaint-smoke-XXXXXX")
 trap 'rm -rf "$work"' EXIT
 cd "$work"
@@ -42,6 +43,12 @@ expect_file infer/gaussians.spz
 step masks "$exe" masks --scene "$scene" --view "$view" --mask "$scene/images_4/label/$view.png" --height 48 --out masks
 step fill "$exe" fill keep/gaussians.ply --scene "$scene" --view "$view" --mask "$scene/images_4/label/$view.png" --out filled.ply
 expect_file filled.ply
+# The click forms: the pixel deepest inside the view's mask, where a user would click.
+click=$(python3 "$click_inside" "$scene/images_4/label/$view.png")
+step masks-click "$exe" masks --scene "$scene" --view "$view" --click "$click" --height 48 --out masks-click
+expect_file masks-click/masks.json
+step fill-click "$exe" fill keep/gaussians.ply --scene "$scene" --view "$view" --click "$click" --out filled-click.ply
+expect_file filled-click.ply
 first=$(find render -name "*.png" | sort | head -n 1)
 expect_file "$first"
 step metrics "$exe" metrics "$first" "$first"
