@@ -14,16 +14,10 @@
 #include <Eigen/Core>
 
 #include "camera/camera.h"
+#include "camera/click.h"
 #include "io/image.h"
 
 namespace ii {
-
-// A click in pixels of a view's image as stored (x right, y down; a pixel's centre at +0.5).
-struct Click {
-  double x = 0, y = 0;
-};
-// "X,Y": an Error naming `option` otherwise.
-Click parse_click(const std::string& text, const std::string& option);
 
 struct SelectOptions {
   // Points this close to the click (fraction of the view's larger side) can be the clicked one;

@@ -20,7 +20,7 @@ const fs::path kRegressions = fs::path(INSTAINPAINT_SOURCE_DIR) / "tests" / "fuz
 TEST(FuzzTargets, EveryParserHasOne) {
   std::set<std::string> names;
   for (const FuzzTarget& t : targets()) names.insert(t.name);
-  EXPECT_EQ(names, (std::set<std::string>{"box", "camera_json", "colmap_binary", "colmap_text", "image", "llff",
+  EXPECT_EQ(names, (std::set<std::string>{"box", "camera_json", "click", "colmap_binary", "colmap_text", "image", "llff",
                                           "mask_folder", "nerfstudio", "npy", "pickle", "ply", "pth",
                                           "safetensors", "sog", "spz"}));
 }

@@ -1,8 +1,11 @@
 // Fuzz targets of the scene-level inputs: nerfstudio transforms.json, LLFF poses_bounds.npy
 // (with the SPIn-NeRF label folders), the camera-list JSON, and a mask folder.
+#include <cmath>
+
 #include <fmt/format.h>
 
 #include "camera/box.h"
+#include "camera/click.h"
 #include "camera/trajectory.h"
 #include "common/error.h"
 #include "data/scene.h"
@@ -131,6 +134,16 @@ const bool box = register_target({
       const OrientedBox b = parse_box(std::string(reinterpret_cast<const char*>(data), size));
       b.contains(Eigen::Vector3d::Zero());
       b.describe();
+    }});
+
+// ---- a click (--click, the page's clicks) ------------------------------------------------------
+
+const bool click = register_target({
+    "click",
+    [] { return std::vector<std::string>{"512,300", "12.5,-3e1"}; },
+    [](const uint8_t* data, size_t size) {
+      const Click c = parse_click(std::string(reinterpret_cast<const char*>(data), size), "--click");
+      if (!std::isfinite(c.x) || !std::isfinite(c.y)) fail("a click that is not finite was taken");
     }});
 
 // ---- a mask folder ------------------------------------------------------------------------
