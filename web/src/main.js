@@ -388,23 +388,12 @@ paintCanvas.addEventListener("pointerdown", async (e) => {
   if (!picking || selected < 0) return;
   const r = paintCanvas.getBoundingClientRect();
   const x = ((e.clientX - r.left) * paintCanvas.width) / r.width, y = ((e.clientY - r.top) * paintCanvas.height) / r.height;
-  viewClicks = e.shiftKey ? [...viewClicks, [x, y]] : [[x, y]];
-  const form = new FormData();
-  form.append("view", String(selected));
-  form.append("clicks", viewClicks.map(([cx, cy]) => `${cx.toFixed(1)},${cy.toFixed(1)}`).join(";"));
-  const clicked = performance.now();
-  const answer = await fetch("/api/select", { method: "POST", body: form });
-  const selection = await answer.json();
-  if (answer.status !== 200) {
-    viewClicks = viewClicks.slice(0, -1);
-    api.lastSelect = { error: selection.error };
-    return status(selection.error ?? `error ${answer.status}`, true);
-  }
-  drawRuns(paint, selection);
-  const seconds = (performance.now() - clicked) / 1000;
-  api.lastSelect = { ...selection, clicks: viewClicks.length, clientSeconds: seconds };
+  const clicks = e.shiftKey ? [...viewClicks, [x, y]] : [[x, y]];
+  const selection = await requestSelection({ view: String(selected) }, clicks, paint);
+  if (!selection) return;
+  viewClicks = clicks;
   status(`selected ${selection.selected} of the reconstruction's ${selection.total} points (${selection.pixels} pixels ` +
-    `of the view); ${seconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds`);
+    `of the view); ${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds`);
 });
 $("clear").onclick = () => paint.clearRect(0, 0, paintCanvas.width, paintCanvas.height);
 $("mask-file").onchange = async (e) => {
@@ -585,25 +574,36 @@ function paintingCanvas() {
 // clicks before it when `add`), and the selection is drawn over the view in red.
 async function selectAt(x, y, add) {
   if (!api.loadedUrl) return status("no splats on screen", true);
-  fillClicks = add ? [...fillClicks, [x, y]] : [[x, y]];
+  const clicks = add ? [...fillClicks, [x, y]] : [[x, y]];
+  const selection = await requestSelection({ ply: api.loadedUrl, camera: JSON.stringify(screenCamera()) }, clicks, fillPaint);
+  if (!selection) return;
+  fillClicks = clicks;
+  $("fill-result").textContent = `selected ${selection.selected} of ${selection.total} splats (${selection.pixels} ` +
+    `pixels on screen) from ${clicks.length} click${clicks.length > 1 ? "s" : ""}; ${selection.clientSeconds.toFixed(2)} s`;
+  status("shift-click adds another object; Fill removes the selection");
+}
+
+// The clicks as the server reads them: "x,y;x,y".
+const clickList = (clicks) => clicks.map(([x, y]) => `${x.toFixed(1)},${y.toFixed(1)}`).join(";");
+
+// Asks the server for the selection under `clicks` (with `fields`: a view's index, or the splats
+// and the camera on screen) and draws it on `ctx` in red: api.lastSelect (the answer, its clicks
+// and the seconds from the click), or null when refused (the reason shown).
+async function requestSelection(fields, clicks, ctx) {
   const form = new FormData();
-  form.append("ply", api.loadedUrl);
-  form.append("camera", JSON.stringify(screenCamera()));
-  form.append("clicks", fillClicks.map(([cx, cy]) => `${cx.toFixed(1)},${cy.toFixed(1)}`).join(";"));
+  for (const [name, value] of Object.entries(fields)) form.append(name, value);
+  form.append("clicks", clickList(clicks));
   const clicked = performance.now();
   const answer = await fetch("/api/select", { method: "POST", body: form });
   const selection = await answer.json();
   if (answer.status !== 200) {
-    fillClicks = fillClicks.slice(0, -1);
     api.lastSelect = { error: selection.error };
-    return status(selection.error ?? `error ${answer.status}`, true);
+    status(selection.error ?? `error ${answer.status}`, true);
+    return null;
   }
-  drawRuns(fillPaint, selection);
-  const seconds = (performance.now() - clicked) / 1000;
-  api.lastSelect = { ...selection, clicks: fillClicks.length, clientSeconds: seconds };
-  $("fill-result").textContent = `selected ${selection.selected} of ${selection.total} splats (${selection.pixels} ` +
-    `pixels on screen) from ${fillClicks.length} click${fillClicks.length > 1 ? "s" : ""}; ${seconds.toFixed(2)} s`;
-  status("shift-click adds another object; Fill removes the selection");
+  drawRuns(ctx, selection);
+  api.lastSelect = { ...selection, clicks: clicks.length, clientSeconds: (performance.now() - clicked) / 1000 };
+  return api.lastSelect;
 }
 
 // The server's runs (the view's pixels row by row, alternately outside and inside) in red.
@@ -730,7 +730,7 @@ async function runFill() {
     form.append("box", [...centre, ...size, ...turn].map((v) => +v.toPrecision(7)).join(","));
   } else if (fillMode === "paint" || (fillMode === "click" && fillClicks.length)) {
     form.append("camera", JSON.stringify(screenCamera()));
-    if (fillMode === "click") form.append("clicks", fillClicks.map(([x, y]) => `${x.toFixed(1)},${y.toFixed(1)}`).join(";"));
+    if (fillMode === "click") form.append("clicks", clickList(fillClicks));
     else form.append("mask", await maskBlob(fillCanvas), "mask.png");
     const reference = $("fill-reference").files[0];
     if (reference) form.append("reference", reference, reference.name);
