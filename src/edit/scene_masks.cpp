@@ -7,7 +7,6 @@
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
-#include "common/parallel.h"
 #include "common/stopwatch.h"
 #include "data/masks.h"
 #include "data/view_selection.h"
@@ -26,7 +25,7 @@ const View& marked_view(const Scene& scene, const std::string& name) {
 // mask, carved 0.984 / 0.909 -> 0.985 / 0.929.
 constexpr double kEdgeJump = 0.05;
 torch::Tensor at_depth_edges(const torch::Tensor& depth) {
-  const torch::Tensor d = depth[0].select(1, 0).to(torch::kCPU, torch::kFloat).clamp_min(1e-6).log();  // (V, H, W)
+  const torch::Tensor d = depth[0].select(1, 0).to(torch::kFloat).clamp_min(1e-6).log();  // (V, H, W), on its device
   const torch::Tensor padded = torch::constant_pad_nd(d.unsqueeze(1), {1, 1, 1, 1}, 0).squeeze(1);
   const int64_t H = d.size(1), W = d.size(2);
   torch::Tensor jump = torch::zeros_like(d);
@@ -217,23 +216,11 @@ void select_the_clicked_object(const Scene& scene, const OneMask& request, const
     }
     return all;
   });
-  std::vector<PointRole> roles(selected.size());
-  for (size_t i = 0; i < selected.size(); ++i) roles[i] = selected[i] ? PointRole::object : PointRole::other;
-  std::vector<Image> masks(scene.views.size());
   std::vector<Camera> cameras;
   for (const View& v : scene.views) cameras.push_back(v.camera);
-  times.time("masks: the selection in every view", [&] {
-    parallel_dynamic(static_cast<int64_t>(scene.views.size()), thread_plan().cores, [&](int64_t i) {
-      const Camera& camera = cameras[static_cast<size_t>(i)];
-      const int side = std::max(camera.K.width, camera.K.height);
-      masks[static_cast<size_t>(i)] =
-          selection_mask(camera, reconstruction.points, selected, std::max(1, static_cast<int>(0.003 * side)),
-                         std::max(2, static_cast<int>(std::lround(request.selecting.mask_margin * side))));
-    });
-  });
-  const std::vector<CarvedMask> carved = times.time("masks: carve (with the photos)", [&] {
-    return carve_masks(masks, [&](size_t i) { return load_view_image(scene.views[i]); }, cameras,
-                       reconstruction.points, roles, request.carving);
+  const std::vector<CarvedMask> carved = times.time("masks: the selection in every view, carved", [&] {
+    return selection_masks(cameras, [&](size_t i) { return load_view_image(scene.views[i]); }, reconstruction.points,
+                           selected, request.selecting, request.carving);
   });
   for (size_t i = 0; i < carved.size(); ++i) {
     out.masks[scene.views[i].name] = carved[i].mask;
@@ -256,6 +243,7 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
 
   SceneMasks out;
   if (!request.clicks.empty()) {
+    for (const Click& click : request.clicks) check_click_inside(marked.camera, marked.name, click);
     if (!predictor) fail("a click on view {} needs the network's reconstruction, and no model was given", marked.name);
     const ViewReconstruction reconstruction = predicted_view_reconstruction(predictor(), scene, marked.name, options, stages);
     select_the_clicked_object(scene, request, reconstruction, times, out);

@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <deque>
 #include <limits>
 #include <numeric>
 
 #include "common/error.h"
+#include "common/parallel.h"
 #include "edit/mask_shapes.h"
 
 namespace ii {
@@ -17,7 +17,7 @@ namespace {
 // The points in cubes of `side`: cells sorted by a packed key, each point's cell found by bisection.
 class PointGrid {
  public:
-  PointGrid(const std::vector<Eigen::Vector3d>& points, double side) : points_(points), side_(side) {
+  PointGrid(const std::vector<Eigen::Vector3d>& points, double side) : side_(side) {
     order_.resize(points.size());
     std::iota(order_.begin(), order_.end(), 0);
     keys_.resize(points.size());
@@ -53,7 +53,6 @@ class PointGrid {
     const auto part = [](int v) { return static_cast<int64_t>(v + (1 << (kBits - 1))); };
     return (part(c.x()) << (2 * kBits)) | (part(c.y()) << kBits) | part(c.z());
   }
-  const std::vector<Eigen::Vector3d>& points_;
   double side_;
   std::vector<size_t> order_;
   std::vector<int64_t> keys_, sorted_keys_;
@@ -96,11 +95,16 @@ double camera_depth(const Camera& camera, const Eigen::Vector3d& point) {
 
 }  // namespace
 
-size_t clicked_point(const Camera& camera, const std::string& view, const std::vector<Eigen::Vector3d>& points,
-                     const Click& click, const SelectOptions& options) {
+void check_click_inside(const Camera& camera, const std::string& view, const Click& click) {
   const int W = camera.K.width, H = camera.K.height;
   if (!(click.x >= 0 && click.y >= 0 && click.x < W && click.y < H))
     fail("the click ({}, {}) is outside view {}'s image ({}x{})", click.x, click.y, view, W, H);
+}
+
+size_t clicked_point(const Camera& camera, const std::string& view, const std::vector<Eigen::Vector3d>& points,
+                     const Click& click, const SelectOptions& options) {
+  check_click_inside(camera, view, click);
+  const int W = camera.K.width, H = camera.K.height;
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
   const double radius = std::max(2.0, options.pick_radius * std::max(W, H));
   std::vector<double> depths;
@@ -135,7 +139,8 @@ std::vector<uint8_t> grow_selection(const std::vector<Eigen::Vector3d>& points,
   if (seed >= points.size()) fail("select: the seed {} is not one of the {} points", seed, points.size());
   const double z = camera_depth(camera, points[seed]);
   if (!(z > 0)) fail("select: the clicked point is behind the camera");
-  const double link = std::max(options.link_pixels * z / camera.K.fx, options.link_spacing * spacing_near(points, seed, z / camera.K.fx));
+  const double pixel = z / camera.K.fx;  // a pixel of the clicked view at the clicked depth
+  const double link = std::max(options.link_pixels * pixel, options.link_spacing * spacing_near(points, seed, pixel));
   const double link2 = link * link;
   const PointGrid grid(points, link);
   std::vector<Eigen::Vector3f> hue(colours.size());
@@ -194,6 +199,23 @@ Image selection_mask(const Camera& camera, const std::vector<Eigen::Vector3d>& p
       cv::circle(canvas, cv::Point(hit->x, hit->y), std::max(0, radius), cv::Scalar(1), cv::FILLED);
   }
   return finish_mask(canvas, dilation);
+}
+
+std::vector<CarvedMask> selection_masks(const std::vector<Camera>& cameras, const PhotoSource& photo,
+                                        const std::vector<Eigen::Vector3d>& points,
+                                        const std::vector<uint8_t>& selected, const SelectOptions& options,
+                                        const CarveOptions& carving) {
+  std::vector<Image> masks(cameras.size());
+  parallel_dynamic(static_cast<int64_t>(cameras.size()), thread_plan().cores, [&](int64_t i) {
+    const Camera& camera = cameras[static_cast<size_t>(i)];
+    const int side = std::max(camera.K.width, camera.K.height);
+    masks[static_cast<size_t>(i)] =
+        selection_mask(camera, points, selected, std::max(1, static_cast<int>(0.003 * side)),
+                       std::max(2, static_cast<int>(std::lround(options.mask_margin * side))));
+  });
+  std::vector<PointRole> roles(selected.size());
+  for (size_t i = 0; i < selected.size(); ++i) roles[i] = selected[i] ? PointRole::object : PointRole::other;
+  return carve_masks(masks, photo, cameras, points, roles, carving);
 }
 
 }  // namespace ii

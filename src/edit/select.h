@@ -15,6 +15,7 @@
 
 #include "camera/camera.h"
 #include "camera/click.h"
+#include "edit/carve.h"
 #include "io/image.h"
 
 namespace ii {
@@ -44,6 +45,9 @@ struct SelectOptions {
   double max_share = 0.5;
 };
 
+// An Error naming the click when it is outside `camera`'s image (checked before any work).
+void check_click_inside(const Camera& camera, const std::string& view, const Click& click);
+
 // The index of the point the click lands on in `camera`'s view (named `view` in errors). Errors
 // name the click: outside the image, on no point, or on the far background.
 size_t clicked_point(const Camera& camera, const std::string& view, const std::vector<Eigen::Vector3d>& points,
@@ -65,5 +69,13 @@ std::vector<uint8_t> select_object(const Camera& camera, const std::string& view
 // holes filled, then `dilation` pixels added around (values 0/1, the camera's size).
 Image selection_mask(const Camera& camera, const std::vector<Eigen::Vector3d>& points,
                      const std::vector<uint8_t>& selected, int radius, int dilation);
+
+// Each camera's mask of the selection: the selected points' image (discs of 0.3 % of the side,
+// options.mask_margin added around) carved by the view's photo to the selected points, every
+// other point the view sees being the rest's (edit/carve.h). One per camera, run side by side.
+std::vector<CarvedMask> selection_masks(const std::vector<Camera>& cameras, const PhotoSource& photo,
+                                        const std::vector<Eigen::Vector3d>& points,
+                                        const std::vector<uint8_t>& selected, const SelectOptions& options = {},
+                                        const CarveOptions& carving = {});
 
 }  // namespace ii

@@ -1316,20 +1316,23 @@ json WebServer::State::select_on_view(const httplib::Request& req, const std::ve
   }
   const double select_ms = watch.lap();
   // The selection's image carved to the object by the view's photo, as `masks --click` does.
-  const int side = std::max(camera.K.width, camera.K.height);
-  const SelectOptions defaults;
-  const Image outline = selection_mask(camera, points->points, selected, std::max(1, static_cast<int>(0.003 * side)),
-                                       std::max(2, static_cast<int>(std::lround(defaults.mask_margin * side))));
-  std::vector<PointRole> roles(selected.size());
-  for (size_t i = 0; i < selected.size(); ++i) roles[i] = selected[i] ? PointRole::object : PointRole::other;
-  const Image mask = carve_masks({outline}, [&](size_t) { return load_view_image(view); }, {camera}, points->points,
-                                 roles)[0].mask;
+  const Image mask =
+      selection_masks({camera}, [&](size_t) { return load_view_image(view); }, points->points, selected)[0].mask;
   return {{"selected", std::count(selected.begin(), selected.end(), uint8_t{1})}, {"total", selected.size()},
           {"pixels", mask_pixels(mask)}, {"width", mask.width}, {"height", mask.height}, {"runs", mask_runs(mask)},
           {"ms", {{"select", select_ms}, {"carve", watch.lap()}}}};
 }
 
 namespace {
+
+// When the request's `ply` is a job's splats, which that job may still be writing behind its
+// answer (an export, a fill, a selection of them): until they are written.
+void wait_for_job_splats(WebServer::State& s, const httplib::Request& req) {
+  static const std::regex job_url(R"(/api/jobs/(\d{1,8})/.*)");
+  std::smatch m;
+  const std::string ply = exported_url(req);
+  if (std::regex_match(ply, m, job_url)) s.wait_for_files(std::stoi(m[1]), "splats");
+}
 
 // What the page starts: masks, edits, videos, evaluations and fills, one job at a time.
 void serve_jobs(WebServer::State& s) {
@@ -1339,12 +1342,7 @@ void serve_jobs(WebServer::State& s) {
       if (!s.scene && kind != "fill") return refuse(res, {400, "the server was started without --scene: nothing to edit"});
       if ((kind == "masks" || kind == "edit" || kind == "fill") && !s.predictor)
         return refuse(res, {400, "the server was started without a model"});
-      // An export or a fill of a job's splats, which that job may still be writing behind its answer.
-      static const std::regex job_url(R"(/api/jobs/(\d{1,8})/.*)");
-      std::smatch m;
-      const std::string ply = exported_url(req);
-      if ((kind == "video" || kind == "eval" || kind == "fill") && std::regex_match(ply, m, job_url))
-        s.wait_for_files(std::stoi(m[1]), "splats");
+      if (kind == "video" || kind == "eval" || kind == "fill") wait_for_job_splats(s, req);
       std::lock_guard<std::mutex> lock(s.mutex);
       if (s.job.state == "running")
         return refuse(res, {409, fmt::format("busy: job {} ({}) is running", s.job.id, s.job.stage)});
@@ -1372,11 +1370,7 @@ void serve_jobs(WebServer::State& s) {
   for (const char* kind : {"masks", "edit", "video", "eval", "fill"}) http.Post(std::string("/api/") + kind, start_job(kind));
   // Not a job: answered at once, beside a running job.
   http.Post("/api/select", [&s](const httplib::Request& req, httplib::Response& res) {
-    // A job's splats, which that job may still be writing behind its answer.
-    static const std::regex job_url(R"(/api/jobs/(\d{1,8})/.*)");
-    std::smatch m;
-    const std::string ply = exported_url(req);
-    if (std::regex_match(ply, m, job_url)) s.wait_for_files(std::stoi(m[1]), "splats");
+    wait_for_job_splats(s, req);
     try {
       reply(res, 200, s.select(req));
     } catch (const Refusal& r) {

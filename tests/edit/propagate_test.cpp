@@ -326,12 +326,8 @@ TEST(Select, OneClickSelectsTheObjectAndNothingItTouches) {
   EXPECT_EQ(others_taken, 0u);
 
   // Each view: the selection's image, carved to the object (the blue sphere hides part of it).
-  std::vector<Image> masks;
-  std::vector<PointRole> roles;
-  for (const Camera& camera : cams) masks.push_back(selection_mask(camera, points, selected, 1, 4));
-  for (const uint8_t s : selected) roles.push_back(s ? PointRole::object : PointRole::other);
   const std::vector<CarvedMask> carved =
-      carve_masks(masks, [&](size_t v) { return photos[v]; }, cams, points, roles);
+      selection_masks(cams, [&](size_t v) { return photos[v]; }, points, selected);
   for (size_t v = 0; v < cams.size(); ++v) {
     const MaskAgreement a = mask_agreement(carved[v].mask, truth[v].mask);
     EXPECT_GE(a.recall, 0.97) << "view " << v;

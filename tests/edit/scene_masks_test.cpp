@@ -215,7 +215,15 @@ TEST(MasksCli, WritesAMaskPerViewAndComparesWithTheScenesOwn) {
 
   EXPECT_NE(test::run_command(exe.string() + " masks --scene '" + dir.string() + "' --view IMG_2707 --out x", log), 0)
       << test::file_bytes(log);
-  EXPECT_NE(test::file_bytes(log).find("--view requires --mask"), std::string::npos) << test::file_bytes(log);
+  EXPECT_NE(test::file_bytes(log).find("--view IMG_2707: give the region on it, --mask FILE or --click X,Y"),
+            std::string::npos)
+      << test::file_bytes(log);
+  EXPECT_NE(test::run_command(exe.string() + " masks --scene '" + dir.string() + "' --view IMG_2707 --click 5000,3 --out x",
+                              log),
+            0);
+  EXPECT_NE(test::file_bytes(log).find("error: the click (5000, 3) is outside view IMG_2707's image (504x378)"),
+            std::string::npos)
+      << test::file_bytes(log);
 }
 
 TEST(MasksCli, InferAndPrepareTakeOneMask) {

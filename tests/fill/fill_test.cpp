@@ -394,7 +394,7 @@ TEST(Fill, BadRegionsAndFilesSayWhatIsWrong) {
   FillOptions two = box_fill();
   two.selection = with;
   EXPECT_EQ(error_message([&] { fill_splats(with, two, cpu_predictor()); }),
-            "fill: name the region one way: a box, a selection file, or a view and its mask (2 given)");
+            "fill: name the region one way: a box, a selection file, or a view and its mask or clicks (2 given)");
   FillOptions stroke = box_fill();
   stroke.box.reset();
   stroke.stroke_view = "nope";

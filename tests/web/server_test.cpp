@@ -618,11 +618,49 @@ TEST(Serve, FillOnSplatsAlone) {
   }
   EXPECT_GT(magenta_splats, static_cast<int>(added) / 2) << added;
 
+  // A click on the object in that view: its splats selected at once (not a job), drawn as runs of
+  // the view's pixels; Fill with the same click removes exactly those.
+  const Image label = read_mask(dir / "images_4" / "label" / (view.name + ".png"));
+  double cx = 0, cy = 0, n = 0;
+  for (int y = 0; y < label.height; ++y)
+    for (int x = 0; x < label.width; ++x)
+      if (label.at(y, x) > 0.5f) cx += x + 0.5, cy += y + 0.5, ++n;
+  ASSERT_GT(n, 0);
+  const std::string click = fmt::format("{:.1f},{:.1f}", cx / n, cy / n);
+  auto selected = s.client->Post("/api/select", httplib::MultipartFormDataItems{
+      {"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""}, {"clicks", click, "", ""}});
+  ASSERT_EQ(selected->status, 200) << selected->body;
+  const json selection = json::parse(selected->body);
+  EXPECT_GT(selection["selected"].get<int>(), 0);
+  EXPECT_EQ(selection["width"], vw);
+  int64_t pixels = 0, covered = 0;
+  for (size_t k = 0; k < selection["runs"].size(); ++k) {
+    covered += selection["runs"][k].get<int64_t>();
+    if (k % 2) pixels += selection["runs"][k].get<int64_t>();
+  }
+  EXPECT_EQ(covered, static_cast<int64_t>(vw) * vh);
+  EXPECT_EQ(pixels, selection["pixels"]);
+  auto clicked_fill = s.client->Post("/api/fill", httplib::MultipartFormDataItems{
+      {"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""}, {"clicks", click, "", ""}});
+  ASSERT_EQ(clicked_fill->status, 202) << clicked_fill->body;
+  job = s.finished_job();
+  ASSERT_EQ(job["state"], "done") << job;
+  EXPECT_EQ(job["result"]["fill"]["removed"], selection["selected"]);
+  auto select = [&](httplib::MultipartFormDataItems items) { return s.client->Post("/api/select", items); };
+  EXPECT_EQ(error_of(select({{"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""}, {"clicks", "3;4", "", ""}})),
+            "clicks: '3' is not a point: X,Y in pixels of the view's image (e.g. 512,300)");
+  EXPECT_EQ(error_of(select({{"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""}, {"clicks", "-4,2", "", ""}})),
+            fmt::format("the click (-4, 2) is outside view the page's view's image ({}x{})", vw, vh));
+  EXPECT_EQ(error_of(select({{"ply", "/api/plys/0", "", ""}, {"clicks", click, "", ""}})),
+            "send multipart/form-data with clicks, and view (a scene view's index) or ply and camera");
+  EXPECT_EQ(error_of(select({{"view", "0", "", ""}, {"clicks", click, "", ""}})),
+            "the server was started without --scene: no views to click on");
+
   auto post = [&](httplib::MultipartFormDataItems items) { return s.client->Post("/api/fill", items); };
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", "1,2", "", ""}})),
             "box '1,2': 2 numbers, expected 6 (centre, size) or 9 (centre, size, rotation in degrees)");
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}})),
-            "give the region: box (cx,cy,cz,sx,sy,sz[,rx,ry,rz]), or camera and mask");
+            "give the region: box (cx,cy,cz,sx,sy,sz[,rx,ry,rz]), or camera and mask or clicks");
   EXPECT_EQ(error_of(post({{"ply", "/etc/passwd", "", ""}, {"box", box, "", ""}})),
             "ply must be the URL of splats this server serves, not '/etc/passwd'");
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""},
