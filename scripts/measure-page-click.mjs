@@ -18,6 +18,7 @@ try {
   const index = await page.evaluate((n) => window.instainpaint.info.scene.views.findIndex((v) => v.name === n), viewName);
   await page.evaluate((i) => window.instainpaint.jumpToView(i), index);
   await page.locator("#fill-click").click();
+  await page.waitForTimeout(2000);  // a user's move to the object: the server reads the splats meanwhile
   const [px, py] = at.split(",").map(Number);
   const point = await page.evaluate(([i, x, y]) => {
     const view = window.instainpaint.info.scene.views[i];

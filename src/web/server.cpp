@@ -425,6 +425,8 @@ struct WebServer::State {
   static ReconstructionPoints points_of(const GaussianSet& g);
   json select(const httplib::Request& req);
   json select_splats(const httplib::Request& req, const std::vector<Click>& clicks);
+  // The splats of the request's `ply`, read once per file.
+  std::shared_ptr<const SplatCloud> selection_splats(const httplib::Request& req);
   json select_on_view(const httplib::Request& req, const std::vector<Click>& clicks);
 
   ~State() { stop_worker(); }
@@ -1231,6 +1233,8 @@ int64_t mask_pixels(const Image& mask) {
 }
 
 json WebServer::State::select(const httplib::Request& req) {
+  if (req.is_multipart_form_data() && !req.has_file("clicks") && req.has_file("ply") && !req.has_file("camera"))
+    return {{"total", selection_splats(req)->size()}};  // read ahead: the page's click tool was chosen
   if (!req.is_multipart_form_data() || !req.has_file("clicks") || !(req.has_file("camera") || req.has_file("view")))
     throw Refusal{400, "send multipart/form-data with clicks, and view (a scene view's index) or ply and camera"};
   std::vector<Click> clicks;
@@ -1242,22 +1246,23 @@ json WebServer::State::select(const httplib::Request& req) {
   }
 }
 
-json WebServer::State::select_splats(const httplib::Request& req, const std::vector<Click>& clicks) {
-  Stopwatch watch;
+std::shared_ptr<const SplatCloud> WebServer::State::selection_splats(const httplib::Request& req) {
   const std::string url = exported_url(req);
   const fs::path ply = splats_of_url(url, /*standard_ply=*/true);
   if (ply.empty()) throw Refusal{400, fmt::format("ply must be the URL of splats this server serves, not '{}'", url)};
+  std::lock_guard<std::mutex> lock(selection_mutex);
+  if (selection_file != ply || !selection_cloud) {
+    selection_cloud = std::make_shared<const SplatCloud>(read_splats(ply));
+    selection_file = ply;
+  }
+  return selection_cloud;
+}
+
+json WebServer::State::select_splats(const httplib::Request& req, const std::vector<Click>& clicks) {
+  Stopwatch watch;
   Camera camera;
   if (auto r = read_page_camera(req, out / "select", camera)) throw *r;
-  std::shared_ptr<const SplatCloud> cloud;
-  {
-    std::lock_guard<std::mutex> lock(selection_mutex);
-    if (selection_file != ply || !selection_cloud) {
-      selection_cloud = std::make_shared<const SplatCloud>(read_splats(ply));
-      selection_file = ply;
-    }
-    cloud = selection_cloud;
-  }
+  const std::shared_ptr<const SplatCloud> cloud = selection_splats(req);
   const double read_ms = watch.lap();
   const RegionMask region = region_from_clicks(*cloud, camera, "the page's view", clicks);
   const double select_ms = watch.lap();

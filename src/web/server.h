@@ -27,7 +27,8 @@
 //   POST /api/select               multipart ply, camera, clicks=x,y;x,y: the splats of the objects under
 //                                  the clicks (fill/region.h), answered at once: {selected, total,
 //                                  pixels, width, height, runs (the view's pixels row by row,
-//                                  alternately outside and inside the selection), ms}
+//                                  alternately outside and inside the selection), ms}; ply alone:
+//                                  the splats read ahead of the clicks ({total})
 //   POST /api/video, /api/eval     ply=<a served splat file's URL>: an orbit video (a job), the
 //                                  SPIn-NeRF evaluation on the scene's test views (a job)
 //   GET  /api/job[?wait=<id>]      the current or last job: state, stage, progress, result, and

@@ -647,6 +647,10 @@ TEST(Serve, FillOnSplatsAlone) {
   ASSERT_EQ(job["state"], "done") << job;
   EXPECT_EQ(job["result"]["fill"]["removed"], selection["selected"]);
   auto select = [&](httplib::MultipartFormDataItems items) { return s.client->Post("/api/select", items); };
+  // The splats alone: read ahead of the clicks (the page does it when its click tool is chosen).
+  auto ahead = select({{"ply", "/api/plys/0", "", ""}});
+  ASSERT_EQ(ahead->status, 200) << ahead->body;
+  EXPECT_EQ(json::parse(ahead->body)["total"], selection["total"]);
   EXPECT_EQ(error_of(select({{"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""}, {"clicks", "3;4", "", ""}})),
             "clicks: '3' is not a point: X,Y in pixels of the view's image (e.g. 512,300)");
   EXPECT_EQ(error_of(select({{"ply", "/api/plys/0", "", ""}, {"camera", camera, "", ""}, {"clicks", "-4,2", "", ""}})),

@@ -694,7 +694,15 @@ function setFillMode(mode) {
 }
 $("fill-box").onclick = () => setFillMode(fillMode === "box" ? null : "box");
 $("fill-paint").onclick = () => setFillMode(fillMode === "paint" ? null : "paint");
-$("fill-click").onclick = () => setFillMode(fillMode === "click" ? null : "click");
+$("fill-click").onclick = () => {
+  setFillMode(fillMode === "click" ? null : "click");
+  // The server reads the splats now, not at the first click (1.2 M splats: 0.2 s and more).
+  if (fillMode === "click" && api.loadedUrl) {
+    const form = new FormData();
+    form.append("ply", api.loadedUrl);
+    fetch("/api/select", { method: "POST", body: form }).catch(() => {});
+  }
+};
 $("fill-preview").onchange = updateRegionPreview;
 for (const mode of ["translate", "scale", "rotate"])
   $(`gizmo-${mode}`).onclick = () => {
