@@ -60,7 +60,7 @@ class PointGrid {
 
 // Colour compared by its chromaticity (r and g over r + g + b) and a little of its brightness:
 // one object's faces differ in shading more than in hue (scene 1's box against the bench it
-// stands on: RGB 0.982 / 0.476 from one click, chromaticity 0.992 / 0.955).
+// stands on: RGB 0.982 / 0.476 from one click, chromaticity 0.992 / 0.955; session 46).
 Eigen::Vector3f chromaticity(const Eigen::Vector3f& rgb, double brightness_weight) {
   const Eigen::Vector3f c = rgb.cwiseMax(0.f);
   const float sum = std::max(c.sum(), 0.05f);
