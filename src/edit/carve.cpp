@@ -8,6 +8,7 @@
 
 #include "common/error.h"
 #include "common/parallel.h"
+#include "data/opencv_image.h"
 
 namespace ii {
 
@@ -27,17 +28,6 @@ std::vector<Projected> projected(const Camera& camera, const std::vector<Eigen::
   for (size_t i = 0; i < points.size(); ++i)
     if (const std::optional<PixelOfPoint> hit = pixel_of_point(camera.K, w2c, points[i]))
       out.push_back({hit->x, hit->y, static_cast<float>(hit->z), roles[i]});
-  return out;
-}
-
-cv::Mat to_bgr(const Image& photo) {
-  cv::Mat out(photo.height, photo.width, CV_8UC3);
-  for (int y = 0; y < photo.height; ++y)
-    for (int x = 0; x < photo.width; ++x)
-      for (int c = 0; c < 3; ++c) {
-        const float v = photo.at(y, x, std::min(c, photo.channels - 1));
-        out.at<cv::Vec3b>(y, x)[2 - c] = static_cast<uint8_t>(std::lround(std::clamp(v, 0.f, 1.f) * 255));
-      }
   return out;
 }
 
@@ -133,7 +123,7 @@ CarvedMask carve_one(const Image& mask, const Image& photo, const Camera& camera
   const int margin = std::max(8, std::max(box.width, box.height) / 4);
   const cv::Rect crop = (box + cv::Size(2 * margin, 2 * margin) - cv::Point(margin, margin)) & cv::Rect(0, 0, W, H);
   cv::Mat carved(H, W, CV_8UC1, cv::Scalar(0));
-  grab_cut(to_bgr(photo)(crop), labels(crop), inside(crop), options).copyTo(carved(crop));
+  grab_cut(to_bgr8(photo)(crop), labels(crop), inside(crop), options).copyTo(carved(crop));
   if (options.dilation > 0)
     cv::dilate(carved, carved,
                cv::getStructuringElement(cv::MORPH_ELLIPSE,

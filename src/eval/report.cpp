@@ -9,6 +9,7 @@
 
 #include "common/files.h"
 #include "data/image_ops.h"
+#include "data/opencv_image.h"
 #include "data/masks.h"
 
 namespace ii {
@@ -44,25 +45,6 @@ std::string html_escape(const std::string& s) {
       default: out += c;
     }
   }
-  return out;
-}
-
-// Image (HWC float RGB) <-> 8-bit BGR cv::Mat, for drawing.
-cv::Mat to_bgr8(const Image& image) {
-  cv::Mat out(image.height, image.width, CV_8UC3);
-  for (int y = 0; y < image.height; ++y)
-    for (int x = 0; x < image.width; ++x)
-      for (int c = 0; c < 3; ++c)
-        out.at<cv::Vec3b>(y, x)[2 - c] = static_cast<uint8_t>(
-            std::lround(std::clamp(image.at(y, x, image.channels == 1 ? 0 : c), 0.f, 1.f) * 255.f));
-  return out;
-}
-
-Image from_bgr8(const cv::Mat& m) {
-  Image out(m.cols, m.rows, 3);
-  for (int y = 0; y < m.rows; ++y)
-    for (int x = 0; x < m.cols; ++x)
-      for (int c = 0; c < 3; ++c) out.at(y, x, c) = m.at<cv::Vec3b>(y, x)[2 - c] / 255.f;
   return out;
 }
 
