@@ -120,21 +120,26 @@ ViewReconstruction predicted_view_reconstruction(const Predictor& predictor, con
     const torch::Tensor opaque =
         g.opacities.reshape({-1}).gt(0.5).logical_and(at_depth_edges(p.maps().depth).logical_not()).nonzero().squeeze(1);
     const int64_t step = std::max<int64_t>(1, (opaque.numel() + max_points - 1) / max_points);
-    const torch::Tensor means =
-        g.means.index_select(0, opaque.slice(0, 0, opaque.numel(), step)).to(torch::kCPU, torch::kDouble).contiguous();
-    const torch::Tensor rgb = (g.sh_degree < 0 ? g.colors : g.colors.select(1, 0) * kSh0 + 0.5)
-                                  .index_select(0, opaque.slice(0, 0, opaque.numel(), step))
-                                  .to(torch::kCPU, torch::kFloat)
-                                  .contiguous();
-    const auto m = means.accessor<double, 2>();
-    const auto c = rgb.accessor<float, 2>();
-    out.points.reserve(static_cast<size_t>(means.size(0)));
-    out.colours.reserve(static_cast<size_t>(means.size(0)));
-    for (int64_t i = 0; i < means.size(0); ++i) {
-      out.points.emplace_back(m[i][0], m[i][1], m[i][2]);
-      out.colours.emplace_back(c[i][0], c[i][1], c[i][2]);
-    }
+    static_cast<ColouredPoints&>(out) = coloured_points(g, opaque.slice(0, 0, opaque.numel(), step));
     if (stages) stages->add("masks: the reconstruction's points", watch.ms());
+  }
+  return out;
+}
+
+ColouredPoints coloured_points(const GaussianSet& g, const torch::Tensor& rows) {
+  const torch::Tensor means = g.means.index_select(0, rows).to(torch::kCPU, torch::kDouble).contiguous();
+  const torch::Tensor rgb = (g.sh_degree < 0 ? g.colors.index_select(0, rows)
+                                             : rgb_from_sh_dc(g.colors.index_select(0, rows).select(1, 0)))
+                                .to(torch::kCPU, torch::kFloat)
+                                .contiguous();
+  const auto m = means.accessor<double, 2>();
+  const auto c = rgb.accessor<float, 2>();
+  ColouredPoints out;
+  out.points.reserve(static_cast<size_t>(means.size(0)));
+  out.colours.reserve(static_cast<size_t>(means.size(0)));
+  for (int64_t i = 0; i < means.size(0); ++i) {
+    out.points.emplace_back(m[i][0], m[i][1], m[i][2]);
+    out.colours.emplace_back(c[i][0], c[i][1], c[i][2]);
   }
   return out;
 }
@@ -145,7 +150,6 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
 }
 
 nlohmann::json SceneMasks::describe(const OneMask& request) const {
-  nlohmann::json out;
   nlohmann::json regions_json = nlohmann::json::array();
   for (const LiftedRegion& r : regions)
     regions_json.push_back({{"pixels", r.pixels},
@@ -153,7 +157,7 @@ nlohmann::json SceneMasks::describe(const OneMask& request) const {
                             {"depth_ring", r.depth_ring},
                             {"near", r.near},
                             {"far", r.far}});
-  out = {{"view", request.view},
+  nlohmann::json out = {{"view", request.view},
           {"mode", edit_mode_name(request.propagation.mode)},
           {"depth_source", depth_source},
           {"notes", notes},
@@ -204,20 +208,13 @@ void carve_to_the_object(const Scene& scene, const OneMask& request, const Propa
 
 // The objects under the clicks selected among the reconstruction's points, every view's mask (the
 // marked one's too) its points' image carved to it.
-void select_the_clicked_object(const Scene& scene, const OneMask& request, const ViewReconstruction& reconstruction,
-                               StageTimes& times, SceneMasks& out) {
+void select_the_clicked_object(const Scene& scene, const std::vector<Camera>& cameras, const OneMask& request,
+                               const ViewReconstruction& reconstruction, StageTimes& times, SceneMasks& out) {
   const View& marked = marked_view(scene, request.view);
   const std::vector<uint8_t> selected = times.time("masks: select", [&] {
-    std::vector<uint8_t> all(reconstruction.points.size(), 0);
-    for (const Click& click : request.clicks) {
-      const std::vector<uint8_t> one = select_object(marked.camera, marked.name, reconstruction.points,
-                                                     reconstruction.colours, click, request.selecting);
-      for (size_t i = 0; i < all.size(); ++i) all[i] |= one[i];
-    }
-    return all;
+    return select_objects(marked.camera, marked.name, reconstruction.points, reconstruction.colours, request.clicks,
+                          request.selecting);
   });
-  std::vector<Camera> cameras;
-  for (const View& v : scene.views) cameras.push_back(v.camera);
   const std::vector<CarvedMask> carved = times.time("masks: the selection in every view, carved", [&] {
     return selection_masks(cameras, [&](size_t i) { return load_view_image(scene.views[i]); }, reconstruction.points,
                            selected, request.selecting, request.carving);
@@ -246,7 +243,7 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
     for (const Click& click : request.clicks) check_click_inside(marked.camera, marked.name, click);
     if (!predictor) fail("a click on view {} needs the network's reconstruction, and no model was given", marked.name);
     const ViewReconstruction reconstruction = predicted_view_reconstruction(predictor(), scene, marked.name, options, stages);
-    select_the_clicked_object(scene, request, reconstruction, times, out);
+    select_the_clicked_object(scene, cameras, request, reconstruction, times, out);
     return out;
   }
   auto lift = [&](const Image& depth, double margin, bool pixel_depth) {

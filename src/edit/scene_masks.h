@@ -70,11 +70,12 @@ Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const
 // The same reconstruction's depth of `view` and its Gaussians' centres (scene frame, the opaque
 // ones, at most `max_points` of them evenly taken).
 constexpr int64_t kReconstructionPoints = 400000;
-struct ViewReconstruction {
+struct ViewReconstruction : ColouredPoints {
   Image depth;
-  std::vector<Eigen::Vector3d> points;
-  std::vector<Eigen::Vector3f> colours;  // RGB of each point
 };
+// The centres and RGB colours (their own, or their SH's DC term's) of the Gaussians of `g` at
+// `rows` (indices), on the CPU.
+ColouredPoints coloured_points(const GaussianSet& g, const torch::Tensor& rows);
 ViewReconstruction predicted_view_reconstruction(const Predictor& predictor, const Scene& scene,
                                                  const std::string& view, const SceneInputOptions& options,
                                                  StageTimes* stages = nullptr,

@@ -189,6 +189,18 @@ std::vector<uint8_t> select_object(const Camera& camera, const std::string& view
   return selected;
 }
 
+std::vector<uint8_t> select_objects(const Camera& camera, const std::string& view,
+                                    const std::vector<Eigen::Vector3d>& points,
+                                    const std::vector<Eigen::Vector3f>& colours, const std::vector<Click>& clicks,
+                                    const SelectOptions& options) {
+  std::vector<uint8_t> selected(points.size(), 0);
+  for (const Click& click : clicks) {
+    const std::vector<uint8_t> one = select_object(camera, view, points, colours, click, options);
+    for (size_t i = 0; i < selected.size(); ++i) selected[i] |= one[i];
+  }
+  return selected;
+}
+
 Image selection_mask(const Camera& camera, const std::vector<Eigen::Vector3d>& points,
                      const std::vector<uint8_t>& selected, int radius, int dilation) {
   cv::Mat canvas(camera.K.height, camera.K.width, CV_8UC1, cv::Scalar(0));

@@ -20,6 +20,13 @@
 
 namespace ii {
 
+// Points to select among and their RGB colours (a reconstruction's Gaussians' centres, a splat
+// file's splats), one colour per point.
+struct ColouredPoints {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector3f> colours;
+};
+
 struct SelectOptions {
   // Points this close to the click (fraction of the view's larger side) can be the clicked one;
   // of those the nearest to the camera is.
@@ -64,6 +71,12 @@ std::vector<uint8_t> select_object(const Camera& camera, const std::string& view
                                    const std::vector<Eigen::Vector3d>& points,
                                    const std::vector<Eigen::Vector3f>& colours, const Click& click,
                                    const SelectOptions& options = {});
+
+// select_object for each click: the union of their selections (1 = selected).
+std::vector<uint8_t> select_objects(const Camera& camera, const std::string& view,
+                                    const std::vector<Eigen::Vector3d>& points,
+                                    const std::vector<Eigen::Vector3f>& colours, const std::vector<Click>& clicks,
+                                    const SelectOptions& options = {});
 
 // Where the selected points fall in `camera`'s view: each a disc of `radius` pixels, gaps closed,
 // holes filled, then `dilation` pixels added around (values 0/1, the camera's size).

@@ -172,11 +172,7 @@ RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, con
     points[k] = position(cloud, i);
     for (int c = 0; c < 3; ++c) colours[k][c] = 0.5f + static_cast<float>(kSh0) * cloud.sh_dc[3 * i + c];
   }
-  std::vector<uint8_t> selected(opaque.size(), 0);
-  for (const Click& click : clicks) {
-    const std::vector<uint8_t> one = select_object(camera, view, points, colours, click, options);
-    for (size_t k = 0; k < selected.size(); ++k) selected[k] |= one[k];
-  }
+  const std::vector<uint8_t> selected = select_objects(camera, view, points, colours, clicks, options);
   // The selection's outline in the view taken as a stroke: with it go the splats it misses
   // (faint ones, another shade of the object, its hidden back), as a stroke over it would take.
   const int side = std::max(camera.K.width, camera.K.height);

@@ -417,12 +417,7 @@ struct WebServer::State {
   std::shared_ptr<const SplatCloud> selection_cloud;
   // The reconstruction's opaque Gaussians' centres and colours (pose-normalised frame), for
   // clicks on the scene's views; made at the first such click.
-  struct ReconstructionPoints {
-    std::vector<Eigen::Vector3d> points;
-    std::vector<Eigen::Vector3f> colours;
-  };
-  std::shared_ptr<const ReconstructionPoints> reconstruction_points;
-  static ReconstructionPoints points_of(const GaussianSet& g);
+  std::shared_ptr<const ColouredPoints> reconstruction_points;
   json select(const httplib::Request& req);
   json select_splats(const httplib::Request& req, const std::vector<Click>& clicks);
   // The splats of the request's `ply`, read once per file.
@@ -1276,23 +1271,6 @@ json WebServer::State::select_splats(const httplib::Request& req, const std::vec
           {"ms", {{"read", read_ms}, {"select", select_ms}, {"draw", watch.lap()}}}};
 }
 
-WebServer::State::ReconstructionPoints WebServer::State::points_of(const GaussianSet& g) {
-  const torch::Tensor opaque = g.opacities.reshape({-1}).gt(0.5).nonzero().squeeze(1).to(g.means.device());
-  const torch::Tensor means = g.means.index_select(0, opaque).to(torch::kCPU, torch::kDouble).contiguous();
-  const torch::Tensor rgb = (g.sh_degree < 0 ? g.colors : g.colors.select(1, 0) * kSh0 + 0.5)
-                                .index_select(0, opaque)
-                                .to(torch::kCPU, torch::kFloat)
-                                .contiguous();
-  ReconstructionPoints out;
-  const auto m = means.accessor<double, 2>();
-  const auto c = rgb.accessor<float, 2>();
-  for (int64_t i = 0; i < means.size(0); ++i) {
-    out.points.emplace_back(m[i][0], m[i][1], m[i][2]);
-    out.colours.emplace_back(c[i][0], c[i][1], c[i][2]);
-  }
-  return out;
-}
-
 json WebServer::State::select_on_view(const httplib::Request& req, const std::vector<Click>& clicks) {
   Stopwatch watch;
   if (!scene) throw Refusal{400, "the server was started without --scene: no views to click on"};
@@ -1303,22 +1281,19 @@ json WebServer::State::select_on_view(const httplib::Request& req, const std::ve
   }
   if (index < 0 || index >= static_cast<int>(scene->views.size()))
     throw Refusal{400, fmt::format("view must be the index of one of the scene's {} views", scene->views.size())};
-  std::shared_ptr<const ReconstructionPoints> points;
+  std::shared_ptr<const ColouredPoints> points;
   {
     std::lock_guard<std::mutex> lock(selection_mutex);
     if (!reconstruction_points) {
       if (!reconstruction) throw Refusal{409, "the scene's reconstruction is not ready yet: click again in a moment"};
-      reconstruction_points = std::make_shared<const ReconstructionPoints>(points_of(*reconstruction));
+      const torch::Tensor opaque = reconstruction->opacities.reshape({-1}).gt(0.5).nonzero().squeeze(1);
+      reconstruction_points = std::make_shared<const ColouredPoints>(coloured_points(*reconstruction, opaque));
     }
     points = reconstruction_points;
   }
   const View& view = scene->views[static_cast<size_t>(index)];
   const Camera camera = normalization.apply(view.camera);
-  std::vector<uint8_t> selected(points->points.size(), 0);
-  for (const Click& click : clicks) {
-    const std::vector<uint8_t> one = select_object(camera, view.name, points->points, points->colours, click);
-    for (size_t i = 0; i < selected.size(); ++i) selected[i] |= one[i];
-  }
+  const std::vector<uint8_t> selected = select_objects(camera, view.name, points->points, points->colours, clicks);
   const double select_ms = watch.lap();
   // The selection's image carved to the object by the view's photo, as `masks --click` does.
   const Image mask =
