@@ -26,17 +26,17 @@ class PointGrid {
     sorted_keys_.resize(order_.size());
     for (size_t i = 0; i < order_.size(); ++i) sorted_keys_[i] = keys_[order_[i]];
   }
-  // fn(j) for every point in the 27 cells around `p`.
+  // fn(j) for every point in the 27 cells around `p`: nine runs of three cells (z varies fastest
+  // in the key: three neighbours along z are one range of the sorted keys).
   template <typename Fn>
   void around(const Eigen::Vector3d& p, Fn&& fn) const {
     const Eigen::Vector3i c = cell_of(p);
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int64_t k = key_of(c + Eigen::Vector3i(dx, dy, dz));
-          auto [lo, hi] = std::equal_range(sorted_keys_.begin(), sorted_keys_.end(), k);
-          for (auto it = lo; it != hi; ++it) fn(order_[static_cast<size_t>(it - sorted_keys_.begin())]);
-        }
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const auto lo = std::lower_bound(sorted_keys_.begin(), sorted_keys_.end(), key_of(c + Eigen::Vector3i(dx, dy, -1)));
+        const auto hi = std::upper_bound(lo, sorted_keys_.end(), key_of(c + Eigen::Vector3i(dx, dy, 1)));
+        for (auto it = lo; it != hi; ++it) fn(order_[static_cast<size_t>(it - sorted_keys_.begin())]);
+      }
   }
 
  private:
@@ -142,33 +142,54 @@ std::vector<uint8_t> grow_selection(const std::vector<Eigen::Vector3d>& points,
   const double pixel = z / camera.K.fx;  // a pixel of the clicked view at the clicked depth
   const double link = std::max(options.link_pixels * pixel, options.link_spacing * spacing_near(points, seed, pixel));
   const double link2 = link * link;
-  const PointGrid grid(points, link);
-  std::vector<Eigen::Vector3f> hue(colours.size());
-  for (size_t i = 0; i < colours.size(); ++i) hue[i] = chromaticity(colours[i], options.brightness_weight);
-
-  // The colour around the click: its neighbours' mean (one point's colour is noisy).
-  Eigen::Vector3f around = Eigen::Vector3f::Zero();
-  int count = 0;
-  grid.around(points[seed], [&](size_t j) {
-    if ((points[j] - points[seed]).squaredNorm() <= link2) around += hue[j], ++count;
-  });
-  around /= static_cast<float>(std::max(1, count));
-
-  std::vector<uint8_t> selected(points.size(), 0);
-  std::deque<size_t> frontier = {seed};
-  selected[seed] = 1;
   const auto step = static_cast<float>(options.colour_step), spread = static_cast<float>(options.colour_spread);
-  while (!frontier.empty()) {
-    const size_t i = frontier.front();
-    frontier.pop_front();
-    grid.around(points[i], [&](size_t j) {
-      if (selected[j] || (points[j] - points[i]).squaredNorm() > link2) return;
-      if ((hue[j] - hue[i]).norm() > step || (hue[j] - around).norm() > spread) return;
-      selected[j] = 1;
-      frontier.push_back(j);
+
+  // Grown among the points within `reach` of the seed; again within a farther reach when the
+  // selection comes within a link of its edge (a path could leave and come back). An object is
+  // small beside a scene of a million splats: its neighbourhood's grid is sorted, not the scene's.
+  for (double reach = 32 * link;; reach *= 4) {
+    std::vector<size_t> near;
+    for (size_t i = 0; i < points.size(); ++i)
+      if ((points[i] - points[seed]).squaredNorm() <= reach * reach) near.push_back(i);
+    const bool everything = near.size() == points.size();
+    std::vector<Eigen::Vector3d> local(near.size());
+    std::vector<Eigen::Vector3f> hue(near.size());
+    size_t local_seed = 0;
+    for (size_t k = 0; k < near.size(); ++k) {
+      local[k] = points[near[k]];
+      hue[k] = chromaticity(colours[near[k]], options.brightness_weight);
+      if (near[k] == seed) local_seed = k;
+    }
+    const PointGrid grid(local, link);
+
+    // The colour around the click: its neighbours' mean (one point's colour is noisy).
+    Eigen::Vector3f around = Eigen::Vector3f::Zero();
+    int count = 0;
+    grid.around(local[local_seed], [&](size_t j) {
+      if ((local[j] - local[local_seed]).squaredNorm() <= link2) around += hue[j], ++count;
     });
+    around /= static_cast<float>(std::max(1, count));
+
+    std::vector<uint8_t> taken(local.size(), 0);
+    std::deque<size_t> frontier = {local_seed};
+    taken[local_seed] = 1;
+    bool at_edge = false;
+    while (!frontier.empty()) {
+      const size_t i = frontier.front();
+      frontier.pop_front();
+      at_edge |= (local[i] - local[local_seed]).norm() > reach - link;
+      grid.around(local[i], [&](size_t j) {
+        if (taken[j] || (local[j] - local[i]).squaredNorm() > link2) return;
+        if ((hue[j] - hue[i]).norm() > step || (hue[j] - around).norm() > spread) return;
+        taken[j] = 1;
+        frontier.push_back(j);
+      });
+    }
+    if (at_edge && !everything) continue;
+    std::vector<uint8_t> selected(points.size(), 0);
+    for (size_t k = 0; k < near.size(); ++k) selected[near[k]] = taken[k];
+    return selected;
   }
-  return selected;
 }
 
 std::vector<uint8_t> select_object(const Camera& camera, const std::string& view,

@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <sstream>
@@ -18,7 +19,6 @@
 #include "gaussians/gaussians.h"
 #include "render/projection.h"
 #include "render/rasterizer.h"
-#include "tensor/image_tensor.h"
 
 namespace ii {
 
@@ -85,6 +85,39 @@ RegionMask missing_within(const SplatCloud& cloud, const SplatCloud& kept, doubl
   return region;
 }
 
+// The drawn pixels' bounding box in the view (x0, y0, x1, y1: x1, y1 past the end); empty when none.
+std::array<int, 4> bounding_box(const Image& mask) {
+  std::array<int, 4> box = {mask.width, mask.height, 0, 0};
+  for (int y = 0; y < mask.height; ++y)
+    for (int x = 0; x < mask.width; ++x)
+      if (mask.at(y, x) > 0.5f)
+        box = {std::min(box[0], x), std::min(box[1], y), std::max(box[2], x + 1), std::max(box[3], y + 1)};
+  return box;
+}
+
+// What `camera` sees of the splats within a box of its picture: depth and opacity, row-major over
+// the box. Only the box is drawn, with the splats that reach into it: drawing the whole view of a
+// million splats took most of a page's click (docs/benchmarks.md, "Selecting the object").
+struct SurfaceInBox {
+  int x0 = 0, y0 = 0, width = 0, height = 0;
+  std::vector<float> depth, alpha;
+};
+SurfaceInBox surface_in_box(const SplatCloud& cloud, const Camera& camera, const std::array<int, 4>& box) {
+  SurfaceInBox out;
+  out.x0 = box[0], out.y0 = box[1], out.width = box[2] - box[0], out.height = box[3] - box[1];
+  if (out.width <= 0 || out.height <= 0) return out;
+  const Camera part = camera.cropped(out.x0, out.y0, out.width, out.height);
+  torch::NoGradGuard no_grad;
+  const GaussianSet splats = gaussians_from_splats(cloud, 0);
+  const PixelWindow whole{0, 0, static_cast<double>(out.width), static_cast<double>(out.height)};
+  const RenderOutput seen = render(select_rows(splats, reaching_window(splats, part, whole)), {part});
+  const torch::Tensor depth = seen.depth.squeeze(2).reshape({-1}).contiguous();
+  const torch::Tensor alpha = seen.alpha.squeeze(2).reshape({-1}).contiguous();
+  out.depth.assign(depth.data_ptr<float>(), depth.data_ptr<float>() + depth.numel());
+  out.alpha.assign(alpha.data_ptr<float>(), alpha.data_ptr<float>() + alpha.numel());
+  return out;
+}
+
 }  // namespace
 
 RegionMask region_in_box(const SplatCloud& cloud, const OrientedBox& box) {
@@ -123,21 +156,19 @@ RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, co
                  stroke_in.height, W, H);
   // A stroke drawn over an object leaves its rim out: grown by about 1 % of the view.
   const int grow = std::max(1, std::min(W, H) / 100);
-  const Image stroke = dilate_mask(resize_nearest(stroke_in, W, H), 1, 2 * grow + 1);
-  torch::NoGradGuard no_grad;
-  const RenderOutput seen = render(gaussians_from_splats(cloud, 0), {camera});
-  const torch::Tensor depth = seen.depth.squeeze(2).contiguous(), alpha = seen.alpha.squeeze(2).contiguous();
-  const float* d = depth.data_ptr<float>();
-  const float* a = alpha.data_ptr<float>();
+  const Image drawn = resize_nearest(stroke_in, W, H);
+  const Image stroke = dilate_mask(drawn, 1, 2 * grow + 1);
+  const SurfaceInBox seen = surface_in_box(cloud, camera, bounding_box(drawn));
   // The marked surface: its camera depths and, for its width, its points in the camera's frame.
   std::vector<double> depths, xs, ys;
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x) {
-      const size_t i = static_cast<size_t>(y) * W + x;
-      if (stroke_in.pixels[i] <= 0.5f || a[i] < 0.5f) continue;
-      depths.push_back(d[i]);
-      xs.push_back((x + 0.5 - camera.K.cx) / camera.K.fx * d[i]);
-      ys.push_back((y + 0.5 - camera.K.cy) / camera.K.fy * d[i]);
+  for (int y = seen.y0; y < seen.y0 + seen.height; ++y)
+    for (int x = seen.x0; x < seen.x0 + seen.width; ++x) {
+      const size_t i = static_cast<size_t>(y - seen.y0) * seen.width + (x - seen.x0);
+      if (drawn.at(y, x) <= 0.5f || seen.alpha[i] < 0.5f) continue;
+      const double d = seen.depth[i];
+      depths.push_back(d);
+      xs.push_back((x + 0.5 - camera.K.cx) / camera.K.fx * d);
+      ys.push_back((y + 0.5 - camera.K.cy) / camera.K.fy * d);
     }
   if (depths.empty()) fail("--mask: the stroke covers no surface of the scene in this view (nothing is drawn there)");
   const double width = std::max({percentile(xs, 0.98) - percentile(xs, 0.02), percentile(ys, 0.98) - percentile(ys, 0.02),
@@ -146,16 +177,12 @@ RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, co
   // The splats whose centres fall in the stroke, from the nearest of the marked surface (a pixel's
   // depth is an average over the splats it draws: the front ones lie nearer) to as far behind it
   // as it is wide.
-  const torch::Tensor centres =
-      torch::from_blob(const_cast<float*>(cloud.means.data()), {static_cast<int64_t>(cloud.size()), 3}, torch::kFloat32)
-          .to(torch::kFloat64);
-  const PixelHit hit = project(camera, centres);
-  const torch::Tensor in_stroke = image_to_tensor(stroke).reshape({-1}).index({hit.index}) > 0.5;
-  const torch::Tensor take =
-      hit.inside.logical_and(in_stroke).logical_and(hit.z >= near).logical_and(hit.z <= far).contiguous();
+  const Eigen::Matrix4d w2c = camera.w2c_opencv();
   RegionMask region(cloud.size());
-  const bool* t = take.data_ptr<bool>();
-  for (size_t i = 0; i < cloud.size(); ++i) region[i] = t[i];
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const std::optional<PixelOfPoint> hit = pixel_of_point(camera.K, w2c, position(cloud, i));
+    region[i] = hit && stroke.at(hit->y, hit->x) > 0.5f && hit->z >= near && hit->z <= far;
+  }
   return region;
 }
 
