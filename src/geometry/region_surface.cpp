@@ -169,15 +169,21 @@ torch::Tensor ring_weighted_planes(const torch::Tensor& pixels_in, const torch::
   return weighted;
 }
 
+bool region_surface_may_apply(const SceneInput& input, const MeasuredDepth& measured,
+                              const RegionSurfaceOptions& options) {
+  return options.opacity > 0 && !input.views.empty() && input.views.front().mask.has_value() &&
+         !measured.depth.empty() && measured.depth.front().defined();
+}
+
 RegionSurface put_region_on_surface(GaussianMaps& maps, const SceneInput& input, const MeasuredDepth& measured,
                                     int mask_margin, const RegionSurfaceOptions& options) {
   check_region_surface_options(options);
   RegionSurface done;
-  if (options.opacity <= 0 || input.views.empty() || measured.depth.empty()) return done;
+  if (!region_surface_may_apply(input, measured, options)) return done;
   const PreparedView& reference = input.views.front();
   const torch::Tensor& depth = measured.depth.front();
   const int64_t H = maps.depth.size(3), W = maps.depth.size(4);
-  if (!reference.mask || !depth.defined() || depth.size(0) != H || depth.size(1) != W) return done;
+  if (depth.size(0) != H || depth.size(1) != W) return done;
   torch::InferenceMode inference;  // the maps are the network's inference tensors
   const torch::Tensor region = grown_mask(reference, mask_margin);
   const Image& rgb = reference.rgb;

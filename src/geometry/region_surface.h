@@ -81,6 +81,11 @@ torch::Tensor depth_from_surroundings(const torch::Tensor& measured, const torch
 RegionSurface put_region_on_surface(GaussianMaps& maps, const SceneInput& input, const MeasuredDepth& measured,
                                     int mask_margin, const RegionSurfaceOptions& options);
 
+// Whether put_region_on_surface may change `input`'s maps at all (the options ask for it, the
+// reference has a mask and a measured depth): a caller copies the maps only then.
+bool region_surface_may_apply(const SceneInput& input, const MeasuredDepth& measured,
+                              const RegionSurfaceOptions& options);
+
 // Checks the options; throws Error naming the bad one.
 void check_region_surface_options(const RegionSurfaceOptions& options);
 

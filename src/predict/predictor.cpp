@@ -127,9 +127,7 @@ MapsLayer measured_surface_layer(Prediction& p, const GaussianMaps& aligned, con
 MapsLayer region_surface_layer(Prediction& p, const GaussianMaps& surfaced, const MeasuredDepth& measured,
                                int mask_margin, const RegionSurfaceOptions& options) {
   MapsLayer layer{"region_surface", surfaced, nlohmann::json::object()};
-  const bool may_write = options.opacity > 0 && !measured.depth.empty() && !p.input.views.empty() &&
-                         p.input.views.front().mask.has_value();
-  if (may_write) layer.maps = cloned(surfaced);
+  if (region_surface_may_apply(p.input, measured, options)) layer.maps = cloned(surfaced);
   const RegionSurface region = put_region_on_surface(layer.maps, p.input, measured, mask_margin, options);
   layer.record = describe_region_surface(options, region);
   p.region_surface_pixels = region.pixels;
