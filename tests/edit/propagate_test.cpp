@@ -290,6 +290,33 @@ TEST(Propagate, PointsOnTheMarkedSurfaceAreTheObjects) {
             std::vector<PointRole>{PointRole::unsure});
 }
 
+// The growth sorts only the points near the click; an object longer than that reach is grown
+// again within a farther one, and comes out whole: a red rod 6 units long clicked at one end,
+// before a grey wall, with a red point of its own beyond a gap (not joined).
+TEST(Select, AnObjectLongerThanTheFirstReachIsSelectedWhole) {
+  const Camera camera = cameras_around({0, 0, -3})[0];
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector3f> colours;
+  for (int k = 0; k <= 600; ++k) {
+    points.emplace_back(0.01 * k, 0, -3);
+    colours.emplace_back(0.8f, 0.2f, 0.2f);
+  }
+  const size_t rod = points.size();
+  points.emplace_back(6.8, 0, -3);
+  colours.emplace_back(0.8f, 0.2f, 0.2f);
+  for (int i = 0; i < 80; ++i)
+    for (int j = 0; j < 80; ++j) {
+      points.emplace_back(-8 + 0.2 * i, -8 + 0.2 * j, -9);
+      colours.emplace_back(0.5f, 0.5f, 0.5f);
+    }
+  const std::optional<PixelOfPoint> end = pixel_of_point(camera.K, camera.w2c_opencv(), points[0]);
+  ASSERT_TRUE(end);
+  const std::vector<uint8_t> selected = select_object(camera, "front", points, colours, {end->x + 0.5, end->y + 0.5});
+  EXPECT_EQ(std::count(selected.begin(), selected.begin() + static_cast<std::ptrdiff_t>(rod), uint8_t{1}),
+            static_cast<std::ptrdiff_t>(rod));
+  EXPECT_EQ(std::count(selected.begin() + static_cast<std::ptrdiff_t>(rod), selected.end(), uint8_t{1}), 0);
+}
+
 // One click: the object under it is selected among the points (a blue sphere grown into it and
 // the wall behind are not), and its selection's image carved in every view is its mask.
 TEST(Select, OneClickSelectsTheObjectAndNothingItTouches) {
