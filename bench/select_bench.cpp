@@ -17,7 +17,6 @@ namespace {
 
 using namespace ii;
 
-
 // About 1.2 M splats: the floor (3 x 3 units, 1 M), the wall behind (0.25 M) and a box (0.4 units
 // a side) of another colour on the floor.
 SplatCloud million_splat_room() {
@@ -65,10 +64,12 @@ Click box_click(const Camera& camera) {
 void BM_SelectObject(benchmark::State& state) {
   const Camera camera = room_camera();
   ColouredPoints points;
+  const auto colour = [](float dc) { return 0.5f + static_cast<float>(kSh0) * dc; };
   for (size_t i = 0; i < room().size(); ++i) {
-    points.points.emplace_back(room().means[3 * i], room().means[3 * i + 1], room().means[3 * i + 2]);
-    points.colours.emplace_back(0.5f + static_cast<float>(kSh0) * room().sh_dc[3 * i], 0.5f + static_cast<float>(kSh0) * room().sh_dc[3 * i + 1],
-                                0.5f + static_cast<float>(kSh0) * room().sh_dc[3 * i + 2]);
+    const float* m = &room().means[3 * i];
+    const float* dc = &room().sh_dc[3 * i];
+    points.points.emplace_back(m[0], m[1], m[2]);
+    points.colours.emplace_back(colour(dc[0]), colour(dc[1]), colour(dc[2]));
   }
   for (auto _ : state) {
     const std::vector<uint8_t> selected =

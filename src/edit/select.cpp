@@ -88,6 +88,40 @@ double spacing_near(const std::vector<Eigen::Vector3d>& points, size_t seed, dou
   return nearest[nearest.size() / 2];
 }
 
+// The points (`hue`: their chromaticity) connected to `seed` through neighbours within `link` of
+// each other whose colours stay alike (SelectOptions' step and spread). `at_edge` is set when one
+// of them lies farther than `edge` from the seed.
+std::vector<uint8_t> grown_by_colour(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3f>& hue,
+                                     size_t seed, double link, double edge, const SelectOptions& options,
+                                     bool& at_edge) {
+  const double link2 = link * link;
+  const auto step = static_cast<float>(options.colour_step), spread = static_cast<float>(options.colour_spread);
+  const PointGrid grid(points, link);
+  // The colour around the click: its neighbours' mean (one point's colour is noisy).
+  Eigen::Vector3f around = Eigen::Vector3f::Zero();
+  int count = 0;
+  grid.around(points[seed], [&](size_t j) {
+    if ((points[j] - points[seed]).squaredNorm() <= link2) around += hue[j], ++count;
+  });
+  around /= static_cast<float>(std::max(1, count));
+
+  std::vector<uint8_t> taken(points.size(), 0);
+  std::deque<size_t> frontier = {seed};
+  taken[seed] = 1;
+  while (!frontier.empty()) {
+    const size_t i = frontier.front();
+    frontier.pop_front();
+    at_edge |= (points[i] - points[seed]).norm() > edge;
+    grid.around(points[i], [&](size_t j) {
+      if (taken[j] || (points[j] - points[i]).squaredNorm() > link2) return;
+      if ((hue[j] - hue[i]).norm() > step || (hue[j] - around).norm() > spread) return;
+      taken[j] = 1;
+      frontier.push_back(j);
+    });
+  }
+  return taken;
+}
+
 double camera_depth(const Camera& camera, const Eigen::Vector3d& point) {
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
   return (w2c.topLeftCorner<3, 3>() * point + w2c.topRightCorner<3, 1>()).z();
@@ -141,8 +175,6 @@ std::vector<uint8_t> grow_selection(const std::vector<Eigen::Vector3d>& points,
   if (!(z > 0)) fail("select: the clicked point is behind the camera");
   const double pixel = z / camera.K.fx;  // a pixel of the clicked view at the clicked depth
   const double link = std::max(options.link_pixels * pixel, options.link_spacing * spacing_near(points, seed, pixel));
-  const double link2 = link * link;
-  const auto step = static_cast<float>(options.colour_step), spread = static_cast<float>(options.colour_spread);
 
   // Grown among the points within `reach` of the seed; again within a farther reach when the
   // selection comes within a link of its edge (a path could leave and come back). An object is
@@ -151,7 +183,6 @@ std::vector<uint8_t> grow_selection(const std::vector<Eigen::Vector3d>& points,
     std::vector<size_t> near;
     for (size_t i = 0; i < points.size(); ++i)
       if ((points[i] - points[seed]).squaredNorm() <= reach * reach) near.push_back(i);
-    const bool everything = near.size() == points.size();
     std::vector<Eigen::Vector3d> local(near.size());
     std::vector<Eigen::Vector3f> hue(near.size());
     size_t local_seed = 0;
@@ -160,32 +191,9 @@ std::vector<uint8_t> grow_selection(const std::vector<Eigen::Vector3d>& points,
       hue[k] = chromaticity(colours[near[k]], options.brightness_weight);
       if (near[k] == seed) local_seed = k;
     }
-    const PointGrid grid(local, link);
-
-    // The colour around the click: its neighbours' mean (one point's colour is noisy).
-    Eigen::Vector3f around = Eigen::Vector3f::Zero();
-    int count = 0;
-    grid.around(local[local_seed], [&](size_t j) {
-      if ((local[j] - local[local_seed]).squaredNorm() <= link2) around += hue[j], ++count;
-    });
-    around /= static_cast<float>(std::max(1, count));
-
-    std::vector<uint8_t> taken(local.size(), 0);
-    std::deque<size_t> frontier = {local_seed};
-    taken[local_seed] = 1;
     bool at_edge = false;
-    while (!frontier.empty()) {
-      const size_t i = frontier.front();
-      frontier.pop_front();
-      at_edge |= (local[i] - local[local_seed]).norm() > reach - link;
-      grid.around(local[i], [&](size_t j) {
-        if (taken[j] || (local[j] - local[i]).squaredNorm() > link2) return;
-        if ((hue[j] - hue[i]).norm() > step || (hue[j] - around).norm() > spread) return;
-        taken[j] = 1;
-        frontier.push_back(j);
-      });
-    }
-    if (at_edge && !everything) continue;
+    const std::vector<uint8_t> taken = grown_by_colour(local, hue, local_seed, link, reach - link, options, at_edge);
+    if (at_edge && near.size() < points.size()) continue;
     std::vector<uint8_t> selected(points.size(), 0);
     for (size_t k = 0; k < near.size(); ++k) selected[near[k]] = taken[k];
     return selected;
