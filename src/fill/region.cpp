@@ -4,7 +4,6 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstring>
 #include <sstream>
@@ -16,6 +15,7 @@
 #include "data/image_ops.h"
 #include "data/masks.h"
 #include "data/scene.h"
+#include "eval/metrics.h"
 #include "gaussians/gaussians.h"
 #include "render/projection.h"
 #include "render/rasterizer.h"
@@ -85,16 +85,6 @@ RegionMask missing_within(const SplatCloud& cloud, const SplatCloud& kept, doubl
   return region;
 }
 
-// The drawn pixels' bounding box in the view (x0, y0, x1, y1: x1, y1 past the end); empty when none.
-std::array<int, 4> bounding_box(const Image& mask) {
-  std::array<int, 4> box = {mask.width, mask.height, 0, 0};
-  for (int y = 0; y < mask.height; ++y)
-    for (int x = 0; x < mask.width; ++x)
-      if (mask.at(y, x) > 0.5f)
-        box = {std::min(box[0], x), std::min(box[1], y), std::max(box[2], x + 1), std::max(box[3], y + 1)};
-  return box;
-}
-
 // What `camera` sees of the splats within a box of its picture: depth and opacity, row-major over
 // the box. Only the box is drawn, with the splats that reach into it: drawing the whole view of a
 // million splats took most of a page's click (docs/benchmarks.md, "Selecting the object").
@@ -102,10 +92,10 @@ struct SurfaceInBox {
   int x0 = 0, y0 = 0, width = 0, height = 0;
   std::vector<float> depth, alpha;
 };
-SurfaceInBox surface_in_box(const SplatCloud& cloud, const Camera& camera, const std::array<int, 4>& box) {
+SurfaceInBox surface_in_box(const SplatCloud& cloud, const Camera& camera, const std::optional<PixelBox>& box) {
   SurfaceInBox out;
-  out.x0 = box[0], out.y0 = box[1], out.width = box[2] - box[0], out.height = box[3] - box[1];
-  if (out.width <= 0 || out.height <= 0) return out;
+  if (!box || box->empty()) return out;
+  out.x0 = box->x0, out.y0 = box->y0, out.width = box->width(), out.height = box->height();
   const Camera part = camera.cropped(out.x0, out.y0, out.width, out.height);
   torch::NoGradGuard no_grad;
   const GaussianSet splats = gaussians_from_splats(cloud, 0);
@@ -158,7 +148,7 @@ RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, co
   const int grow = std::max(1, std::min(W, H) / 100);
   const Image drawn = resize_nearest(stroke_in, W, H);
   const Image stroke = dilate_mask(drawn, 1, 2 * grow + 1);
-  const SurfaceInBox seen = surface_in_box(cloud, camera, bounding_box(drawn));
+  const SurfaceInBox seen = surface_in_box(cloud, camera, mask_bounding_box(drawn));
   // The marked surface: its camera depths and, for its width, its points in the camera's frame.
   std::vector<double> depths, xs, ys;
   for (int y = seen.y0; y < seen.y0 + seen.height; ++y)
