@@ -23,7 +23,7 @@ SplatCloud million_splat_room() {
   SplatCloud c;
   auto add = [&](double x, double y, double z, double r, double g, double b, double size) {
     c.means.insert(c.means.end(), {float(x), float(y), float(z)});
-    for (double v : {r, g, b}) c.sh_dc.push_back(float((v - 0.5) / kSh0));
+    for (double v : {r, g, b}) c.sh_dc.push_back(float(dc_of_colour(v)));
     c.opacity_logit.push_back(4.f);
     for (int k = 0; k < 3; ++k) c.log_scales.push_back(float(std::log(size)));
     c.rotations.insert(c.rotations.end(), {1.f, 0.f, 0.f, 0.f});
@@ -64,7 +64,7 @@ Click box_click(const Camera& camera) {
 void BM_SelectObject(benchmark::State& state) {
   const Camera camera = room_camera();
   ColouredPoints points;
-  const auto colour = [](float dc) { return 0.5f + static_cast<float>(kSh0) * dc; };
+  const auto colour = [](float dc) { return static_cast<float>(colour_of_dc(dc)); };
   for (size_t i = 0; i < room().size(); ++i) {
     const float* m = &room().means[3 * i];
     const float* dc = &room().sh_dc[3 * i];

@@ -187,7 +187,7 @@ RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, con
   for (size_t k = 0; k < opaque.size(); ++k) {
     const size_t i = opaque[k];
     points[k] = position(cloud, i);
-    for (int c = 0; c < 3; ++c) colours[k][c] = 0.5f + static_cast<float>(kSh0) * cloud.sh_dc[3 * i + c];
+    for (int c = 0; c < 3; ++c) colours[k][c] = static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i + c]));
   }
   const std::vector<uint8_t> selected = select_objects(camera, view, points, colours, clicks, options);
   // The selection's outline in the view taken as a stroke: with it go the splats it misses

@@ -427,7 +427,7 @@ SplatCloud read_compressed(const PlyHeader& h, const Element& vertex, const std:
       const uint32_t pc = vt.get_u32(i, packed[3]);
       const double tc[3] = {unorm(pc >> 24, 8), unorm(pc >> 16, 8), unorm(pc >> 8, 8)};
       for (int a = 0; a < 3; ++a)
-        c.sh_dc[i * 3 + a] = static_cast<float>((lerp(lo[6 + a], hi[6 + a], tc[a]) - 0.5) / kSh0);
+        c.sh_dc[i * 3 + a] = static_cast<float>(dc_of_colour(lerp(lo[6 + a], hi[6 + a], tc[a])));
       c.opacity_logit[i] = splat_quantize::opacity_logit_of_byte(static_cast<uint8_t>(pc & 0xff));
     }
   }
@@ -702,7 +702,7 @@ std::string encode_compressed_splat_ply(const SplatCloud& c, const fs::path& pat
       float lo[9], hi[9];  // position, log scale (clamped to ±20, as SuperSplat), colour
       std::fill(lo, lo + 9, INFINITY);
       std::fill(hi, hi + 9, -INFINITY);
-      auto colour = [&](size_t i, int a) { return static_cast<float>(0.5 + kSh0 * c.sh_dc[i * 3 + a]); };
+      auto colour = [&](size_t i, int a) { return static_cast<float>(colour_of_dc(c.sh_dc[i * 3 + a])); };
       auto log_scale = [&](size_t i, int a) { return std::clamp(c.log_scales[i * 3 + a], -20.f, 20.f); };
       for (size_t s = begin; s < end; ++s) {
         const size_t i = order[s];

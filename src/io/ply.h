@@ -10,6 +10,9 @@ namespace ii {
 
 // The degree-0 spherical harmonic Y_0^0: a splat's colour from its DC term is 0.5 + kSh0 * dc.
 constexpr double kSh0 = 0.28209479177387814;
+// A channel's colour from its DC term, and back.
+constexpr double colour_of_dc(double dc) { return 0.5 + kSh0 * dc; }
+constexpr double dc_of_colour(double colour) { return (colour - 0.5) / kSh0; }
 
 // Pre-activation values, as the reference 3DGS code stores them.
 struct SplatCloud {

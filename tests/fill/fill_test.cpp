@@ -32,7 +32,7 @@ SplatCloud room(bool with_box, bool under_box) {
   SplatCloud c;
   auto add = [&](double x, double y, double z, double r, double g, double b, Eigen::Vector3d scale) {
     c.means.insert(c.means.end(), {float(x), float(y), float(z)});
-    for (double v : {r, g, b}) c.sh_dc.push_back(float((v - 0.5) / kSh0));
+    for (double v : {r, g, b}) c.sh_dc.push_back(float(dc_of_colour(v)));
     c.opacity_logit.push_back(4.f);
     for (int k = 0; k < 3; ++k) c.log_scales.push_back(float(std::log(scale[k])));
     c.rotations.insert(c.rotations.end(), {1.f, 0.f, 0.f, 0.f});
