@@ -38,6 +38,7 @@
 #include "io/image.h"
 #include "io/ply.h"
 #include "io/splat_file.h"
+#include "web/page_selection.h"
 #include "io/video.h"
 #include "refine/refine.h"
 #include "render/frames.h"
@@ -410,18 +411,11 @@ struct WebServer::State {
   std::map<size_t, torch::Tensor> reconstruction_depth;
   torch::Tensor reconstruction_depth_in(size_t view, const PreprocessOptions& working);
 
-  // The splats the page's clicks select in, read once per file (a click answers in well under a
-  // second on a million splats; reading them again would double that).
-  std::mutex selection_mutex;
-  fs::path selection_file;
-  std::shared_ptr<const SplatCloud> selection_cloud;
-  // The reconstruction's opaque Gaussians' centres and colours (pose-normalised frame), for
-  // clicks on the scene's views; made at the first such click.
-  std::shared_ptr<const ColouredPoints> reconstruction_points;
+  // The page's click tools: the splats they select in, the reconstruction's points.
+  PageSelection selection;
   json select(const httplib::Request& req);
-  json select_splats(const httplib::Request& req, const std::vector<Click>& clicks);
-  // The splats of the request's `ply`, read once per file.
-  std::shared_ptr<const SplatCloud> selection_splats(const httplib::Request& req);
+  // The request's `ply`: splats this server serves.
+  fs::path selection_splats_file(const httplib::Request& req);
   json select_on_view(const httplib::Request& req, const std::vector<Click>& clicks);
 
   ~State() { stop_worker(); }
@@ -844,12 +838,8 @@ json WebServer::State::run_reconstruction(const fs::path& dir, int id,
   GaussianSet kept = predicted;  // the network's dtype (bf16 on a GPU): the rasterizer draws float32
   for (torch::Tensor* t : {&kept.means, &kept.quats, &kept.scales, &kept.opacities, &kept.colors})
     *t = t->to(render_device(predictor->device()), torch::kFloat32);
-  {
-    // Under the selection's lock: a click on a view reads it from the server's threads.
-    std::lock_guard<std::mutex> lock(selection_mutex);
-    reconstruction = std::move(kept);
-    reconstruction_points.reset();
-  }
+  selection.set_reconstruction(kept);  // a click on a view selects in it from the server's threads
+  reconstruction = std::move(kept);
   {
     std::lock_guard<std::mutex> lock(reconstruction_depth_mutex);
     reconstruction_depth.clear();
@@ -1208,71 +1198,31 @@ void serve_reads(WebServer::State& s) {
 
 }  // namespace
 
-// The objects under the page's clicks on the splats on screen: their count and where they are
-// in the view (runs of the view's pixels, row by row, alternately outside and inside).
-// A mask as the page draws it: runs of its pixels, row by row, alternately outside and inside.
-json mask_runs(const Image& mask) {
-  json runs = json::array();
-  bool inside = false;
-  int64_t run = 0;
-  for (const float v : mask.pixels) {
-    if ((v > 0.5f) != inside) runs.push_back(run), run = 0, inside = !inside;
-    ++run;
-  }
-  runs.push_back(run);
-  return runs;
-}
-
-int64_t mask_pixels(const Image& mask) {
-  return std::count_if(mask.pixels.begin(), mask.pixels.end(), [](float v) { return v > 0.5f; });
-}
-
 json WebServer::State::select(const httplib::Request& req) {
   if (req.is_multipart_form_data() && !req.has_file("clicks") && req.has_file("ply") && !req.has_file("camera"))
-    return {{"total", selection_splats(req)->size()}};  // read ahead: the page's click tool was chosen
+    return {{"total", selection.splats(selection_splats_file(req))->size()}};  // read ahead: the click tool was chosen
   if (!req.is_multipart_form_data() || !req.has_file("clicks") || !(req.has_file("camera") || req.has_file("view")))
     throw Refusal{400, "send multipart/form-data with clicks, and view (a scene view's index) or ply and camera"};
   std::vector<Click> clicks;
   if (auto r = read_clicks(req, clicks)) throw *r;
   try {
-    return req.has_file("view") ? select_on_view(req, clicks) : select_splats(req, clicks);
+    if (req.has_file("view")) return select_on_view(req, clicks);
+    Camera camera;
+    if (auto r = read_page_camera(req, out / "select", camera)) throw *r;
+    return selection.select_splats(selection_splats_file(req), camera, clicks);
   } catch (const Error& e) {
     throw Refusal{400, e.what()};
   }
 }
 
-std::shared_ptr<const SplatCloud> WebServer::State::selection_splats(const httplib::Request& req) {
+fs::path WebServer::State::selection_splats_file(const httplib::Request& req) {
   const std::string url = exported_url(req);
   const fs::path ply = splats_of_url(url, /*standard_ply=*/true);
   if (ply.empty()) throw Refusal{400, fmt::format("ply must be the URL of splats this server serves, not '{}'", url)};
-  std::lock_guard<std::mutex> lock(selection_mutex);
-  if (selection_file != ply || !selection_cloud) {
-    selection_cloud = std::make_shared<const SplatCloud>(read_splats(ply));
-    selection_file = ply;
-  }
-  return selection_cloud;
-}
-
-json WebServer::State::select_splats(const httplib::Request& req, const std::vector<Click>& clicks) {
-  Stopwatch watch;
-  Camera camera;
-  if (auto r = read_page_camera(req, out / "select", camera)) throw *r;
-  const std::shared_ptr<const SplatCloud> cloud = selection_splats(req);
-  const double read_ms = watch.lap();
-  const RegionMask region = region_from_clicks(*cloud, camera, "the page's view", clicks);
-  const double select_ms = watch.lap();
-  std::vector<Eigen::Vector3d> points;
-  for (size_t i = 0; i < region.size(); ++i)
-    if (region[i]) points.emplace_back(cloud->means[3 * i], cloud->means[3 * i + 1], cloud->means[3 * i + 2]);
-  const int side = std::max(camera.K.width, camera.K.height);
-  const Image mask = selection_mask(camera, points, std::vector<uint8_t>(points.size(), 1), std::max(1, side / 300), 0);
-  return {{"selected", points.size()}, {"total", cloud->size()}, {"pixels", mask_pixels(mask)}, {"width", mask.width},
-          {"height", mask.height}, {"runs", mask_runs(mask)},
-          {"ms", {{"read", read_ms}, {"select", select_ms}, {"draw", watch.lap()}}}};
+  return ply;
 }
 
 json WebServer::State::select_on_view(const httplib::Request& req, const std::vector<Click>& clicks) {
-  Stopwatch watch;
   if (!scene) throw Refusal{400, "the server was started without --scene: no views to click on"};
   int index = -1;
   try {
@@ -1281,26 +1231,10 @@ json WebServer::State::select_on_view(const httplib::Request& req, const std::ve
   }
   if (index < 0 || index >= static_cast<int>(scene->views.size()))
     throw Refusal{400, fmt::format("view must be the index of one of the scene's {} views", scene->views.size())};
-  std::shared_ptr<const ColouredPoints> points;
-  {
-    std::lock_guard<std::mutex> lock(selection_mutex);
-    if (!reconstruction_points) {
-      if (!reconstruction) throw Refusal{409, "the scene's reconstruction is not ready yet: click again in a moment"};
-      const torch::Tensor opaque = reconstruction->opacities.reshape({-1}).gt(0.5).nonzero().squeeze(1);
-      reconstruction_points = std::make_shared<const ColouredPoints>(coloured_points(*reconstruction, opaque));
-    }
-    points = reconstruction_points;
-  }
   const View& view = scene->views[static_cast<size_t>(index)];
-  const Camera camera = normalization.apply(view.camera);
-  const std::vector<uint8_t> selected = select_objects(camera, view.name, points->points, points->colours, clicks);
-  const double select_ms = watch.lap();
-  // The selection's image carved to the object by the view's photo, as `masks --click` does.
-  const Image mask =
-      selection_masks({camera}, [&](size_t) { return load_view_image(view); }, points->points, selected)[0].mask;
-  return {{"selected", std::count(selected.begin(), selected.end(), uint8_t{1})}, {"total", selected.size()},
-          {"pixels", mask_pixels(mask)}, {"width", mask.width}, {"height", mask.height}, {"runs", mask_runs(mask)},
-          {"ms", {{"select", select_ms}, {"carve", watch.lap()}}}};
+  std::optional<json> answer = selection.select_on_view(view, normalization.apply(view.camera), clicks);
+  if (!answer) throw Refusal{409, "the scene's reconstruction is not ready yet: click again in a moment"};
+  return *answer;
 }
 
 namespace {
