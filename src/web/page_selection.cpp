@@ -5,12 +5,16 @@
 #include "common/stopwatch.h"
 #include "edit/scene_masks.h"
 #include "fill/region.h"
+#include "io/image.h"
 #include "io/splat_file.h"
 
 namespace ii {
 
 using json = nlohmann::json;
 
+namespace {
+
+// A mask as the page draws it: runs of its pixels, row by row, alternately outside and inside.
 json mask_runs(const Image& mask) {
   json runs = json::array();
   bool inside = false;
@@ -22,8 +26,6 @@ json mask_runs(const Image& mask) {
   runs.push_back(run);
   return runs;
 }
-
-namespace {
 
 int64_t mask_pixels(const Image& mask) {
   return std::count_if(mask.pixels.begin(), mask.pixels.end(), [](float v) { return v > 0.5f; });

@@ -20,13 +20,9 @@
 #include "data/scene.h"
 #include "edit/select.h"
 #include "gaussians/gaussians.h"
-#include "io/image.h"
 #include "io/ply.h"
 
 namespace ii {
-
-// A mask as the page draws it: runs of its pixels, row by row, alternately outside and inside.
-nlohmann::json mask_runs(const Image& mask);
 
 class PageSelection {
  public:

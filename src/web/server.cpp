@@ -38,13 +38,13 @@
 #include "io/image.h"
 #include "io/ply.h"
 #include "io/splat_file.h"
-#include "web/page_selection.h"
 #include "io/video.h"
 #include "refine/refine.h"
 #include "render/frames.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
 #include "web/assets.h"
+#include "web/page_selection.h"
 
 // Last: it includes <resolv.h>, whose `_res` macro breaks Eigen headers included after it.
 #include <httplib.h>
