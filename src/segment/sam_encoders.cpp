@@ -1,0 +1,158 @@
+// SAM's ViT and MobileSAM's TinyViT image encoders, and the modules' basic layers.
+#include "segment/sam_model.h"
+
+namespace ii::sam {
+
+torch::Tensor Linear::operator()(const torch::Tensor& x) const { return torch::linear(x, weight, bias); }
+
+torch::Tensor Norm::operator()(const torch::Tensor& x) const {
+  return torch::layer_norm(x, {weight.size(0)}, weight, bias, eps);
+}
+
+torch::Tensor Norm::channels(const torch::Tensor& x) const {
+  const torch::Tensor u = x.mean(1, true);
+  const torch::Tensor s = (x - u).pow(2).mean(1, true);
+  return weight.view({-1, 1, 1}) * ((x - u) / torch::sqrt(s + eps)) + bias.view({-1, 1, 1});
+}
+
+torch::Tensor Conv::operator()(const torch::Tensor& x) const {
+  return torch::conv2d(x, weight, bias, {stride, stride}, {padding, padding}, {1, 1}, groups);
+}
+
+namespace {
+
+// ---- SAM's ViT ----
+
+// (B, H, W, C) -> (B * windows, w, w, C), zero-padded to whole windows.
+torch::Tensor vit_windows(const torch::Tensor& x, int64_t w) {
+  const int64_t b = x.size(0), h = x.size(1), wd = x.size(2), c = x.size(3);
+  const int64_t ph = (w - h % w) % w, pw = (w - wd % w) % w;
+  torch::Tensor padded = ph > 0 || pw > 0 ? torch::constant_pad_nd(x, {0, 0, 0, pw, 0, ph}) : x;
+  const int64_t hp = h + ph, wp = wd + pw;
+  return padded.view({b, hp / w, w, wp / w, w, c}).permute({0, 1, 3, 2, 4, 5}).contiguous().view({-1, w, w, c});
+}
+
+torch::Tensor vit_unwindows(const torch::Tensor& windows, int64_t w, int64_t h, int64_t wd) {
+  const int64_t hp = (h + w - 1) / w * w, wp = (wd + w - 1) / w * w;
+  const int64_t b = windows.size(0) / (hp / w * (wp / w));
+  torch::Tensor x = windows.view({b, hp / w, wp / w, w, w, -1}).permute({0, 1, 3, 2, 4, 5}).contiguous().view({b, hp, wp, -1});
+  return hp > h || wp > wd ? x.slice(1, 0, h).slice(2, 0, wd).contiguous() : x;
+}
+
+// The relative-position rows for every (query, key) pair along one axis of `size` tokens.
+torch::Tensor relative_rows(const torch::Tensor& table, int64_t size) {
+  const torch::Tensor coords = torch::arange(size).unsqueeze(1) - torch::arange(size).unsqueeze(0) + (size - 1);
+  return table.index({coords});  // (size, size, head_dim)
+}
+
+torch::Tensor vit_attention(const VitBlock& blk, const torch::Tensor& x) {
+  const int64_t b = x.size(0), h = x.size(1), w = x.size(2), heads = blk.heads;
+  const torch::Tensor qkv = blk.qkv(x).reshape({b, h * w, 3, heads, -1}).permute({2, 0, 3, 1, 4}).reshape({3, b * heads, h * w, -1});
+  const torch::Tensor q = qkv[0], k = qkv[1], v = qkv[2];
+  const int64_t head_dim = q.size(2);
+  const double scale = 1.0 / std::sqrt(static_cast<double>(head_dim));
+  const torch::Tensor rh = relative_rows(blk.rel_pos_h, h), rw = relative_rows(blk.rel_pos_w, w);
+  // Heads in groups: a global block's scores are (tokens x tokens) per head.
+  const int64_t group = std::max<int64_t>(1, (int64_t{1} << 27) / std::max<int64_t>(1, h * w * h * w));
+  std::vector<torch::Tensor> outs;
+  for (int64_t s = 0; s < b * heads; s += group) {
+    const int64_t e = std::min(b * heads, s + group);
+    const torch::Tensor qs = q.slice(0, s, e), ks = k.slice(0, s, e), vs = v.slice(0, s, e);
+    torch::Tensor attn = torch::matmul(qs * scale, ks.transpose(-2, -1));
+    const torch::Tensor rq = qs.reshape({e - s, h, w, head_dim});
+    const torch::Tensor rel_h = torch::einsum("bhwc,hkc->bhwk", {rq, rh});
+    const torch::Tensor rel_w = torch::einsum("bhwc,wkc->bhwk", {rq, rw});
+    attn = (attn.view({e - s, h, w, h, w}) + rel_h.unsqueeze(4) + rel_w.unsqueeze(3)).view({e - s, h * w, h * w});
+    outs.push_back(torch::matmul(torch::softmax(attn, -1), vs));
+  }
+  const torch::Tensor out = outs.size() == 1 ? outs[0] : torch::cat(outs, 0);
+  return blk.proj(out.view({b, heads, h, w, -1}).permute({0, 2, 3, 1, 4}).reshape({b, h, w, -1}));
+}
+
+torch::Tensor vit_block(const VitBlock& blk, const torch::Tensor& x) {
+  torch::Tensor y = blk.norm1(x);
+  const int64_t h = x.size(1), w = x.size(2);
+  if (blk.window > 0) y = vit_windows(y, blk.window);
+  y = vit_attention(blk, y);
+  if (blk.window > 0) y = vit_unwindows(y, blk.window, h, w);
+  torch::Tensor out = x + y;
+  return out + blk.lin2(torch::gelu(blk.lin1(blk.norm2(out))));
+}
+
+// ---- MobileSAM's TinyViT ----
+
+torch::Tensor tiny_attention(const TinyVitBlock& blk, const torch::Tensor& x) {
+  const int64_t b = x.size(0), n = x.size(1);
+  const torch::Tensor qkv = blk.qkv(blk.attn_norm(x)).view({b, n, blk.heads, -1});
+  const auto parts = qkv.split_with_sizes({blk.key_dim, blk.key_dim, blk.key_dim}, 3);
+  const torch::Tensor q = parts[0].permute({0, 2, 1, 3}), k = parts[1].permute({0, 2, 1, 3}), v = parts[2].permute({0, 2, 1, 3});
+  const double scale = 1.0 / std::sqrt(static_cast<double>(blk.key_dim));
+  const torch::Tensor attn = torch::softmax(torch::matmul(q, k.transpose(-2, -1)) * scale + blk.biases, -1);
+  return blk.proj(torch::matmul(attn, v).transpose(1, 2).reshape({b, n, -1}));
+}
+
+// x: (B, H * W, C) tokens of an H x W grid.
+torch::Tensor tiny_block(const TinyVitBlock& blk, const torch::Tensor& x, int64_t h, int64_t w) {
+  const int64_t b = x.size(0), l = x.size(1), c = x.size(2), ws = blk.window;
+  torch::Tensor y;
+  if (h == ws && w == ws) {
+    y = tiny_attention(blk, x);
+  } else {
+    // Windows of the raw tokens: the padding is zeros before the attention's own norm.
+    const int64_t ph = (ws - h % ws) % ws, pw = (ws - w % ws) % ws;
+    torch::Tensor g = x.view({b, h, w, c});
+    if (ph > 0 || pw > 0) g = torch::constant_pad_nd(g, {0, 0, 0, pw, 0, ph});
+    const int64_t hp = h + ph, wp = w + pw, nh = hp / ws, nw = wp / ws;
+    g = g.view({b, nh, ws, nw, ws, c}).transpose(2, 3).reshape({b * nh * nw, ws * ws, c});
+    g = tiny_attention(blk, g);
+    g = g.view({b, nh, nw, ws, ws, c}).transpose(2, 3).reshape({b, hp, wp, c});
+    if (ph > 0 || pw > 0) g = g.slice(1, 0, h).slice(2, 0, w).contiguous();
+    y = g.view({b, l, c});
+  }
+  torch::Tensor out = x + y;
+  out = blk.local_conv(out.transpose(1, 2).reshape({b, c, h, w})).view({b, c, l}).transpose(1, 2);
+  return out + blk.fc2(torch::gelu(blk.fc1(blk.mlp_norm(out))));
+}
+
+torch::Tensor neck(const Conv& c1, const Norm& n1, const Conv& c2, const Norm& n2, const torch::Tensor& x) {
+  return n2.channels(c2(n1.channels(c1(x))));
+}
+
+}  // namespace
+
+torch::Tensor encode_vit(const VitEncoder& e, const torch::Tensor& image) {
+  torch::Tensor x = e.patch_embed(image).permute({0, 2, 3, 1}) + e.pos_embed;
+  for (const VitBlock& blk : e.blocks) x = vit_block(blk, x);
+  return neck(e.neck1, e.neck_norm1, e.neck2, e.neck_norm2, x.permute({0, 3, 1, 2}));
+}
+
+torch::Tensor encode_tiny_vit(const TinyVitEncoder& e, const torch::Tensor& image, int64_t image_size) {
+  const int64_t last = image_size / 16;  // the tokens' side at the end
+  torch::Tensor x = e.embed2(torch::gelu(e.embed1(image)));  // (B, C, S/4, S/4)
+  int64_t h = x.size(2), w = x.size(3);
+  bool tokens = false;  // (B, L, C) rather than (B, C, H, W)
+  for (const TinyVitStage& stage : e.stages) {
+    for (const MbConv& c : stage.convs) {
+      torch::Tensor y = torch::gelu(c.conv1(x));
+      y = torch::gelu(c.conv2(y));
+      x = torch::gelu(c.conv3(y) + x);
+    }
+    for (const TinyVitBlock& blk : stage.blocks) x = tiny_block(blk, x, h, w);
+    if (stage.has_merge) {
+      if (tokens) x = x.view({x.size(0), h, w, -1}).permute({0, 3, 1, 2});
+      PatchMerging m = stage.merge;
+      m.conv2.stride = h > last ? 2 : 1;
+      x = m.conv3(torch::gelu(m.conv2(torch::gelu(m.conv1(x)))));
+      h = x.size(2);
+      w = x.size(3);
+      x = x.flatten(2).transpose(1, 2);
+      tokens = true;
+    }
+  }
+  if (!tokens) x = x.flatten(2).transpose(1, 2);
+  if (h != last || w != last) fail("TinyViT ends at {} x {} tokens, expected {} x {}", h, w, last, last);
+  x = x.reshape({x.size(0), last, last, -1}).permute({0, 3, 1, 2});
+  return neck(e.neck1, e.neck_norm1, e.neck2, e.neck_norm2, x);
+}
+
+}  // namespace ii::sam

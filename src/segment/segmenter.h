@@ -1,0 +1,89 @@
+#pragma once
+// A promptable segmentation network (SAM, MobileSAM) run natively from the files their authors
+// publish: MobileSAM's mobile_sam.pt (TinyViT), SAM's sam_vit_b_01ec64.pth, sam_vit_l_0b3195.pth and
+// sam_vit_h_4b8939.pth (ViT). A photo is encoded once; each prompt after that (points on and off
+// the object, a box, the previous answer's mask) runs only the small decoder. The answers equal
+// the reference code's SamPredictor (tests/segment: parity with fixtures it wrote).
+//
+//   const Segmenter segmenter = Segmenter::load("mobile_sam.pt");
+//   const SegmenterImage photo = segmenter.encode(read_image_rgb("IMG_2707.JPG"));
+//   SegmentPrompt prompt;
+//   prompt.points = {{512, 300, true}};
+//   const Segmentation s = segmenter.segment(photo, prompt);
+//   const Image mask = s.mask(s.best());  // 0/1 at the photo's size
+#include <array>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/torch.h"
+#include "io/image.h"
+
+namespace ii {
+
+namespace sam {
+struct Model;
+}
+
+struct SegmentPoint {
+  double x = 0, y = 0;  // pixels of the photo (x right, y down)
+  bool on_object = true;  // false: a point that is not the object
+};
+
+struct SegmentPrompt {
+  std::vector<SegmentPoint> points;
+  std::optional<std::array<double, 4>> box;  // x0, y0, x1, y1 in the photo's pixels
+  // A previous answer's low-resolution logits (one mask, (S/4, S/4)), to refine.
+  std::optional<torch::Tensor> previous;
+  // Three masks of different extent (the part, the object, the whole) for an ambiguous prompt;
+  // false: one mask.
+  bool multimask = true;
+};
+
+struct Segmentation {
+  torch::Tensor logits;   // (K, H, W) at the photo's size; > 0 is the object
+  torch::Tensor scores;   // (K) the network's estimate of each mask's IoU
+  torch::Tensor low_res;  // (K, S/4, S/4), for SegmentPrompt::previous
+  int best() const;       // the mask of the highest score
+  Image mask(int k) const;  // 1 channel, 0/1
+};
+
+// A photo encoded for the decoder: the image embedding and the sizes to map prompts and masks.
+struct SegmenterImage {
+  torch::Tensor embedding;  // (1, D, G, G)
+  int width = 0, height = 0;              // the photo's
+  int input_width = 0, input_height = 0;  // resized so that its longer side is the encoder's size
+};
+
+class Segmenter {
+ public:
+  // Reads a SAM or MobileSAM checkpoint (.pt/.pth through the restricted reader, never executed;
+  // or safetensors with the same keys). Errors name the file and the tensor.
+  static Segmenter load(const std::filesystem::path& path);
+  ~Segmenter();
+  Segmenter(Segmenter&&) noexcept;
+  Segmenter& operator=(Segmenter&&) noexcept;
+
+  // "MobileSAM TinyViT (4 stages)", "SAM ViT (768 wide, 12 blocks, 12 heads)".
+  const std::string& description() const;
+  const std::filesystem::path& file() const { return file_; }
+  int image_size() const;  // the encoder's square input (1024 for the published models)
+
+  // An RGB photo (values in [0,1], rounded to bytes as a decoded photo is).
+  SegmenterImage encode(const Image& rgb) const;
+  // The encoder's input for `rgb`: Pillow's bilinear resize, normalised, padded ((1, 3, S, S)).
+  torch::Tensor encoder_input(const Image& rgb, int& input_width, int& input_height) const;
+  Segmentation segment(const SegmenterImage& image, const SegmentPrompt& prompt) const;
+
+ private:
+  Segmenter() = default;
+  std::unique_ptr<sam::Model> model_;
+  std::filesystem::path file_;
+};
+
+// The segmenter named by a command's --segmenter, else $INSTAINPAINT_SEGMENTER, else none.
+std::optional<std::filesystem::path> segmenter_path(const std::string& flag_value);
+
+}  // namespace ii
