@@ -13,25 +13,13 @@
 #       /work/.mirror/ChaoningZhang+MobileSAM/repo
 set -euo pipefail
 if [ $# -lt 2 ] || [ "$1" = -h ] || [ "$1" = --help ]; then sed -n '2,13p' "$0"; exit 0; fi
-HERE=$(cd "$(dirname "$0")" && pwd)
-REPO=$(cd "$HERE/../.." && pwd)
-OUT=${3:-$REPO/tests/segment/fixture}
-VENV=${SAM_REF_VENV:-$REPO/.venv-sam-ref}
+. "$(dirname "$0")/common.sh"
+OUT=${3:-$SEGMENTER_REPO/tests/segment/fixture}
 TMP=$(mktemp -d /tmp/segmenter-reference.XXXXXX)
 trap 'rm -rf "$TMP"' EXIT
-
-# $1: a work tree or a git directory; $2: the package folder in it; $3: where to put it.
-extract() {
-  if [ -d "$1/$2" ]; then cp -r "$1/$2" "$3/"; return; fi
-  git --git-dir="$1" rev-parse -q --verify 'HEAD^{tree}' >/dev/null 2>&1 ||
-    { echo "error: $1 is neither a work tree with $2/ nor a git directory" >&2; exit 1; }
-  git --git-dir="$1" archive HEAD "$2" | tar -x -C "$3"
-}
 mkdir -p "$TMP/sam" "$TMP/mobile"
-extract "$1" segment_anything "$TMP/sam"
-extract "$2" mobile_sam "$TMP/mobile"
-
-if [ ! -x "$VENV/bin/python" ]; then python3 -m venv "$VENV"; fi
-"$VENV/bin/pip" install --quiet --disable-pip-version-check --only-binary=:all: -r "$HERE/requirements.txt"
-"$VENV/bin/python" "$HERE/make_fixture.py" --segment-anything "$TMP/sam" --mobile-sam "$TMP/mobile" --out "$OUT"
+extract_reference_package "$1" segment_anything "$TMP/sam"
+extract_reference_package "$2" mobile_sam "$TMP/mobile"
+PYTHON=$(reference_python)
+"$PYTHON" "$SEGMENTER_REFERENCE_DIR/make_fixture.py" --segment-anything "$TMP/sam" --mobile-sam "$TMP/mobile" --out "$OUT"
 ls -l "$OUT"

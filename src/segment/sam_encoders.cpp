@@ -3,7 +3,10 @@
 
 namespace ii::sam {
 
-torch::Tensor Linear::operator()(const torch::Tensor& x) const { return torch::linear(x, weight, bias); }
+torch::Tensor Linear::operator()(const torch::Tensor& x) const {
+  if (half_weight.defined()) return torch::linear(x.to(torch::kBFloat16), half_weight, half_bias).to(torch::kFloat);
+  return torch::linear(x, weight, bias);
+}
 
 torch::Tensor Norm::operator()(const torch::Tensor& x) const {
   return torch::layer_norm(x, {weight.size(0)}, weight, bias, eps);
@@ -16,7 +19,62 @@ torch::Tensor Norm::channels(const torch::Tensor& x) const {
 }
 
 torch::Tensor Conv::operator()(const torch::Tensor& x) const {
+  if (half_weight.defined())
+    return torch::conv2d(x.to(torch::kBFloat16), half_weight, half_bias, {stride, stride}, {padding, padding}, {1, 1}, groups)
+        .to(torch::kFloat);
   return torch::conv2d(x, weight, bias, {stride, stride}, {padding, padding}, {1, 1}, groups);
+}
+
+namespace {
+template <class Layer>
+void halve(Layer& l) {
+  l.half_weight = l.weight.to(torch::kBFloat16);
+  if (l.bias.defined()) l.half_bias = l.bias.to(torch::kBFloat16);
+}
+}  // namespace
+
+torch::Tensor Products::matmul(const torch::Tensor& a, const torch::Tensor& b) const {
+  if (!bf16) return torch::matmul(a, b);
+  return torch::matmul(a.to(torch::kBFloat16), b.to(torch::kBFloat16)).to(torch::kFloat);
+}
+
+void use_bf16(Model& m) {
+  m.bf16 = true;
+  if (m.tiny_vit) {
+    TinyVitEncoder& e = m.tiny;
+    for (Conv* c : {&e.embed1, &e.embed2, &e.neck1, &e.neck2}) halve(*c);
+    for (TinyVitStage& s : e.stages) {
+      for (MbConv& c : s.convs) {
+        halve(c.conv1);
+        halve(c.conv2);
+        halve(c.conv3);
+      }
+      for (TinyVitBlock& b : s.blocks) {
+        for (Linear* l : {&b.qkv, &b.proj, &b.fc1, &b.fc2}) halve(*l);
+        halve(b.local_conv);
+        b.products.bf16 = true;
+      }
+      if (s.has_merge)
+        for (Conv* c : {&s.merge.conv1, &s.merge.conv2, &s.merge.conv3}) halve(*c);
+    }
+  } else {
+    VitEncoder& e = m.vit;
+    for (Conv* c : {&e.patch_embed, &e.neck1, &e.neck2}) halve(*c);
+    for (VitBlock& b : e.blocks) {
+      for (Linear* l : {&b.qkv, &b.proj, &b.lin1, &b.lin2}) halve(*l);
+      b.products.bf16 = true;
+    }
+  }
+  auto attention = [](Attention& a) {
+    for (Linear* l : {&a.q, &a.k, &a.v, &a.out}) halve(*l);
+    a.products.bf16 = true;
+  };
+  for (TwoWayBlock& b : m.decoder.blocks) {
+    for (Attention* a : {&b.self_attn, &b.token_to_image, &b.image_to_token}) attention(*a);
+    halve(b.lin1);
+    halve(b.lin2);
+  }
+  attention(m.decoder.final_attn);
 }
 
 namespace {
@@ -50,7 +108,7 @@ torch::Tensor vit_attention(const VitBlock& blk, const torch::Tensor& x) {
   const torch::Tensor qkv = blk.qkv(x).reshape({b, h * w, 3, heads, -1}).permute({2, 0, 3, 1, 4}).reshape({3, b * heads, h * w, -1});
   const torch::Tensor q = qkv[0], k = qkv[1], v = qkv[2];
   const int64_t head_dim = q.size(2);
-  const double scale = 1.0 / std::sqrt(static_cast<double>(head_dim));
+  const double scale = std::pow(static_cast<double>(head_dim), -0.5);  // as the reference writes it
   const torch::Tensor rh = relative_rows(blk.rel_pos_h, h), rw = relative_rows(blk.rel_pos_w, w);
   // Heads in groups: a global block's scores are (tokens x tokens) per head.
   const int64_t group = std::max<int64_t>(1, (int64_t{1} << 27) / std::max<int64_t>(1, h * w * h * w));
@@ -58,12 +116,13 @@ torch::Tensor vit_attention(const VitBlock& blk, const torch::Tensor& x) {
   for (int64_t s = 0; s < b * heads; s += group) {
     const int64_t e = std::min(b * heads, s + group);
     const torch::Tensor qs = q.slice(0, s, e), ks = k.slice(0, s, e), vs = v.slice(0, s, e);
-    torch::Tensor attn = torch::matmul(qs * scale, ks.transpose(-2, -1));
+    torch::Tensor attn = blk.products.matmul(qs * scale, ks.transpose(-2, -1));
     const torch::Tensor rq = qs.reshape({e - s, h, w, head_dim});
-    const torch::Tensor rel_h = torch::einsum("bhwc,hkc->bhwk", {rq, rh});
-    const torch::Tensor rel_w = torch::einsum("bhwc,wkc->bhwk", {rq, rw});
+    // einsum("bhwc,hkc->bhwk") and einsum("bhwc,wkc->bhwk") as batched products.
+    const torch::Tensor rel_h = blk.products.matmul(rq, rh.transpose(1, 2).unsqueeze(0));
+    const torch::Tensor rel_w = blk.products.matmul(rq.transpose(1, 2), rw.transpose(1, 2).unsqueeze(0)).transpose(1, 2);
     attn = (attn.view({e - s, h, w, h, w}) + rel_h.unsqueeze(4) + rel_w.unsqueeze(3)).view({e - s, h * w, h * w});
-    outs.push_back(torch::matmul(torch::softmax(attn, -1), vs));
+    outs.push_back(blk.products.matmul(torch::softmax(attn, -1), vs));
   }
   const torch::Tensor out = outs.size() == 1 ? outs[0] : torch::cat(outs, 0);
   return blk.proj(out.view({b, heads, h, w, -1}).permute({0, 2, 3, 1, 4}).reshape({b, h, w, -1}));
@@ -86,9 +145,9 @@ torch::Tensor tiny_attention(const TinyVitBlock& blk, const torch::Tensor& x) {
   const torch::Tensor qkv = blk.qkv(blk.attn_norm(x)).view({b, n, blk.heads, -1});
   const auto parts = qkv.split_with_sizes({blk.key_dim, blk.key_dim, blk.key_dim}, 3);
   const torch::Tensor q = parts[0].permute({0, 2, 1, 3}), k = parts[1].permute({0, 2, 1, 3}), v = parts[2].permute({0, 2, 1, 3});
-  const double scale = 1.0 / std::sqrt(static_cast<double>(blk.key_dim));
-  const torch::Tensor attn = torch::softmax(torch::matmul(q, k.transpose(-2, -1)) * scale + blk.biases, -1);
-  return blk.proj(torch::matmul(attn, v).transpose(1, 2).reshape({b, n, -1}));
+  const double scale = std::pow(static_cast<double>(blk.key_dim), -0.5);
+  const torch::Tensor attn = torch::softmax(blk.products.matmul(q, k.transpose(-2, -1)) * scale + blk.biases, -1);
+  return blk.proj(blk.products.matmul(attn, v).transpose(1, 2).reshape({b, n, -1}));
 }
 
 // x: (B, H * W, C) tokens of an H x W grid.

@@ -14,8 +14,12 @@
 
 namespace ii::sam {
 
+// A layer's weights in bf16 too (`half_weight`, `half_bias`, defined when the encoder runs in
+// bf16): the product then takes bf16 inputs (oneDNN's kernels, AMX where the CPU has it) and
+// returns float; norms, softmax and residuals stay float.
 struct Linear {
   torch::Tensor weight, bias;  // bias may be undefined
+  torch::Tensor half_weight, half_bias;
   torch::Tensor operator()(const torch::Tensor& x) const;
 };
 struct Norm {  // LayerNorm over the last dimension, or LayerNorm2d over channels
@@ -24,8 +28,14 @@ struct Norm {  // LayerNorm over the last dimension, or LayerNorm2d over channel
   torch::Tensor operator()(const torch::Tensor& x) const;
   torch::Tensor channels(const torch::Tensor& x) const;  // (B, C, H, W), SAM's LayerNorm2d
 };
+// Attention's products of activations, in bf16 when the model runs so (float results).
+struct Products {
+  bool bf16 = false;
+  torch::Tensor matmul(const torch::Tensor& a, const torch::Tensor& b) const;
+};
 struct Conv {
   torch::Tensor weight, bias;
+  torch::Tensor half_weight, half_bias;
   int64_t stride = 1, padding = 0, groups = 1;
   torch::Tensor operator()(const torch::Tensor& x) const;
 };
@@ -36,6 +46,7 @@ struct VitBlock {
   Linear qkv, proj, lin1, lin2;
   torch::Tensor rel_pos_h, rel_pos_w;
   int64_t heads = 0, window = 0;  // window 0: global attention
+  Products products;
 };
 struct VitEncoder {
   Conv patch_embed;  // 16 x 16, stride 16
@@ -55,6 +66,7 @@ struct TinyVitBlock {
   torch::Tensor biases;  // (heads, N, N): the learned bias of each offset, expanded
   int64_t heads = 0, key_dim = 0, window = 0;
   Conv local_conv;
+  Products products;
 };
 struct PatchMerging {
   Conv conv1, conv2, conv3;
@@ -82,6 +94,7 @@ struct PromptEncoder {
 struct Attention {
   Linear q, k, v, out;
   int64_t heads = 8;
+  Products products;
   torch::Tensor operator()(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) const;
 };
 struct TwoWayBlock {
@@ -109,6 +122,8 @@ struct Model {
   int64_t image_size = 1024;       // the encoder's square input
   int64_t embedding_size = 64;     // the image embedding's side
   int64_t width = 256;             // prompt and decoder width
+  torch::Tensor dense_pe;          // (1, D, G, G): the prompt encoder's encoding of every grid cell
+  bool bf16 = false;
   std::string description;
 };
 
@@ -117,6 +132,10 @@ struct Model {
 // the file and the key.
 Model read_model(const std::filesystem::path& path);
 Model model_from_tensors(TensorMap tensors, const std::filesystem::path& file);
+
+// Every product of the model in bf16 with float results (Linear's and Conv's bf16 copies,
+// attention's products); the decoder's transposed convolutions and the mask products stay float.
+void use_bf16(Model& m);
 
 // (1, 3, S, S) normalised and padded image -> (1, D, G, G) embedding.
 torch::Tensor encode_vit(const VitEncoder& e, const torch::Tensor& image);

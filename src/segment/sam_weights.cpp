@@ -107,7 +107,7 @@ VitEncoder read_vit(TensorTaker& t, int64_t width, int64_t& image_size) {
   const std::string p = "image_encoder.";
   const torch::Tensor patch = t.take(p + "patch_embed.proj.weight", {-1, 3, 16, 16});
   const int64_t dim = patch.size(0);
-  e.patch_embed = Conv{patch, t.take(p + "patch_embed.proj.bias", {dim}), 16, 0, 1};
+  e.patch_embed = Conv{patch, t.take(p + "patch_embed.proj.bias", {dim}), {}, {}, 16, 0, 1};
   e.pos_embed = t.take(p + "pos_embed", {1, -1, -1, dim});
   const int64_t grid = e.pos_embed.size(1);
   if (e.pos_embed.size(2) != grid) fail("{}: {}pos_embed is not square", t.file().string(), p);
@@ -281,10 +281,10 @@ MaskDecoder read_mask_decoder(TensorTaker& t, int64_t width) {
   if (masks < 2) fail("{}: {}mask_tokens.weight holds {} token(s); SAM has one more than its masks", t.file().string(), p, masks);
   // ConvTranspose2d weights are (in, out, k, k).
   d.upscale1 = Conv{t.take(p + "output_upscaling.0.weight", {width, width / 4, 2, 2}),
-                    t.take(p + "output_upscaling.0.bias", {width / 4}), 2, 0, 1};
+                    t.take(p + "output_upscaling.0.bias", {width / 4}), {}, {}, 2, 0, 1};
   d.upscale_norm = norm(t, p + "output_upscaling.1", width / 4, 1e-6);
   d.upscale2 = Conv{t.take(p + "output_upscaling.3.weight", {width / 4, width / 8, 2, 2}),
-                    t.take(p + "output_upscaling.3.bias", {width / 8}), 2, 0, 1};
+                    t.take(p + "output_upscaling.3.bias", {width / 8}), {}, {}, 2, 0, 1};
   for (int64_t i = 0; i < masks; ++i) {
     d.hypernetworks.push_back(mlp(t, p + "output_hypernetworks_mlps." + std::to_string(i), width));
     if (d.hypernetworks.back().back().weight.size(0) != width / 8)

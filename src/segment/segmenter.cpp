@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "common/cpu_features.h"
 #include "common/error.h"
 #include "segment/pillow_resize.h"
 #include "segment/sam_model.h"
@@ -107,14 +108,18 @@ torch::Tensor sam::Attention::operator()(const torch::Tensor& q_in, const torch:
     return x.reshape({x.size(0), x.size(1), heads, x.size(2) / heads}).transpose(1, 2);
   };
   const torch::Tensor qh = heads_of(q(q_in)), kh = heads_of(k(k_in)), vh = heads_of(v(v_in));
-  torch::Tensor attn = torch::matmul(qh, kh.permute({0, 1, 3, 2})) / std::sqrt(static_cast<double>(qh.size(3)));
-  torch::Tensor out = torch::matmul(torch::softmax(attn, -1), vh).transpose(1, 2);
+  torch::Tensor attn = products.matmul(qh, kh.permute({0, 1, 3, 2})) / std::sqrt(static_cast<double>(qh.size(3)));
+  torch::Tensor out = products.matmul(torch::softmax(attn, -1), vh).transpose(1, 2);
   return this->out(out.reshape({out.size(0), out.size(1), -1}));
 }
 
-Segmenter Segmenter::load(const std::filesystem::path& path) {
+Segmenter Segmenter::load(const std::filesystem::path& path, SegmenterPrecision precision) {
   Segmenter s;
   s.model_ = std::make_unique<sam::Model>(sam::read_model(path));
+  s.model_->dense_pe = dense_position_encoding(*s.model_);
+  const bool bf16 = precision == SegmenterPrecision::BFloat16 ||
+                    (precision == SegmenterPrecision::Auto && cpu_features().native_bf16());
+  if (bf16) sam::use_bf16(*s.model_);
   s.file_ = path;
   return s;
 }
@@ -124,6 +129,7 @@ Segmenter::Segmenter(Segmenter&&) noexcept = default;
 Segmenter& Segmenter::operator=(Segmenter&&) noexcept = default;
 
 const std::string& Segmenter::description() const { return model_->description; }
+bool Segmenter::bf16() const { return model_->bf16; }
 int Segmenter::image_size() const { return static_cast<int>(model_->image_size); }
 
 torch::Tensor Segmenter::encoder_input(const Image& rgb, int& input_width, int& input_height) const {
@@ -201,7 +207,7 @@ Segmentation Segmenter::segment(const SegmenterImage& image, const SegmentPrompt
   const sam::MaskDecoder& d = m.decoder;
   const torch::Tensor tokens = torch::cat({torch::cat({d.iou_token, d.mask_tokens}, 0).unsqueeze(0), sparse_embedding}, 1);
   const torch::Tensor src = image.embedding + dense;
-  const auto [hs, keys] = two_way(d, src, dense_position_encoding(m), tokens);
+  const auto [hs, keys] = two_way(d, src, m.dense_pe, tokens);
   const int64_t masks = d.mask_tokens.size(0);
   const torch::Tensor grid = keys.transpose(1, 2).reshape({1, m.width, g, g});
   torch::Tensor up = torch::gelu(d.upscale_norm.channels(transposed(d.upscale1, grid)));

@@ -57,17 +57,23 @@ struct SegmenterImage {
   int input_width = 0, input_height = 0;  // resized so that its longer side is the encoder's size
 };
 
+// Auto: bf16 products where the CPU has native bf16 (AVX-512 BF16, AMX), else float. Float is
+// the reference code's arithmetic (the parity tests'); bf16 is faster and moves the logits by up
+// to 5 % of their range (tests/segment).
+enum class SegmenterPrecision { Auto, Float32, BFloat16 };
+
 class Segmenter {
  public:
   // Reads a SAM or MobileSAM checkpoint (.pt/.pth through the restricted reader, never executed;
   // or safetensors with the same keys). Errors name the file and the tensor.
-  static Segmenter load(const std::filesystem::path& path);
+  static Segmenter load(const std::filesystem::path& path, SegmenterPrecision precision = SegmenterPrecision::Auto);
   ~Segmenter();
   Segmenter(Segmenter&&) noexcept;
   Segmenter& operator=(Segmenter&&) noexcept;
 
   // "MobileSAM TinyViT (4 stages)", "SAM ViT (768 wide, 12 blocks, 12 heads)".
   const std::string& description() const;
+  bool bf16() const;
   const std::filesystem::path& file() const { return file_; }
   int image_size() const;  // the encoder's square input (1024 for the published models)
 

@@ -6,7 +6,9 @@
 // not the object, a box, a box with a point, and a previous mask.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -26,7 +28,8 @@ const std::filesystem::path kFixture = "tests/segment/fixture";
 float max_abs(const torch::Tensor& a, const torch::Tensor& b) {
   EXPECT_EQ(a.sizes(), b.sizes());
   if (a.sizes() != b.sizes()) return 1e9f;
-  return (a - b).abs().max().item<float>();
+  const float d = (a - b).abs().max().item<float>();
+  return std::isnan(d) ? 1e9f : d;  // a NaN fails every bound
 }
 
 nlohmann::json cases() {
@@ -48,28 +51,56 @@ SegmentPrompt prompt_of(const nlohmann::json& c, const std::map<std::string, Seg
   return p;
 }
 
-void check_model(const std::string& file, const std::string& prefix, int stride) {
+// The largest difference of every answer from the reference's.
+struct Differences {
+  float features = 0, logits = 0, scores = 0, low_res = 0;
+};
+
+Differences compare_with_reference(const std::string& file, const std::string& prefix, int stride,
+                                   SegmenterPrecision precision) {
   const TensorMap reference = read_tensor_file(kFixture / "reference.safetensors");
-  const Segmenter segmenter = Segmenter::load(kFixture / file);
+  const Segmenter segmenter = Segmenter::load(kFixture / file, precision);
+  Differences d;
   const SegmenterImage image = segmenter.encode(read_image_rgb(kFixture / "image.png"));
   const torch::Tensor features = image.embedding[0].slice(1, 0, c10::nullopt, stride).slice(2, 0, c10::nullopt, stride);
-  EXPECT_LE(max_abs(features, reference.at(prefix + ".features")), 1e-4f) << "image embedding";
+  d.features = max_abs(features, reference.at(prefix + ".features"));
   std::map<std::string, Segmentation> answers;
-  for (const nlohmann::json& c : cases()["cases"]) {
+  const nlohmann::json all = cases();
+  EXPECT_EQ(all["cases"].size(), 5u);
+  for (const nlohmann::json& c : all["cases"]) {
     const std::string name = c["name"];
     const Segmentation s = segmenter.segment(image, prompt_of(c, answers));
     const std::string key = prefix + "." + name;
-    EXPECT_LE(max_abs(s.logits, reference.at(key + ".logits")), 1e-4f) << key << " logits";
-    EXPECT_LE(max_abs(s.scores, reference.at(key + ".iou")), 1e-4f) << key << " IoU scores";
+    d.logits = std::max(d.logits, max_abs(s.logits, reference.at(key + ".logits")));
+    d.scores = std::max(d.scores, max_abs(s.scores, reference.at(key + ".iou")));
     const torch::Tensor low = s.low_res.slice(1, 0, c10::nullopt, stride).slice(2, 0, c10::nullopt, stride);
-    EXPECT_LE(max_abs(low, reference.at(key + ".low_res")), 1e-4f) << key << " low-resolution logits";
+    d.low_res = std::max(d.low_res, max_abs(low, reference.at(key + ".low_res")));
     answers.emplace(name, s);
   }
+  return d;
 }
 
-TEST(SegmenterParity, SamVitLayoutEqualsTheReference) { check_model("sam_vit_small.pth", "sam", 1); }
+void check_parity(const std::string& file, const std::string& prefix, int stride) {
+  const Differences d = compare_with_reference(file, prefix, stride, SegmenterPrecision::Float32);
+  EXPECT_LE(d.features, 1e-4f) << "image embedding";
+  EXPECT_LE(d.logits, 1e-4f) << "masks' logits";
+  EXPECT_LE(d.scores, 1e-4f) << "IoU scores";
+  EXPECT_LE(d.low_res, 1e-4f) << "low-resolution logits";
+}
 
-TEST(SegmenterParity, MobileSamTinyVitLayoutEqualsTheReference) { check_model("mobile_sam_small.pt", "mobile_sam", 4); }
+TEST(SegmenterParity, SamVitLayoutEqualsTheReference) { check_parity("sam_vit_small.pth", "sam", 1); }
+
+TEST(SegmenterParity, MobileSamTinyVitLayoutEqualsTheReference) { check_parity("mobile_sam_small.pt", "mobile_sam", 4); }
+
+// bf16 products (the default where the CPU has native bf16) stay close to the reference: within
+// 5 % of the logits' range on these fixtures (0.052 of 1.26 at most), 0.016 on the scores.
+TEST(SegmenterParity, Bf16ProductsStayCloseToTheReference) {
+  for (const auto& [file, prefix, stride] : {std::tuple{"sam_vit_small.pth", "sam", 1}, std::tuple{"mobile_sam_small.pt", "mobile_sam", 4}}) {
+    const Differences d = compare_with_reference(file, prefix, stride, SegmenterPrecision::BFloat16);
+    EXPECT_LE(d.logits, 0.08f) << prefix;
+    EXPECT_LE(d.scores, 0.03f) << prefix;
+  }
+}
 
 TEST(SegmenterParity, PhotosAreResizedAsPillowDoes) {
   const TensorMap reference = read_tensor_file(kFixture / "reference.safetensors");
@@ -143,7 +174,7 @@ TEST(SegmenterFiles, AnAbsentFileIsNamed) {
 }
 
 TEST(Segmenter, APromptNeedsSomething) {
-  const Segmenter segmenter = Segmenter::load(kMobile);
+  const Segmenter segmenter = Segmenter::load(kMobile, SegmenterPrecision::Float32);
   Image grey(40, 30, 3, 0.5f);
   const SegmenterImage image = segmenter.encode(grey);
   EXPECT_EQ(test::error_message([&] { segmenter.segment(image, {}); }),
