@@ -21,5 +21,7 @@ mkdir -p "$TMP/sam" "$TMP/mobile"
 extract_reference_package "$1" segment_anything "$TMP/sam"
 extract_reference_package "$2" mobile_sam "$TMP/mobile"
 PYTHON=$(reference_python)
-"$PYTHON" "$SEGMENTER_REFERENCE_DIR/make_fixture.py" --segment-anything "$TMP/sam" --mobile-sam "$TMP/mobile" --out "$OUT"
+STATUE=${INSTAINPAINT_SHARED:-$SEGMENTER_REPO/../shared}/data/statue
+"$PYTHON" "$SEGMENTER_REFERENCE_DIR/make_fixture.py" --segment-anything "$TMP/sam" --mobile-sam "$TMP/mobile" \
+  --out "$OUT" --statue "$STATUE"
 ls -l "$OUT"

@@ -147,6 +147,8 @@ def main():
     ap.add_argument("--segment-anything", required=True, help="folder holding segment_anything/")
     ap.add_argument("--mobile-sam", required=True, help="folder holding mobile_sam/")
     ap.add_argument("--out", required=True)
+    ap.add_argument("--statue", help="shared/data/statue: also the MobileSAM model's mask of IMG_2707 for one click, "
+                                     "for the test of the whole masks command")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
     torch.set_num_threads(1)  # the same sums whatever the machine
@@ -177,6 +179,17 @@ def main():
     mobile.eval()
     torch.save(mobile.state_dict(), os.path.join(args.out, "mobile_sam_small.pt"))
     answer_cases(mobile_sam.SamPredictor(mobile), image, out, "mobile_sam")
+
+    if args.statue:
+        # The masks command's click 301.5,259.5 (pixel centres at +0.5) is SAM's point (301, 259).
+        photo = np.array(Image.open(os.path.join(args.statue, "images_2", "IMG_2707.png")).convert("RGB"))
+        predictor = mobile_sam.SamPredictor(mobile)
+        predictor.set_image(photo)
+        masks, scores, _ = predictor.predict(point_coords=np.array([[301.0, 259.0]]), point_labels=np.array([1]),
+                                             multimask_output=True)
+        best = int(np.argmax(scores))
+        Image.fromarray((masks[best] * 255).astype(np.uint8)).save(os.path.join(args.out, "statue_IMG_2707_click.png"))
+        out["mobile_sam.statue.iou"] = torch.from_numpy(scores.astype(np.float32))
 
     save_file({k: v.contiguous() for k, v in out.items()}, os.path.join(args.out, "reference.safetensors"),
               metadata={"torch": torch.__version__, "stride": json.dumps(STRIDE)})

@@ -18,9 +18,17 @@ void add_edit_options(CLI::App* cmd, EditArgs& args) {
                                 "X,Y: a click on the object in that view (pixels of its image as stored), in place "
                                 "of --mask: the object is selected in the network's reconstruction and every "
                                 "view's mask carved to it; repeat to add objects or parts of another colour");
+  auto* not_click = cmd->add_option("--not-click", args.not_clicks,
+                                    "X,Y: a point of that view that is not the object (with --segmenter); repeatable");
+  cmd->add_option("--segmenter", args.segmenter,
+                  "SAM or MobileSAM checkpoint as published (mobile_sam.pt, sam_vit_b_01ec64.pth, ...; default "
+                  "$INSTAINPAINT_SEGMENTER): the clicked view's mask from the network (one click: the best-scored of "
+                  "its three masks), then lifted to every view and carved; without it, the object is grown by "
+                  "colour over the reconstruction");
   mask->needs(view);
   click->needs(view);
   click->excludes(mask);
+  not_click->needs(click);
   cmd->add_option("--mode", args.mode,
                   "remove: the region shows an object to take out; insert: the edited reference shows a new "
                   "object there")
@@ -106,7 +114,7 @@ void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   if (args.mode == "insert") options.geometry = options.geometry.for_insertion();
 }
 
-std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene) {
+std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene, const std::string& precision) {
   if (args.view.empty()) return std::nullopt;
   if (args.mask.empty() && args.clicks.empty())
     fail("--view {}: give the region on it, --mask FILE or --click X,Y", args.view);
@@ -116,6 +124,16 @@ std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene
   if (!args.clicks.empty()) {
     if (args.mode != "remove") fail("--click selects an object to remove: --mode insert needs --mask");
     for (const std::string& click : args.clicks) request.clicks.push_back(parse_click(click, "--click"));
+    for (const std::string& click : args.not_clicks) request.not_clicks.push_back(parse_click(click, "--not-click"));
+    if (const auto path = segmenter_path(args.segmenter)) {
+      spdlog::info("reading the segmenter {}", path->string());
+      request.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
+          *path, precision == "fp32"   ? SegmenterPrecision::Float32
+                 : precision == "bf16" ? SegmenterPrecision::BFloat16
+                                       : SegmenterPrecision::Auto));
+    } else if (!request.not_clicks.empty()) {
+      fail("--not-click needs --segmenter (or INSTAINPAINT_SEGMENTER): the colour growth takes no such points");
+    }
   } else {
     request.region = read_region_mask(args.mask, view);
   }

@@ -14,7 +14,9 @@ namespace ii::cli {
 
 struct EditArgs {
   std::string view, mask;
-  std::vector<std::string> clicks;  // --click X,Y (repeatable)
+  std::vector<std::string> clicks;      // --click X,Y (repeatable)
+  std::vector<std::string> not_clicks;  // --not-click X,Y (repeatable; with --segmenter)
+  std::string segmenter;                // --segmenter FILE (else $INSTAINPAINT_SEGMENTER)
   std::string mode = "remove";
   std::string depth;
   double depth_scale = 0.001;
@@ -27,7 +29,7 @@ struct EditArgs {
   GeometryOptions geometry;  // add_geometry_options
 };
 
-// --view, --mask, --click, --mode, --depth, --depth-scale, --extent, --dilate.
+// --view, --mask, --click, --not-click, --segmenter, --mode, --depth, --depth-scale, --extent, --dilate.
 void add_edit_options(CLI::App* cmd, EditArgs& args);
 // --reference-view, --reference-inpainter and add_geometry_options (commands that build the
 // network's input).
@@ -38,8 +40,9 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry);
 // --align-depth and --depth-detail alone (add_geometry_options adds them too).
 void add_align_depth_option(CLI::App* cmd, GeometryOptions& geometry);
 
-// The request the options describe for this scene, or nullopt without --view/--mask.
-std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene);
+// The request the options describe for this scene, or nullopt without --view/--mask. `precision`
+// (--precision: auto, fp32, bf16) is the segmenter's too.
+std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene, const std::string& precision);
 // The reference options into the network's input options.
 void apply_reference_options(const EditArgs& args, SceneInputOptions& options);
 

@@ -64,7 +64,7 @@ void run(const EvalArgs& a) {
     fail("--keep-object evaluates a reconstruction: drop --reference, --view and --mask");
   o.keep_object = a.keep_object;
   o.scene.hold_out_whole = a.keep_object;
-  if (!a.edit.view.empty()) o.edit = one_mask_request(a.edit, load_scene(a.scene_dir, o.scene));
+  if (!a.edit.view.empty()) o.edit = one_mask_request(a.edit, load_scene(a.scene_dir, o.scene), a.runtime.precision);
   o.num_views = a.views;
   o.height = a.height;
   o.sh_degree = a.sh_degree;

@@ -57,7 +57,7 @@ void run(const InferArgs& a) {
 
   spdlog::info("[1/4] reading scene {}", a.scene_dir);
   const Scene scene = load_scene(a.scene_dir, a.scene);
-  const std::optional<OneMask> edit = one_mask_request(a.edit, scene);
+  const std::optional<OneMask> edit = one_mask_request(a.edit, scene, a.runtime.precision);
   stages.lap("read scene");
 
   spdlog::info("[2/4] loading model {}", a.checkpoint.empty() ? kDefaultModelName : a.checkpoint);

@@ -35,7 +35,7 @@ struct MasksArgs {
 void run(const MasksArgs& a) {
   Stopwatch total;
   const Scene scene = load_scene(a.scene_dir, a.scene);
-  const OneMask request = *one_mask_request(a.edit, scene);
+  const OneMask request = *one_mask_request(a.edit, scene, a.runtime.precision);
 
   LazyPredictor predictor(a.checkpoint, a.runtime);
   SceneInputOptions input;
@@ -86,6 +86,14 @@ void run(const MasksArgs& a) {
   report["total_ms"] = total.ms();
   write_file_atomic(out / "masks.json", report.dump(2) + "\n");
 
+  if (!masks.segmenter.is_null())
+    fmt::print("clicked view's mask: {} ({}), mask {} of its {}, score {:.3f}, {} pixels\n",
+               masks.segmenter["network"].get<std::string>(), masks.segmenter["file"].get<std::string>(),
+               masks.segmenter["chosen"].get<int>() + 1, masks.segmenter["scores"].size(),
+               masks.segmenter["scores"][masks.segmenter["chosen"].get<int>()].get<double>(),
+               masks.segmenter["pixels"].get<int64_t>());
+  else if (!masks.clicked_mask.empty())
+    fmt::print("clicked view's mask: {} (no --segmenter)\n", masks.clicked_mask);
   fmt::print("{} masks from view {} ({} region{}, depth: {})\n", scene.views.size(), request.view,
              masks.regions.size(), masks.regions.size() == 1 ? "" : "s", masks.depth_source);
   if (compared > 0)
@@ -122,7 +130,9 @@ void add_masks_command(CLI::App& app) {
       "Examples:\n"
       "  instainpaint masks --scene ../shared/data/statue --view IMG_2707 "
       "--mask ../shared/data/statue/images_2/label/IMG_2707.png --out masks\n"
-      "  instainpaint masks --scene my_capture --view IMG_0001 --click 512,300 --out masks   # one click on the object");
+      "  instainpaint masks --scene my_capture --view IMG_0001 --click 512,300 --out masks   # one click on the object\n"
+      "  instainpaint masks --scene my_capture --view IMG_0001 --click 512,300 --segmenter mobile_sam.pt --out masks\n"
+      "      # the clicked view's outline from MobileSAM (github.com/ChaoningZhang/MobileSAM, weights/mobile_sam.pt)");
   cmd->callback([args] { run(*args); });
 }
 

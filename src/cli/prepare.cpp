@@ -51,7 +51,7 @@ void run(const PrepareArgs& a) {
   if (!a.reference.empty()) opts.reference = fs::path(a.reference);
   opts.preprocess.height = a.height;
   apply_reference_options(a.edit, opts);
-  const std::optional<OneMask> edit = one_mask_request(a.edit, scene);
+  const std::optional<OneMask> edit = one_mask_request(a.edit, scene, a.runtime.precision);
   LazyPredictor predictor(a.checkpoint, a.runtime);
   nlohmann::json edit_report;
   if (edit) {

@@ -164,11 +164,17 @@ nlohmann::json SceneMasks::describe(const OneMask& request) const {
           {"regions", regions_json},
           {"carved", carved}};
   if (!request.clicks.empty()) {
-    nlohmann::json clicks = nlohmann::json::array();
+    nlohmann::json clicks = nlohmann::json::array(), not_clicks = nlohmann::json::array();
     for (const Click& c : request.clicks) clicks.push_back({c.x, c.y});
+    for (const Click& c : request.not_clicks) not_clicks.push_back({c.x, c.y});
     out["clicks"] = clicks;
-    out["selected_points"] = selected;
-    out["points"] = points;
+    if (!not_clicks.empty()) out["not_clicks"] = not_clicks;
+    out["clicked_mask"] = clicked_mask;
+    if (!segmenter.is_null()) out["segmenter"] = segmenter;
+    if (!request.segmenter) {
+      out["selected_points"] = selected;
+      out["points"] = points;
+    }
   }
   return out;
 }
@@ -230,6 +236,35 @@ void select_the_clicked_object(const Scene& scene, const std::vector<Camera>& ca
 
 }  // namespace
 
+ClickedMask segmented_view_mask(const Segmenter& segmenter, const View& view, const std::vector<Click>& clicks,
+                                const std::vector<Click>& not_clicks, StageTimes* stages) {
+  StageTimes unrecorded;
+  StageTimes& times = stages ? *stages : unrecorded;
+  for (const Click& click : clicks) check_click_inside(view.camera, view.name, click);
+  for (const Click& click : not_clicks) check_click_inside(view.camera, view.name, click);
+  const SegmenterImage photo = times.time("masks: segmenter, encode the clicked view", [&] {
+    return segmenter.encode(load_view_image(view));
+  });
+  SegmentPrompt prompt;
+  // A click's pixel centres are at +0.5; the network's points are pixel indices.
+  for (const Click& c : clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, true});
+  for (const Click& c : not_clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, false});
+  prompt.multimask = clicks.size() == 1 && not_clicks.empty();  // one point is ambiguous: three masks
+  const Segmentation s = times.time("masks: segmenter, decode the clicks", [&] { return segmenter.segment(photo, prompt); });
+  ClickedMask out;
+  out.chosen = s.best();
+  out.mask = s.mask(out.chosen);
+  if (out.mask.width != view.camera.K.width || out.mask.height != view.camera.K.height)
+    fail("view {}: its photo is {}x{}, its camera {}x{}", view.name, out.mask.width, out.mask.height,
+         view.camera.K.width, view.camera.K.height);
+  for (int k = 0; k < static_cast<int>(s.scores.size(0)); ++k) out.scores.push_back(s.scores[k].item<double>());
+  out.pixels = std::count(out.mask.pixels.begin(), out.mask.pixels.end(), 1.f);
+  if (out.pixels == 0)
+    fail("view {}: the segmenter found no object under the click{} at {}", view.name, clicks.size() == 1 ? "" : "s",
+         fmt::format("{:.0f},{:.0f}", clicks[0].x, clicks[0].y));
+  return out;
+}
+
 SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
                           const SceneInputOptions& options, StageTimes* stages) {
   StageTimes unrecorded;
@@ -238,8 +273,30 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
   std::vector<Camera> cameras;
   for (const View& v : scene.views) cameras.push_back(v.camera);
 
+  if (!request.clicks.empty() && request.segmenter) {
+    // The segmenter's mask of the clicked view is the region, lifted and carved as a drawn one.
+    const ClickedMask clicked =
+        segmented_view_mask(*request.segmenter, marked, request.clicks, request.not_clicks, stages);
+    OneMask drawn = request;
+    drawn.clicks.clear();
+    drawn.not_clicks.clear();
+    drawn.segmenter = nullptr;
+    drawn.region = clicked.mask;
+    drawn.carve = true;
+    SceneMasks out = masks_from_one(scene, drawn, predictor, options, stages);
+    out.clicked_mask = "segmenter";
+    out.segmenter = {{"file", request.segmenter->file().string()},
+                     {"network", request.segmenter->description()},
+                     {"precision", request.segmenter->bf16() ? "bf16" : "fp32"},
+                     {"chosen", clicked.chosen},
+                     {"scores", clicked.scores},
+                     {"pixels", clicked.pixels}};
+    return out;
+  }
+
   SceneMasks out;
   if (!request.clicks.empty()) {
+    out.clicked_mask = "colour growth over the reconstruction";
     for (const Click& click : request.clicks) check_click_inside(marked.camera, marked.name, click);
     if (!predictor) fail("a click on view {} needs the network's reconstruction, and no model was given", marked.name);
     const ViewReconstruction reconstruction = predicted_view_reconstruction(predictor(), scene, marked.name, options, stages);

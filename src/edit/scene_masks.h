@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -23,6 +24,7 @@
 #include "edit/propagate.h"
 #include "edit/select.h"
 #include "predict/predictor.h"
+#include "segment/segmenter.h"
 
 namespace ii {
 
@@ -42,9 +44,12 @@ struct OneMask {
   // (edit/carve.h); false: the propagated masks as they are.
   bool carve = false;
   CarveOptions carving;
-  // Clicks on the view in place of `region`: the object under each selected in the network's
-  // reconstruction (edit/select.h), each view's mask carved to them.
-  std::vector<Click> clicks;
+  // Clicks on the view in place of `region`. With a segmenter, its mask of the clicked view
+  // (points on the object: `clicks`, points that are not: `not_clicks`) becomes the region,
+  // lifted and carved like a drawn one. Without, the object under each click is selected in the
+  // network's reconstruction (edit/select.h) and each view's mask carved to it.
+  std::vector<Click> clicks, not_clicks;
+  std::shared_ptr<const Segmenter> segmenter;
   SelectOptions selecting;
 };
 
@@ -88,6 +93,10 @@ struct SceneMasks {
   std::vector<LiftedRegion> regions;
   int carved = 0;  // views whose masks were carved to the object (edit/carve.h)
   int64_t selected = 0, points = 0;  // clicks': the reconstruction's points selected, of all
+  // How the clicked view's mask was made: "segmenter" (with `segmenter`: the network and the mask
+  // it chose) or "colour growth over the reconstruction"; empty without clicks.
+  std::string clicked_mask;
+  nlohmann::json segmenter;
   // {"view", "mode", "depth_source", "notes", "regions": [{pixels, depth_inside, depth_ring, near, far}]}
   nlohmann::json describe(const OneMask& request) const;
   // Gives the network these masks; the marked view becomes the reference unless the caller
@@ -107,5 +116,16 @@ Image depth_at_image_size(const torch::Tensor& working_depth, double normalizati
 
 SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
                           const SceneInputOptions& options, StageTimes* stages = nullptr);
+
+// The segmenter's mask of `view` from clicks on the object and points that are not (one click:
+// the best-scored of its three masks). An Error names a click outside the view, or none found.
+struct ClickedMask {
+  Image mask;  // 0/1 at the view's image size
+  int chosen = 0;
+  std::vector<double> scores;
+  int64_t pixels = 0;
+};
+ClickedMask segmented_view_mask(const Segmenter& segmenter, const View& view, const std::vector<Click>& clicks,
+                                const std::vector<Click>& not_clicks, StageTimes* stages = nullptr);
 
 }  // namespace ii
