@@ -32,7 +32,9 @@ struct FillArgs {
   std::string selection;
   std::string view;
   std::string mask;
-  std::vector<std::string> clicks;  // --click X,Y (repeatable)
+  std::vector<std::string> clicks;      // --click X,Y (repeatable)
+  std::vector<std::string> not_clicks;  // --not-click X,Y (repeatable)
+  std::string segmenter;
   std::string scene_dir;
   SceneOptions scene;
   std::string cameras;
@@ -148,8 +150,17 @@ void run(const FillArgs& a) {
     o.stroke_view = a.view;
     if (!a.mask.empty()) o.stroke = read_mask(a.mask);
     for (const std::string& click : a.clicks) o.clicks.push_back(parse_click(click, "--click"));
+    for (const std::string& click : a.not_clicks) o.not_clicks.push_back(parse_click(click, "--not-click"));
   }
   const Runtime runtime = apply_runtime_options(a.runtime);
+  if (!a.clicks.empty())
+    if (const auto path = segmenter_path(a.segmenter)) {
+      spdlog::info("reading the segmenter {}", path->string());
+      o.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
+          *path, a.runtime.precision == "fp32"   ? SegmenterPrecision::Float32
+                 : a.runtime.precision == "bf16" ? SegmenterPrecision::BFloat16
+                                                 : SegmenterPrecision::Auto));
+    }
   spdlog::info("[1/3] reading {}", a.splats);
   Stopwatch watch;
   const SplatCloud cloud = read_splats(a.splats);
@@ -202,8 +213,13 @@ void add_fill_command(CLI::App& app) {
                    ->check(CLI::ExistingFile);
   cmd->add_option("--click", a->clicks,
                   "With --view: X,Y in that camera's pixels, a click on the object: the splat there and its "
-                  "neighbours alike in colour (repeat to add)")
+                  "neighbours alike in colour (repeat to add); with --segmenter, the object it outlines in the "
+                  "scene's render from that camera")
       ->excludes(mask);
+  cmd->add_option("--not-click", a->not_clicks, "With --click and --segmenter: X,Y on something that is not the object");
+  cmd->add_option("--segmenter", a->segmenter,
+                  "SAM or MobileSAM checkpoint as published (mobile_sam.pt, sam_vit_b_01ec64.pth, ...; default "
+                  "$INSTAINPAINT_SEGMENTER) for --click");
   region->require_option(1);
   cmd->add_option("--scene", a->scene_dir, "The capture the splats were trained from (any format we read): its cameras");
   cmd->add_option("--scene-format", a->scene.format, "auto, llff, nerfstudio or colmap")->capture_default_str();

@@ -238,31 +238,17 @@ void select_the_clicked_object(const Scene& scene, const std::vector<Camera>& ca
 
 ClickedMask segmented_view_mask(const Segmenter& segmenter, const View& view, const std::vector<Click>& clicks,
                                 const std::vector<Click>& not_clicks, StageTimes* stages) {
-  StageTimes unrecorded;
-  StageTimes& times = stages ? *stages : unrecorded;
   for (const Click& click : clicks) check_click_inside(view.camera, view.name, click);
   for (const Click& click : not_clicks) check_click_inside(view.camera, view.name, click);
-  const SegmenterImage photo = times.time("masks: segmenter, encode the clicked view", [&] {
-    return segmenter.encode(load_view_image(view));
-  });
-  SegmentPrompt prompt;
-  // A click's pixel centres are at +0.5; the network's points are pixel indices.
-  for (const Click& c : clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, true});
-  for (const Click& c : not_clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, false});
-  prompt.multimask = clicks.size() == 1 && not_clicks.empty();  // one point is ambiguous: three masks
-  const Segmentation s = times.time("masks: segmenter, decode the clicks", [&] { return segmenter.segment(photo, prompt); });
-  ClickedMask out;
-  out.chosen = s.best();
-  out.mask = s.mask(out.chosen);
-  if (out.mask.width != view.camera.K.width || out.mask.height != view.camera.K.height)
-    fail("view {}: its photo is {}x{}, its camera {}x{}", view.name, out.mask.width, out.mask.height,
-         view.camera.K.width, view.camera.K.height);
-  for (int k = 0; k < static_cast<int>(s.scores.size(0)); ++k) out.scores.push_back(s.scores[k].item<double>());
-  out.pixels = std::count(out.mask.pixels.begin(), out.mask.pixels.end(), 1.f);
-  if (out.pixels == 0)
-    fail("view {}: the segmenter found no object under the click{} at {}", view.name, clicks.size() == 1 ? "" : "s",
-         fmt::format("{:.0f},{:.0f}", clicks[0].x, clicks[0].y));
-  return out;
+  Image photo = load_view_image(view);
+  if (photo.width != view.camera.K.width || photo.height != view.camera.K.height)
+    fail("view {}: its photo is {}x{}, its camera {}x{}", view.name, photo.width, photo.height, view.camera.K.width,
+         view.camera.K.height);
+  try {
+    return mask_from_clicks(segmenter, photo, clicks, not_clicks, stages);
+  } catch (const Error& e) {
+    fail("view {}: {}", view.name, e.what());
+  }
 }
 
 SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
@@ -285,12 +271,7 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
     drawn.carve = true;
     SceneMasks out = masks_from_one(scene, drawn, predictor, options, stages);
     out.clicked_mask = "segmenter";
-    out.segmenter = {{"file", request.segmenter->file().string()},
-                     {"network", request.segmenter->description()},
-                     {"precision", request.segmenter->bf16() ? "bf16" : "fp32"},
-                     {"chosen", clicked.chosen},
-                     {"scores", clicked.scores},
-                     {"pixels", clicked.pixels}};
+    out.segmenter = clicked.describe(*request.segmenter);
     return out;
   }
 

@@ -117,14 +117,8 @@ Image depth_at_image_size(const torch::Tensor& working_depth, double normalizati
 SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
                           const SceneInputOptions& options, StageTimes* stages = nullptr);
 
-// The segmenter's mask of `view` from clicks on the object and points that are not (one click:
-// the best-scored of its three masks). An Error names a click outside the view, or none found.
-struct ClickedMask {
-  Image mask;  // 0/1 at the view's image size
-  int chosen = 0;
-  std::vector<double> scores;
-  int64_t pixels = 0;
-};
+// The segmenter's mask of `view`'s photo (segment/segmenter.h's mask_from_clicks). An Error names a
+// click outside the view.
 ClickedMask segmented_view_mask(const Segmenter& segmenter, const View& view, const std::vector<Click>& clicks,
                                 const std::vector<Click>& not_clicks, StageTimes* stages = nullptr);
 

@@ -203,7 +203,7 @@ FillPlacement parse_fill_placement(const std::string& name) {
   fail("fill placement '{}': surface or network", name);
 }
 
-RegionMask choose_region(const SplatCloud& cloud, const FillOptions& options) {
+RegionMask choose_region(const SplatCloud& cloud, const FillOptions& options, nlohmann::json& segmenter_record) {
   const int ways =
       (options.box ? 1 : 0) + (options.selection ? 1 : 0) + (options.stroke ? 1 : 0) + (options.clicks.empty() ? 0 : 1);
   if (ways != 1)
@@ -224,7 +224,15 @@ RegionMask choose_region(const SplatCloud& cloud, const FillOptions& options) {
     if (options.stroke) {
       region = region_under_stroke(cloud, named->camera, *options.stroke);
       what = "the mask on view " + options.stroke_view;
+    } else if (options.segmenter) {
+      ClickedMask clicked;
+      region = region_from_segmented_clicks(cloud, named->camera, options.stroke_view, options.clicks,
+                                            options.not_clicks, *options.segmenter, &clicked);
+      segmenter_record = clicked.describe(*options.segmenter);
+      what = "the segmenter's outline on view " + options.stroke_view;
     } else {
+      if (!options.not_clicks.empty())
+        fail("fill: points that are not the object (--not-click) need a segmenter (--segmenter)");
       region = region_from_clicks(cloud, named->camera, options.stroke_view, options.clicks);
       what = "the click on view " + options.stroke_view;
     }
@@ -258,6 +266,7 @@ nlohmann::json FillResult::report() const {
                       {"cameras", {{"how", cameras.how}, {"reference", cameras.cameras.at(0).name}, {"views", cams}}},
                       {"stages", stages.to_json()},
                       {"total_ms", stages.waited_ms()}};
+  if (!segmenter.is_null()) j["segmenter"] = segmenter;
   if (placement == FillPlacement::surface) {
     j["surface"] = {{"reference_size", {surface_width, surface_height}}};
     for (size_t i = 0; i < uncovered.size() && i < cams.size(); ++i)
@@ -632,15 +641,17 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   FillResult result;
   StageTimes& stages = result.stages;
   check_splats_finite(cloud, options.scene_name);
-  const RegionMask region = choose_region(cloud, options);
+  const RegionMask region = choose_region(cloud, options, result.segmenter);
   result.model = predictor.describe();
   result.total = static_cast<int64_t>(cloud.size());
   result.removed = region_count(region);
   result.region_how = options.box ? "box: " + options.box->describe()
                       : options.selection ? "selection: the splats missing from " + options.selection_name
                       : options.stroke    ? "mask on view " + options.stroke_view
-                                          : fmt::format("{} click{} on view {}", options.clicks.size(),
-                                                        options.clicks.size() == 1 ? "" : "s", options.stroke_view);
+                                          : fmt::format("{} click{} on view {} ({})", options.clicks.size(),
+                                                        options.clicks.size() == 1 ? "" : "s", options.stroke_view,
+                                                        options.segmenter ? "the segmenter's outline"
+                                                                          : "colour growth over the splats");
   stages.lap("select region");
 
   torch::NoGradGuard no_grad;

@@ -7,6 +7,7 @@
 // the masked pixels. Every other splat is kept as it was, bit for bit.
 #include <nlohmann/json.hpp>
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -39,6 +40,11 @@ struct FillOptions {
   std::string stroke_view;
   std::optional<Image> stroke;
   std::vector<Click> clicks;
+  // With a segmenter, the clicks (and `not_clicks`, points that are not the object) prompt it on
+  // the scene's render from that camera; its outline is taken as a stroke. Without, the splat
+  // under each click is grown by colour (fill/region.h).
+  std::vector<Click> not_clicks;
+  std::shared_ptr<const Segmenter> segmenter;
   // Cameras to look from (a capture's, a camera list); empty: automatic ones around the region.
   std::vector<NamedCamera> cameras;
   FillCameraOptions camera_options;
@@ -75,6 +81,7 @@ struct FillResult {
   int surface_width = 0, surface_height = 0;
   std::vector<int64_t> uncovered;
   std::string region_how;              // how the region was chosen
+  nlohmann::json segmenter;            // with a segmenter: its file, network, mask chosen and scores
   nlohmann::json refine_report;        // with refinement
   nlohmann::json model;                // Predictor::describe(): the checkpoint, and the CPU's kernels
   StageTimes stages;

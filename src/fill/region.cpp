@@ -19,6 +19,7 @@
 #include "gaussians/gaussians.h"
 #include "render/projection.h"
 #include "render/rasterizer.h"
+#include "tensor/image_tensor.h"
 
 namespace ii {
 
@@ -196,6 +197,27 @@ RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, con
   const Image outline = selection_mask(camera, points, selected, std::max(1, side / 300), 0);
   RegionMask region = region_under_stroke(cloud, camera, outline);
   for (size_t k = 0; k < opaque.size(); ++k) region[opaque[k]] = region[opaque[k]] || selected[k];
+  return region;
+}
+
+RegionMask region_from_segmented_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
+                                        const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
+                                        const Segmenter& segmenter, ClickedMask* clicked) {
+  for (const Click& click : clicks) check_click_inside(camera, view, click);
+  for (const Click& click : not_clicks) check_click_inside(camera, view, click);
+  Image seen;
+  {
+    torch::NoGradGuard no_grad;
+    seen = image_from_hwc(render(gaussians_from_splats(cloud, 0), {camera}).rgb);
+  }
+  ClickedMask mask;
+  try {
+    mask = mask_from_clicks(segmenter, seen, clicks, not_clicks);
+  } catch (const Error& e) {
+    fail("view {}: {}", view, e.what());
+  }
+  RegionMask region = region_under_stroke(cloud, camera, mask.mask);
+  if (clicked) *clicked = std::move(mask);
   return region;
 }
 

@@ -13,6 +13,7 @@
 #include "edit/select.h"
 #include "io/image.h"
 #include "io/ply.h"
+#include "segment/segmenter.h"
 
 namespace ii {
 
@@ -38,6 +39,13 @@ RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, co
 // lands on, grown over its neighbours alike in colour (edit/select.h).
 RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
                               const std::vector<Click>& clicks, const SelectOptions& options = {});
+
+// The object `segmenter` outlines under `clicks` (and not at `not_clicks`) in the scene's render
+// from `camera` (what a user sees there), taken as a stroke; `clicked` (optional) gets the
+// segmenter's mask and scores.
+RegionMask region_from_segmented_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
+                                        const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
+                                        const Segmenter& segmenter, ClickedMask* clicked = nullptr);
 
 int64_t region_count(const RegionMask& region);
 

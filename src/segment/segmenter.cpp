@@ -241,6 +241,35 @@ Image Segmentation::mask(int k) const {
   return out;
 }
 
+ClickedMask mask_from_clicks(const Segmenter& segmenter, const Image& photo, const std::vector<Click>& clicks,
+                             const std::vector<Click>& not_clicks, StageTimes* stages) {
+  StageTimes unrecorded;
+  StageTimes& times = stages ? *stages : unrecorded;
+  if (clicks.empty()) fail("the segmenter needs a click on the object");
+  const SegmenterImage encoded = times.time("segmenter: encode the view", [&] { return segmenter.encode(photo); });
+  SegmentPrompt prompt;
+  // A click's pixel centres are at +0.5; the network's points are pixel indices (it adds the 0.5).
+  for (const Click& c : clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, true});
+  for (const Click& c : not_clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, false});
+  prompt.multimask = clicks.size() == 1 && not_clicks.empty();  // one point is ambiguous: three masks
+  const Segmentation s = times.time("segmenter: decode the clicks", [&] { return segmenter.segment(encoded, prompt); });
+  ClickedMask out;
+  out.chosen = s.best();
+  out.mask = s.mask(out.chosen);
+  for (int k = 0; k < static_cast<int>(s.scores.size(0)); ++k) out.scores.push_back(s.scores[k].item<double>());
+  out.pixels = std::count(out.mask.pixels.begin(), out.mask.pixels.end(), 1.f);
+  if (out.pixels == 0)
+    fail("the segmenter found no object under the click{} at {:.0f},{:.0f}", clicks.size() == 1 ? "" : "s", clicks[0].x,
+         clicks[0].y);
+  return out;
+}
+
+nlohmann::json ClickedMask::describe(const Segmenter& segmenter) const {
+  return {{"file", segmenter.file().string()}, {"network", segmenter.description()},
+          {"precision", segmenter.bf16() ? "bf16" : "fp32"}, {"chosen", chosen},
+          {"scores", scores}, {"pixels", pixels}};
+}
+
 std::optional<std::filesystem::path> segmenter_path(const std::string& flag_value) {
   if (!flag_value.empty()) return std::filesystem::path(flag_value);
   if (const char* env = std::getenv("INSTAINPAINT_SEGMENTER"); env && *env) return std::filesystem::path(env);

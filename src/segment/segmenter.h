@@ -18,6 +18,10 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
+#include "camera/click.h"
+#include "common/stage_times.h"
 #include "common/torch.h"
 #include "io/image.h"
 
@@ -88,6 +92,19 @@ class Segmenter {
   std::unique_ptr<sam::Model> model_;
   std::filesystem::path file_;
 };
+
+// The mask of the object under clicks on a photo (pixel centres at +0.5, as camera/click.h's)
+// and points that are not it: one click asks for SAM's three masks and keeps the best-scored,
+// more points ask for one. An Error when the mask is empty.
+struct ClickedMask {
+  Image mask;  // 0/1 at the photo's size
+  int chosen = 0;
+  std::vector<double> scores;
+  int64_t pixels = 0;
+  nlohmann::json describe(const Segmenter& segmenter) const;  // file, network, precision, chosen, scores, pixels
+};
+ClickedMask mask_from_clicks(const Segmenter& segmenter, const Image& photo, const std::vector<Click>& clicks,
+                             const std::vector<Click>& not_clicks, StageTimes* stages = nullptr);
 
 // The segmenter named by a command's --segmenter, else $INSTAINPAINT_SEGMENTER, else none.
 std::optional<std::filesystem::path> segmenter_path(const std::string& flag_value);

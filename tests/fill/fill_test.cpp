@@ -175,6 +175,29 @@ TEST(FillRegion, AClickSelectsTheObjectAndNotWhatItStandsOn) {
             "the click (-1, 5) is outside view cam's image (96x72)");
 }
 
+// With a segmenter (the small MobileSAM-layout fixture of tests/segment), a click prompts it on
+// the scene's render from the camera, and its outline is taken as a stroke: the region is the
+// stroke's, and the record names the mask it chose.
+TEST(FillRegion, ASegmentersOutlineOfTheRenderIsTakenAsAStroke) {
+  const SplatCloud with = room(true, false);
+  const Camera camera = camera_at({0, 0.9, 1.6});
+  const Segmenter segmenter = Segmenter::load("tests/segment/fixture/mobile_sam_small.pt", SegmenterPrecision::Float32);
+  const std::optional<PixelOfPoint> front = pixel_of_point(camera.K, camera.w2c_opencv(), {0.05, 0.2, 0.2});
+  ASSERT_TRUE(front);
+  const std::vector<Click> clicks = {{front->x + 0.5, front->y + 0.5}};
+  ClickedMask clicked;
+  const RegionMask picked = region_from_segmented_clicks(with, camera, "cam", clicks, {}, segmenter, &clicked);
+  EXPECT_GT(clicked.pixels, 0);
+  EXPECT_EQ(clicked.scores.size(), 3u);
+  torch::NoGradGuard no_grad;
+  const Image seen = image_from_hwc(render(gaussians_from_splats(with, 0), {camera}).rgb);
+  const ClickedMask again = mask_from_clicks(segmenter, seen, clicks, {});
+  EXPECT_EQ(again.mask.pixels, clicked.mask.pixels);
+  EXPECT_EQ(picked, region_under_stroke(with, camera, again.mask));
+  EXPECT_EQ(error_message([&] { region_from_segmented_clicks(with, camera, "cam", clicks, {{200, 5}}, segmenter); }),
+            "the click (200, 5) is outside view cam's image (96x72)");
+}
+
 TEST(FillCameras, GivenCamerasThatSeeTheRegionBestComeFirst) {
   const SplatCloud with = room(true, false);
   std::vector<NamedCamera> cameras = capture_cameras();
