@@ -68,7 +68,7 @@ def _geometry_texts(geometry: Mapping[str, Any]) -> Dict[str, str]:
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
-    "masks_from_one", "select", "set_log_level", "set_threads",
+    "masks_from_one", "select", "Segmenter", "set_log_level", "set_threads",
 ]
 __version__ = "0.1.0"
 
@@ -175,11 +175,14 @@ class Gaussians:
         return Gaussians(self._g._refine(scene, str(preset), sh_degree, position_rate, exposure, call))
 
 
-    def select(self, camera: Camera, click, *, view: str = "the camera"):
+    def select(self, camera: Camera, click, *, view: str = "the camera", not_click=None,
+               segmenter: Optional["Segmenter"] = None):
         """The splats of the object under click=(x, y) (pixels of camera's view; a list of points adds
-        more), as `fill --click` selects them: a bool array, one per splat."""
+        more), as `fill --click` selects them: a bool array, one per splat. With segmenter=, the
+        object it outlines in these splats' render from the camera (not_click= points that are not it)."""
         import numpy as np
-        return np.asarray(_core._select_splats(self._g, camera, view, _clicks(click)), dtype=bool)
+        return np.asarray(_core._select_splats(self._g, camera, view, _clicks(click), _clicks(not_click),
+                                               segmenter._s if segmenter else None), dtype=bool)
 
     @property
     def fill_report(self) -> Optional[dict]:
@@ -303,7 +306,8 @@ def masks_from_one(scene: Scene, view: str, region: Union[PathLike, Any], *,
     """
     if isinstance(region, str) or hasattr(region, "__fspath__"):
         region = os.fspath(region)
-    masks, report = _core._masks_from_one(scene, view, region, [], predictor._p if predictor else None, height, views)
+    masks, report = _core._masks_from_one(scene, view, region, [], [], None, predictor._p if predictor else None,
+                                          height, views)
     return masks, json.loads(report)
 
 
@@ -320,18 +324,46 @@ def _clicks(click) -> List[Tuple[float, float]]:
     return out
 
 
-def select(scene: Scene, view: str, click, *, predictor: Optional[Predictor] = None, height: int = 512,
-           views: int = 4) -> Tuple[Dict[str, Any], dict]:
+class Segmenter:
+    """A promptable segmentation network, SAM or MobileSAM, read from the file its authors publish
+    (MobileSAM's mobile_sam.pt; SAM's sam_vit_b_01ec64.pth, sam_vit_l_0b3195.pth, sam_vit_h_4b8939.pth),
+    never executed. precision: "auto" (bf16 where the CPU has native bf16), "fp32" or "bf16"."""
+
+    def __init__(self, path: PathLike, *, precision: str = "auto"):
+        self._s = _core.Segmenter(os.fspath(path), precision)
+
+    @property
+    def description(self) -> str:
+        return self._s.description
+
+    @property
+    def precision(self) -> str:
+        return self._s.precision
+
+    def segment(self, image, click, *, not_click=None) -> Tuple[Any, dict]:
+        """The object under click=(x, y) (or a list of points on it) in image (H x W x 3, uint8 or
+        float in [0, 1]); not_click= points that are not the object. One click asks for the network's
+        three masks and keeps the best-scored. Returns (H x W float32 mask, a report: the scores, the
+        mask chosen)."""
+        mask, report = self._s._segment(image, _clicks(click), _clicks(not_click))
+        return mask, json.loads(report)
+
+
+def select(scene: Scene, view: str, click, *, not_click=None, segmenter: Optional[Segmenter] = None,
+           predictor: Optional[Predictor] = None, height: int = 512, views: int = 4) -> Tuple[Dict[str, Any], dict]:
     """The object under a click, masked in every view (`instainpaint masks --click`).
 
-    click: (x, y) in pixels of the view's photo as stored, or a list of such points (each adds the
-    object under it). The object is selected in the network's reconstruction of the scene
-    (predictor: default the built-in model) and each view's mask carved to it. Returns
-    ({view name: H x W float32 mask}, a report: the points selected, the carved views).
+    click: (x, y) in pixels of the view's photo as stored, or a list of such points. With segmenter=
+    (a Segmenter), its mask of the clicked view (not_click= points that are not the object) is lifted
+    to every view and carved; without, each click's object is grown by colour in the network's
+    reconstruction of the scene (predictor: default the built-in model) and each view's mask carved
+    to it. Returns ({view name: H x W float32 mask}, a report: how the clicked view's mask was made,
+    the carved views).
     """
     if predictor is None:
         predictor = Predictor()
-    masks, report = _core._masks_from_one(scene, view, None, _clicks(click), predictor._p, height, views)
+    masks, report = _core._masks_from_one(scene, view, None, _clicks(click), _clicks(not_click),
+                                          segmenter._s if segmenter else None, predictor._p, height, views)
     return masks, json.loads(report)
 
 

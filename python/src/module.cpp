@@ -39,6 +39,7 @@
 #include "model/device.h"
 #include "predict/predictor.h"
 #include "refine/refine.h"
+#include "segment/segmenter.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
 
@@ -65,6 +66,24 @@ nb::object array_of(torch::Tensor t) {
 }
 
 using AnyArray = nb::ndarray<nb::ro, nb::device::cpu>;
+
+// A segmenter shared by the Python object and the requests that use it.
+struct PySegmenter {
+  std::shared_ptr<const Segmenter> segmenter;
+};
+
+SegmenterPrecision segmenter_precision(const std::string& name) {
+  if (name == "auto") return SegmenterPrecision::Auto;
+  if (name == "fp32") return SegmenterPrecision::Float32;
+  if (name == "bf16") return SegmenterPrecision::BFloat16;
+  fail("precision: '{}' is not one of auto, fp32, bf16", name);
+}
+
+std::vector<Click> clicks_of(const std::vector<std::pair<double, double>>& points) {
+  std::vector<Click> out;
+  for (const auto& [x, y] : points) out.push_back({x, y});
+  return out;
+}
 
 // An image from an H x W (x C) array: float in [0, 1] (any float type) or uint8 in [0, 255].
 Image image_of(const AnyArray& a, const char* what, int channels) {
@@ -444,13 +463,16 @@ NB_MODULE(_core, m) {
 
   m.def("_select_splats",
         [](const PyGaussians& g, const Camera& camera, const std::string& view,
-           const std::vector<std::pair<double, double>>& clicks) {
-          std::vector<Click> c;
-          for (const auto& [x, y] : clicks) c.push_back({x, y});
+           const std::vector<std::pair<double, double>>& clicks, const std::vector<std::pair<double, double>>& not_clicks,
+           const PySegmenter* segmenter) {
           nb::gil_scoped_release release;
-          return region_from_clicks(scene_splats(g), camera, view, c);
+          if (segmenter)
+            return region_from_segmented_clicks(scene_splats(g), camera, view, clicks_of(clicks), clicks_of(not_clicks),
+                                                *segmenter->segmenter);
+          if (!not_clicks.empty()) fail("not_click= needs segmenter=: the colour growth takes no such points");
+          return region_from_clicks(scene_splats(g), camera, view, clicks_of(clicks));
         },
-        "gaussians"_a, "camera"_a, "view"_a, "clicks"_a);
+        "gaussians"_a, "camera"_a, "view"_a, "clicks"_a, "not_clicks"_a, "segmenter"_a.none());
 
   m.def("_read_splats", [](const std::string& path) {
     PyGaussians g;
@@ -458,6 +480,28 @@ NB_MODULE(_core, m) {
     g.set = gaussians_from_splats(read_splats(path));
     return g;
   });
+
+  nb::class_<PySegmenter>(m, "Segmenter")
+      .def("__init__",
+           [](PySegmenter* p, const std::string& path, const std::string& precision) {
+             nb::gil_scoped_release release;
+             new (p) PySegmenter{std::make_shared<const Segmenter>(Segmenter::load(path, segmenter_precision(precision)))};
+           },
+           "path"_a, "precision"_a)
+      .def_prop_ro("description", [](const PySegmenter& s) { return s.segmenter->description(); })
+      .def_prop_ro("precision", [](const PySegmenter& s) { return std::string(s.segmenter->bf16() ? "bf16" : "fp32"); })
+      .def("_segment",
+           [](const PySegmenter& s, const AnyArray& image, const std::vector<std::pair<double, double>>& clicks,
+              const std::vector<std::pair<double, double>>& not_clicks) {
+             const Image photo = image_of(image, "image", 3);
+             ClickedMask clicked;
+             {
+               nb::gil_scoped_release release;
+               clicked = mask_from_clicks(*s.segmenter, photo, clicks_of(clicks), clicks_of(not_clicks));
+             }
+             return std::make_pair(array_of(clicked.mask), clicked.describe(*s.segmenter).dump());
+           },
+           "image"_a, "clicks"_a, "not_clicks"_a);
 
   nb::class_<Predictor>(m, "Predictor")
       .def("__init__",
@@ -494,11 +538,15 @@ NB_MODULE(_core, m) {
 
   m.def("_masks_from_one",
         [](const Scene& scene, const std::string& view, const nb::object& region,
-           const std::vector<std::pair<double, double>>& clicks, const Predictor* predictor, int height, int views) {
+           const std::vector<std::pair<double, double>>& clicks, const std::vector<std::pair<double, double>>& not_clicks,
+           const PySegmenter* segmenter, const Predictor* predictor, int height, int views) {
           const View* v = &view_of(scene, view);
           OneMask request;
           request.view = view;
-          for (const auto& [x, y] : clicks) request.clicks.push_back({x, y});
+          request.clicks = clicks_of(clicks);
+          request.not_clicks = clicks_of(not_clicks);
+          if (segmenter) request.segmenter = segmenter->segmenter;
+          else if (!not_clicks.empty()) fail("not_click= needs segmenter=: the colour growth takes no such points");
           if (!clicks.empty()) {
             // the clicks select
           } else if (nb::isinstance<nb::str>(region) || nb::hasattr(region, "__fspath__"))
@@ -519,7 +567,8 @@ NB_MODULE(_core, m) {
           for (const auto& [name, mask] : masks.masks) out[name] = array_of(mask);
           return std::make_pair(out, masks.describe(request).dump());
         },
-        "scene"_a, "view"_a, "region"_a.none(), "clicks"_a, "predictor"_a.none(), "height"_a, "views"_a);
+        "scene"_a, "view"_a, "region"_a.none(), "clicks"_a, "not_clicks"_a, "segmenter"_a.none(), "predictor"_a.none(),
+        "height"_a, "views"_a);
 
   m.def("_evaluate",
         [](const std::string& scene, const std::string& out, const std::string& method,

@@ -16,6 +16,7 @@ import pytest
 
 import instainpaint as ii
 
+REPO = pathlib.Path(__file__).resolve().parents[2]
 HEIGHT = 64  # small, so that each prediction takes a fraction of a second on 2 cores
 
 
@@ -262,6 +263,27 @@ def test_select_masks_the_clicked_object_in_every_view(tmp_path, statue, predict
     assert filled.fill_report["splats"]["removed"] == chosen.sum()
     with pytest.raises(ii.Error, match="click= is on a view: name it with view="):
         scene.fill(click=click, scene=statue, predictor=predictor)
+
+
+def test_a_segmenter_outlines_the_click_as_the_reference_code_does(tmp_path, statue, predictor):
+    # The small MobileSAM-layout fixture of tests/segment (seeded random weights) and the mask the
+    # reference code gave for this click on this photo (scripts/segmenter-reference).
+    fixture = REPO / "tests" / "segment" / "fixture"
+    segmenter = ii.Segmenter(fixture / "mobile_sam_small.pt", precision="fp32")
+    assert segmenter.description.startswith("MobileSAM TinyViT") and segmenter.precision == "fp32"
+    photo = statue.image("IMG_2707")
+    mask, report = segmenter.segment(photo, (301.5, 259.5))
+    reference = np.load(fixture / "statue_IMG_2707_click.npz")["mask"]
+    assert mask.shape == reference.shape and ((mask > 0.5) != reference).sum() <= 5
+    assert len(report["scores"]) == 3 and report["chosen"] == int(np.argmax(report["scores"]))
+    # select() with it: the clicked view's mask is the segmenter's, lifted to every view.
+    masks, how = ii.select(statue, "IMG_2707", (301.5, 259.5), segmenter=segmenter, predictor=predictor, height=128)
+    assert how["clicked_mask"] == "segmenter" and set(masks) == set(statue.views)
+    assert ((masks["IMG_2707"] > 0.5) != reference).sum() <= 5
+    with pytest.raises(ii.Error, match="not_click= needs segmenter="):
+        ii.select(statue, "IMG_2707", (301.5, 259.5), not_click=(3, 3), predictor=predictor, height=128)
+    with pytest.raises(ii.Error, match="no such segmentation model file"):
+        ii.Segmenter(tmp_path / "absent.pt")
 
 
 def test_evaluate_writes_what_the_cli_writes(tmp_path, cli, statue_dir):

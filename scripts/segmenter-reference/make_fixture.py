@@ -189,6 +189,8 @@ def main():
                                              multimask_output=True)
         best = int(np.argmax(scores))
         Image.fromarray((masks[best] * 255).astype(np.uint8)).save(os.path.join(args.out, "statue_IMG_2707_click.png"))
+        # The same for the Python package's test, which reads no PNG.
+        np.savez_compressed(os.path.join(args.out, "statue_IMG_2707_click.npz"), mask=masks[best])
         out["mobile_sam.statue.iou"] = torch.from_numpy(scores.astype(np.float32))
 
     save_file({k: v.contiguous() for k, v in out.items()}, os.path.join(args.out, "reference.safetensors"),
