@@ -72,13 +72,6 @@ struct PySegmenter {
   std::shared_ptr<const Segmenter> segmenter;
 };
 
-SegmenterPrecision segmenter_precision(const std::string& name) {
-  if (name == "auto") return SegmenterPrecision::Auto;
-  if (name == "fp32") return SegmenterPrecision::Float32;
-  if (name == "bf16") return SegmenterPrecision::BFloat16;
-  fail("precision: '{}' is not one of auto, fp32, bf16", name);
-}
-
 std::vector<Click> clicks_of(const std::vector<std::pair<double, double>>& points) {
   std::vector<Click> out;
   for (const auto& [x, y] : points) out.push_back({x, y});
@@ -485,7 +478,7 @@ NB_MODULE(_core, m) {
       .def("__init__",
            [](PySegmenter* p, const std::string& path, const std::string& precision) {
              nb::gil_scoped_release release;
-             new (p) PySegmenter{std::make_shared<const Segmenter>(Segmenter::load(path, segmenter_precision(precision)))};
+             new (p) PySegmenter{std::make_shared<const Segmenter>(Segmenter::load(path, parse_segmenter_precision(precision)))};
            },
            "path"_a, "precision"_a)
       .def_prop_ro("description", [](const PySegmenter& s) { return s.segmenter->description(); })

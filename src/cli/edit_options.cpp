@@ -128,9 +128,7 @@ std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene
     if (const auto path = segmenter_path(args.segmenter)) {
       spdlog::info("reading the segmenter {}", path->string());
       request.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
-          *path, precision == "fp32"   ? SegmenterPrecision::Float32
-                 : precision == "bf16" ? SegmenterPrecision::BFloat16
-                                       : SegmenterPrecision::Auto));
+          *path, parse_segmenter_precision(precision)));
     } else if (!request.not_clicks.empty()) {
       fail("--not-click needs --segmenter (or INSTAINPAINT_SEGMENTER): the colour growth takes no such points");
     }

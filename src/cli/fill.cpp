@@ -157,9 +157,7 @@ void run(const FillArgs& a) {
     if (const auto path = segmenter_path(a.segmenter)) {
       spdlog::info("reading the segmenter {}", path->string());
       o.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
-          *path, a.runtime.precision == "fp32"   ? SegmenterPrecision::Float32
-                 : a.runtime.precision == "bf16" ? SegmenterPrecision::BFloat16
-                                                 : SegmenterPrecision::Auto));
+          *path, parse_segmenter_precision(a.runtime.precision)));
     }
   spdlog::info("[1/3] reading {}", a.splats);
   Stopwatch watch;

@@ -51,9 +51,7 @@ Image overlay_of(const Image& photo, const Image& mask) {
 
 void run(const SegmentArgs& args) {
   apply_runtime_options(args.runtime);
-  const SegmenterPrecision precision = args.runtime.precision == "fp32"   ? SegmenterPrecision::Float32
-                                       : args.runtime.precision == "bf16" ? SegmenterPrecision::BFloat16
-                                                                          : SegmenterPrecision::Auto;
+  const SegmenterPrecision precision = parse_segmenter_precision(args.runtime.precision);
   const auto path = segmenter_path(args.segmenter);
   if (!path) fail("--segmenter: name a SAM or MobileSAM file (or set INSTAINPAINT_SEGMENTER)");
   StageTimes stages;

@@ -28,6 +28,7 @@ struct ServeArgs {
   std::string token;
   bool no_token = false;
   std::string checkpoint;
+  std::string segmenter;
   GeometryOptions geometry;
   RuntimeOptions runtime;
 };
@@ -66,6 +67,11 @@ void run(const ServeArgs& a) {
     predictor.emplace(a.checkpoint, runtime.device, runtime.precision);
     spdlog::info("model {} on {}", predictor->model_name(), runtime.device.str());
   }
+  if (const auto path = segmenter_path(a.segmenter)) {
+    o.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
+        *path, parse_segmenter_precision(a.runtime.precision)));
+    spdlog::info("segmenter {} ({})", o.segmenter->description(), path->string());
+  }
   WebServer server(o, predictor ? &*predictor : nullptr);
   const int port = server.bind();
   const std::string host = o.host.find(':') != std::string::npos ? "[" + o.host + "]" : o.host;
@@ -102,6 +108,10 @@ void add_serve_command(CLI::App& app) {
   cmd->add_option("--host", args->host, "Address to listen on (anything but loopback is reachable by others)")
       ->capture_default_str();
   cmd->add_option("--port", args->port, "Port (0 = any free one)")->capture_default_str()->check(CLI::Range(0, 65535));
+  cmd->add_option("--segmenter", args->segmenter,
+                  "SAM or MobileSAM checkpoint as published (mobile_sam.pt, sam_vit_b_01ec64.pth, ...; default "
+                  "$INSTAINPAINT_SEGMENTER): the page's clicks draw its outline at once (shift-click: another point "
+                  "on the object, alt-click: a point that is not)");
   cmd->add_option("--height", args->height, "Working height of edits in pixels")
       ->capture_default_str()
       ->check(CLI::Range(8, 4096));

@@ -200,19 +200,19 @@ RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, con
   return region;
 }
 
+Image splats_seen(const SplatCloud& cloud, const Camera& camera) {
+  torch::NoGradGuard no_grad;
+  return image_from_hwc(render(gaussians_from_splats(cloud, 0), {camera}).rgb);
+}
+
 RegionMask region_from_segmented_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
                                         const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
                                         const Segmenter& segmenter, ClickedMask* clicked) {
   for (const Click& click : clicks) check_click_inside(camera, view, click);
   for (const Click& click : not_clicks) check_click_inside(camera, view, click);
-  Image seen;
-  {
-    torch::NoGradGuard no_grad;
-    seen = image_from_hwc(render(gaussians_from_splats(cloud, 0), {camera}).rgb);
-  }
   ClickedMask mask;
   try {
-    mask = mask_from_clicks(segmenter, seen, clicks, not_clicks);
+    mask = mask_from_clicks(segmenter, splats_seen(cloud, camera), clicks, not_clicks);
   } catch (const Error& e) {
     fail("view {}: {}", view, e.what());
   }

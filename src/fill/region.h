@@ -40,6 +40,9 @@ RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, co
 RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
                               const std::vector<Click>& clicks, const SelectOptions& options = {});
 
+// What `camera` sees of the splats (their render, RGB): what a segmenter is shown.
+Image splats_seen(const SplatCloud& cloud, const Camera& camera);
+
 // The object `segmenter` outlines under `clicks` (and not at `not_clicks`) in the scene's render
 // from `camera` (what a user sees there), taken as a stroke; `clicked` (optional) gets the
 // segmenter's mask and scores.

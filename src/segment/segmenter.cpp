@@ -247,6 +247,14 @@ ClickedMask mask_from_clicks(const Segmenter& segmenter, const Image& photo, con
   StageTimes& times = stages ? *stages : unrecorded;
   if (clicks.empty()) fail("the segmenter needs a click on the object");
   const SegmenterImage encoded = times.time("segmenter: encode the view", [&] { return segmenter.encode(photo); });
+  return mask_from_clicks(segmenter, encoded, clicks, not_clicks, stages);
+}
+
+ClickedMask mask_from_clicks(const Segmenter& segmenter, const SegmenterImage& encoded, const std::vector<Click>& clicks,
+                             const std::vector<Click>& not_clicks, StageTimes* stages) {
+  StageTimes unrecorded;
+  StageTimes& times = stages ? *stages : unrecorded;
+  if (clicks.empty()) fail("the segmenter needs a click on the object");
   SegmentPrompt prompt;
   // A click's pixel centres are at +0.5; the network's points are pixel indices (it adds the 0.5).
   for (const Click& c : clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, true});
@@ -268,6 +276,13 @@ nlohmann::json ClickedMask::describe(const Segmenter& segmenter) const {
   return {{"file", segmenter.file().string()}, {"network", segmenter.description()},
           {"precision", segmenter.bf16() ? "bf16" : "fp32"}, {"chosen", chosen},
           {"scores", scores}, {"pixels", pixels}};
+}
+
+SegmenterPrecision parse_segmenter_precision(const std::string& name) {
+  if (name == "auto") return SegmenterPrecision::Auto;
+  if (name == "fp32") return SegmenterPrecision::Float32;
+  if (name == "bf16") return SegmenterPrecision::BFloat16;
+  fail("precision: '{}' is not one of auto, fp32, bf16", name);
 }
 
 std::optional<std::filesystem::path> segmenter_path(const std::string& flag_value) {

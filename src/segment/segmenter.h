@@ -65,6 +65,8 @@ struct SegmenterImage {
 // the reference code's arithmetic (the parity tests'); bf16 is faster and moves the logits by up
 // to 5 % of their range (tests/segment).
 enum class SegmenterPrecision { Auto, Float32, BFloat16 };
+// "auto", "fp32" or "bf16" (the commands' --precision); another name is an Error.
+SegmenterPrecision parse_segmenter_precision(const std::string& name);
 
 class Segmenter {
  public:
@@ -104,6 +106,9 @@ struct ClickedMask {
   nlohmann::json describe(const Segmenter& segmenter) const;  // file, network, precision, chosen, scores, pixels
 };
 ClickedMask mask_from_clicks(const Segmenter& segmenter, const Image& photo, const std::vector<Click>& clicks,
+                             const std::vector<Click>& not_clicks, StageTimes* stages = nullptr);
+// The same on a photo encoded before (a page's later clicks on the same view: the decoder alone).
+ClickedMask mask_from_clicks(const Segmenter& segmenter, const SegmenterImage& photo, const std::vector<Click>& clicks,
                              const std::vector<Click>& not_clicks, StageTimes* stages = nullptr);
 
 // The segmenter named by a command's --segmenter, else $INSTAINPAINT_SEGMENTER, else none.

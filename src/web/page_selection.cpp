@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "common/error.h"
 #include "common/stopwatch.h"
 #include "edit/scene_masks.h"
 #include "fill/region.h"
@@ -48,11 +49,64 @@ std::shared_ptr<const SplatCloud> PageSelection::splats(const std::filesystem::p
   return splats_;
 }
 
+void PageSelection::set_segmenter(std::shared_ptr<const Segmenter> segmenter) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  segmenter_ = std::move(segmenter);
+  encoded_.reset();
+  encoded_key_.clear();
+}
+
+std::shared_ptr<const SegmenterImage> PageSelection::encoding(const std::string& key, const std::function<Image()>& make,
+                                                              double& encode_ms) {
+  encode_ms = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (encoded_ && encoded_key_ == key) return encoded_;
+  }
+  Stopwatch watch;
+  auto encoded = std::make_shared<const SegmenterImage>(segmenter_->encode(make()));
+  encode_ms = watch.ms();
+  std::lock_guard<std::mutex> lock(mutex_);
+  encoded_ = encoded;
+  encoded_key_ = key;
+  return encoded;
+}
+
+namespace {
+
+// What identifies the page's view of the splats: the file and every number of the camera.
+std::string view_key(const std::filesystem::path& ply, const Camera& camera) {
+  std::string key = ply.string();
+  for (const double v : {camera.K.fx, camera.K.fy, camera.K.cx, camera.K.cy}) key += fmt::format(",{}", v);
+  key += fmt::format(",{}x{}", camera.K.width, camera.K.height);
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) key += fmt::format(",{}", camera.c2w(r, c));
+  return key;
+}
+
+}  // namespace
+
 json PageSelection::select_splats(const std::filesystem::path& ply, const Camera& camera,
-                                  const std::vector<Click>& clicks) {
+                                  const std::vector<Click>& clicks, const std::vector<Click>& not_clicks) {
   Stopwatch watch;
   const std::shared_ptr<const SplatCloud> cloud = splats(ply);
   const double read_ms = watch.lap();
+  if (segmenter_) {
+    for (const Click& c : clicks) check_click_inside(camera, "the page's view", c);
+    for (const Click& c : not_clicks) check_click_inside(camera, "the page's view", c);
+    double encode_ms = 0;
+    const auto encoded = encoding(view_key(ply, camera), [&] { return splats_seen(*cloud, camera); }, encode_ms);
+    watch.lap();
+    const ClickedMask clicked = mask_from_clicks(*segmenter_, *encoded, clicks, not_clicks);
+    const double decode_ms = watch.lap();
+    const RegionMask region = region_under_stroke(*cloud, camera, clicked.mask);
+    json answer = selection_answer(region_count(region), static_cast<int64_t>(cloud->size()), clicked.mask);
+    answer["how"] = "segmenter";
+    answer["scores"] = clicked.scores;
+    answer["ms"] = {{"read", read_ms}, {"encode", encode_ms}, {"decode", decode_ms}, {"select", watch.lap()}};
+    return answer;
+  }
+  if (!not_clicks.empty()) fail("points that are not the object need serve --segmenter");
   const RegionMask region = region_from_clicks(*cloud, camera, "the page's view", clicks);
   const double select_ms = watch.lap();
   std::vector<Eigen::Vector3d> points;
@@ -61,6 +115,7 @@ json PageSelection::select_splats(const std::filesystem::path& ply, const Camera
   const int side = std::max(camera.K.width, camera.K.height);
   const Image mask = selection_mask(camera, points, std::vector<uint8_t>(points.size(), 1), std::max(1, side / 300), 0);
   json answer = selection_answer(static_cast<int64_t>(points.size()), static_cast<int64_t>(cloud->size()), mask);
+  answer["how"] = "colour growth";
   answer["ms"] = {{"read", read_ms}, {"select", select_ms}, {"draw", watch.lap()}};
   return answer;
 }
@@ -72,8 +127,22 @@ void PageSelection::set_reconstruction(const GaussianSet& reconstruction) {
 }
 
 std::optional<json> PageSelection::select_on_view(const View& view, const Camera& camera,
-                                                  const std::vector<Click>& clicks) {
+                                                  const std::vector<Click>& clicks, const std::vector<Click>& not_clicks) {
   Stopwatch watch;
+  if (segmenter_) {
+    for (const Click& c : clicks) check_click_inside(view.camera, view.name, c);
+    for (const Click& c : not_clicks) check_click_inside(view.camera, view.name, c);
+    double encode_ms = 0;
+    const auto encoded = encoding("view " + view.name, [&] { return load_view_image(view); }, encode_ms);
+    watch.lap();
+    const ClickedMask clicked = mask_from_clicks(*segmenter_, *encoded, clicks, not_clicks);
+    json answer = selection_answer(clicked.pixels, static_cast<int64_t>(clicked.mask.pixels.size()), clicked.mask);
+    answer["how"] = "segmenter";
+    answer["scores"] = clicked.scores;
+    answer["ms"] = {{"encode", encode_ms}, {"decode", watch.lap()}};
+    return answer;
+  }
+  if (!not_clicks.empty()) fail("points that are not the object need serve --segmenter");
   std::shared_ptr<const ColouredPoints> points;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -91,6 +160,7 @@ std::optional<json> PageSelection::select_on_view(const View& view, const Camera
       selection_masks({camera}, [&](size_t) { return load_view_image(view); }, points->points, selected)[0].mask;
   json answer = selection_answer(std::count(selected.begin(), selected.end(), uint8_t{1}),
                                  static_cast<int64_t>(selected.size()), mask);
+  answer["how"] = "colour growth";
   answer["ms"] = {{"select", select_ms}, {"carve", watch.lap()}};
   return answer;
 }

@@ -8,6 +8,8 @@
 // Safe to call from the server's threads side by side.
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <string>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -21,6 +23,7 @@
 #include "edit/select.h"
 #include "gaussians/gaussians.h"
 #include "io/ply.h"
+#include "segment/segmenter.h"
 
 namespace ii {
 
@@ -31,10 +34,17 @@ class PageSelection {
   // double that).
   std::shared_ptr<const SplatCloud> splats(const std::filesystem::path& ply);
 
+  // With a segmenter (serve --segmenter), clicks are its points: on the object (`clicks`) and not
+  // (`not_clicks`); each view's photo (and the page's render of the splats) is encoded at its
+  // first click and kept, so a later click runs only the decoder.
+  void set_segmenter(std::shared_ptr<const Segmenter> segmenter);
+
   // The objects under `clicks` among the splats of `ply` seen by `camera` (the page's view):
-  // {selected, total, pixels, width, height, runs, ms: {read, select, draw}}. Errors (a click
-  // outside the view, on nothing) name the click.
-  nlohmann::json select_splats(const std::filesystem::path& ply, const Camera& camera, const std::vector<Click>& clicks);
+  // {selected, total, pixels, width, height, runs, how, ms: {read, select, draw}}. With a
+  // segmenter, its outline of the splats' render taken as a stroke (ms: {read, render, encode,
+  // decode, select}). Errors (a click outside the view, on nothing) name the click.
+  nlohmann::json select_splats(const std::filesystem::path& ply, const Camera& camera, const std::vector<Click>& clicks,
+                               const std::vector<Click>& not_clicks = {});
 
   // The scene's reconstruction (pose-normalised frame) that clicks on the scene's views select in;
   // replaces the one before.
@@ -44,7 +54,10 @@ class PageSelection {
   // reconstruction's opaque Gaussians, their outline carved by the view's photo:
   // {selected, total, pixels, width, height, runs, ms: {select, carve}}; nullopt while no
   // reconstruction has been made.
-  std::optional<nlohmann::json> select_on_view(const View& view, const Camera& camera, const std::vector<Click>& clicks);
+  // With a segmenter: its mask of the view's photo ({..., how: "segmenter", ms: {encode, decode}}),
+  // with or without a reconstruction.
+  std::optional<nlohmann::json> select_on_view(const View& view, const Camera& camera, const std::vector<Click>& clicks,
+                                               const std::vector<Click>& not_clicks = {});
 
  private:
   std::mutex mutex_;
@@ -52,6 +65,14 @@ class PageSelection {
   std::shared_ptr<const SplatCloud> splats_;
   std::optional<GaussianSet> reconstruction_;
   std::shared_ptr<const ColouredPoints> points_;  // of the reconstruction, made at the first click
+  std::shared_ptr<const Segmenter> segmenter_;
+  // The last photo or render the segmenter encoded, and what it was ("view NAME", or the splats
+  // file and the camera on screen).
+  std::string encoded_key_;
+  std::shared_ptr<const SegmenterImage> encoded_;
+  // The encoding of `key` (made by `make` when another was kept); `encode_ms` gets its time (0 when kept).
+  std::shared_ptr<const SegmenterImage> encoding(const std::string& key, const std::function<Image()>& make,
+                                                 double& encode_ms);
 };
 
 }  // namespace ii

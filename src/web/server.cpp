@@ -217,6 +217,7 @@ struct JobRequest {
   std::optional<OrientedBox> box;
   std::optional<Camera> camera;
   std::vector<Click> clicks;  // fill: in place of `region`, clicks on the object on `camera`
+  std::vector<Click> not_clicks;  // with a segmenter: points on `camera` that are not the object
   ClassicalInpainter inpainter = ClassicalInpainter::Telea;  // fill without a reference: its built-in one
 };
 
@@ -297,17 +298,18 @@ std::optional<Refusal> read_page_camera(const httplib::Request& req, const fs::p
 
 // The form's `clicks`: "x,y;x,y..." in the camera's pixels, at most 32.
 constexpr size_t kMaxClicks = 32;
-std::optional<Refusal> read_clicks(const httplib::Request& req, std::vector<Click>& clicks) {
-  const std::string text = req.get_file_value("clicks").content;
+std::optional<Refusal> read_clicks(const httplib::Request& req, std::vector<Click>& clicks,
+                                   const std::string& field = "clicks") {
+  const std::string text = req.get_file_value(field).content;
   size_t start = 0;
   while (start <= text.size()) {
     const size_t end = std::min(text.find(';', start), text.size());
     try {
-      clicks.push_back(parse_click(text.substr(start, end - start), "clicks"));
+      clicks.push_back(parse_click(text.substr(start, end - start), field));
     } catch (const Error& e) {
       return Refusal{400, e.what()};
     }
-    if (clicks.size() > kMaxClicks) return Refusal{400, fmt::format("clicks: at most {}", kMaxClicks)};
+    if (clicks.size() > kMaxClicks) return Refusal{400, fmt::format("{}: at most {}", field, kMaxClicks)};
     start = end + 1;
   }
   return std::nullopt;
@@ -416,7 +418,7 @@ struct WebServer::State {
   json select(const httplib::Request& req);
   // The request's `ply`: splats this server serves.
   fs::path selection_splats_file(const httplib::Request& req);
-  json select_on_view(const httplib::Request& req, const std::vector<Click>& clicks);
+  json select_on_view(const httplib::Request& req, const std::vector<Click>& clicks, const std::vector<Click>& not_clicks);
 
   ~State() { stop_worker(); }
   void worker_loop();
@@ -507,6 +509,9 @@ json WebServer::State::info() const {
           {"editing", scene.has_value() && predictor != nullptr},
           {"filling", predictor != nullptr},
           {"model", predictor ? predictor->describe() : json()},
+          {"segmenter", options.segmenter ? json{{"network", options.segmenter->description()},
+                                                 {"file", options.segmenter->file().filename().string()}}
+                                          : json()},
           {"working_height", options.height}};
 }
 
@@ -627,6 +632,8 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
   };
   if (req.has_file("clicks")) {
     if (auto r = read_clicks(req, fill.clicks)) return r;
+    if (req.has_file("not_clicks") && !req.get_file_value("not_clicks").content.empty())
+      if (auto r = read_clicks(req, fill.not_clicks, "not_clicks")) return r;
   } else if (auto r = read_upload(req, "mask", dir, camera_sized, read_mask, fill.region)) {
     return r;
   }
@@ -662,6 +669,8 @@ json WebServer::State::run_fill(const JobRequest& fill, const fs::path& dir, int
     o.stroke_view = "page view";
     if (fill.clicks.empty()) o.stroke = fill.region;
     o.clicks = fill.clicks;
+    o.not_clicks = fill.not_clicks;
+    o.segmenter = options.segmenter;  // the page's selection is the segmenter's outline: the fill takes the same
     o.reference_image = fill.reference;
   }
   o.camera_options.height = options.height;
@@ -1038,6 +1047,7 @@ void open_state(WebServer::State& s) {
     s.scene = load_scene(*s.options.scene_dir, s.options.scene);
     s.normalization = scene_normalization(*s.scene);
   }
+  s.selection.set_segmenter(s.options.segmenter);
   fs::create_directories(s.options.out / "jobs");
   s.out = fs::canonical(s.options.out);
   for (const auto& e : fs::directory_iterator(s.out / "jobs")) {  // job numbers go on from a previous run
@@ -1203,13 +1213,15 @@ json WebServer::State::select(const httplib::Request& req) {
     return {{"total", selection.splats(selection_splats_file(req))->size()}};  // read ahead: the click tool was chosen
   if (!req.is_multipart_form_data() || !req.has_file("clicks") || !(req.has_file("camera") || req.has_file("view")))
     throw Refusal{400, "send multipart/form-data with clicks, and view (a scene view's index) or ply and camera"};
-  std::vector<Click> clicks;
+  std::vector<Click> clicks, not_clicks;
   if (auto r = read_clicks(req, clicks)) throw *r;
+  if (req.has_file("not_clicks") && !req.get_file_value("not_clicks").content.empty())
+    if (auto r = read_clicks(req, not_clicks, "not_clicks")) throw *r;
   try {
-    if (req.has_file("view")) return select_on_view(req, clicks);
+    if (req.has_file("view")) return select_on_view(req, clicks, not_clicks);
     Camera camera;
     if (auto r = read_page_camera(req, out / "select", camera)) throw *r;
-    return selection.select_splats(selection_splats_file(req), camera, clicks);
+    return selection.select_splats(selection_splats_file(req), camera, clicks, not_clicks);
   } catch (const Error& e) {
     throw Refusal{400, e.what()};
   }
@@ -1222,7 +1234,8 @@ fs::path WebServer::State::selection_splats_file(const httplib::Request& req) {
   return ply;
 }
 
-json WebServer::State::select_on_view(const httplib::Request& req, const std::vector<Click>& clicks) {
+json WebServer::State::select_on_view(const httplib::Request& req, const std::vector<Click>& clicks,
+                                      const std::vector<Click>& not_clicks) {
   if (!scene) throw Refusal{400, "the server was started without --scene: no views to click on"};
   int index = -1;
   try {
@@ -1232,7 +1245,7 @@ json WebServer::State::select_on_view(const httplib::Request& req, const std::ve
   if (index < 0 || index >= static_cast<int>(scene->views.size()))
     throw Refusal{400, fmt::format("view must be the index of one of the scene's {} views", scene->views.size())};
   const View& view = scene->views[static_cast<size_t>(index)];
-  std::optional<json> answer = selection.select_on_view(view, normalization.apply(view.camera), clicks);
+  std::optional<json> answer = selection.select_on_view(view, normalization.apply(view.camera), clicks, not_clicks);
   if (!answer) throw Refusal{409, "the scene's reconstruction is not ready yet: click again in a moment"};
   return *answer;
 }

@@ -51,6 +51,7 @@
 
 #include "data/scene.h"
 #include "predict/predictor.h"
+#include "segment/segmenter.h"
 
 namespace ii {
 
@@ -72,6 +73,9 @@ struct ServeOptions {
   // With a scene, a model and no PLYs: the first job reconstructs the scene as captured (object
   // kept), so that the page shows it in 3D at once (serve sets it; tests choose).
   bool reconstruct_at_start = false;
+  // The page's clicks prompt this network (SAM, MobileSAM) when given: a photo's or the splats'
+  // outline at once, shift-click a point on the object, alt-click a point that is not.
+  std::shared_ptr<const Segmenter> segmenter;
 };
 
 class WebServer {

@@ -328,6 +328,7 @@ function selectView(i) {
   paintCanvas.width = view.width;
   paintCanvas.height = view.height;
   viewClicks = [];
+  viewNotClicks = [];
 }
 
 // A brush on `canvas`: red strokes of radius radiusOf() canvas pixels, or erasing while
@@ -371,6 +372,7 @@ function attachBrush(canvas, erasingNow, radiusOf, enabled = () => true) {
 }
 let picking = false; // the click tool: a click selects the object under it instead of painting
 let viewClicks = []; // its clicks so far on the selected view, in the view's pixels
+let viewNotClicks = []; // with a segmenter: alt-clicks, points that are not the object
 const paint = attachBrush(paintCanvas, () => erasing, () => (Number($("size").value) * paintCanvas.width) / 400,
   () => !picking);
 function setTool(tool) {
@@ -381,19 +383,34 @@ function setTool(tool) {
 $("brush").onclick = () => setTool("brush");
 $("eraser").onclick = () => setTool("eraser");
 $("pick").onclick = () => setTool("pick");
-// A click with the click tool: the server selects the object in the scene's reconstruction and
-// carves its outline on this view by the photo; the outline becomes the painted region (Run and
-// Preview use it), shift-click adds another object.
+// The clicks after a click at (x, y): a plain click starts again, shift-click adds a point on the
+// object, alt-click (with a segmenter) a point that is not the object.
+function nextClicks(e, x, y, clicks, notClicks) {
+  if (e.altKey && api.info?.segmenter && clicks.length) return [clicks, [...notClicks, [x, y]]];
+  if (e.shiftKey) return [[...clicks, [x, y]], notClicks];
+  return [[[x, y]], []];
+}
+
+// A click with the click tool. With a segmenter (serve --segmenter), the server outlines the
+// object under the clicks on this view's photo; without, it selects the object in the scene's
+// reconstruction and carves its outline by the photo. The outline becomes the painted region (Run
+// and Preview use it).
 paintCanvas.addEventListener("pointerdown", async (e) => {
   if (!picking || selected < 0) return;
   const r = paintCanvas.getBoundingClientRect();
   const x = ((e.clientX - r.left) * paintCanvas.width) / r.width, y = ((e.clientY - r.top) * paintCanvas.height) / r.height;
-  const clicks = e.shiftKey ? [...viewClicks, [x, y]] : [[x, y]];
-  const selection = await requestSelection({ view: String(selected) }, clicks, paint);
+  const [clicks, notClicks] = nextClicks(e, x, y, viewClicks, viewNotClicks);
+  const selection = await requestSelection({ view: String(selected) }, clicks, paint, notClicks);
   if (!selection) return;
   viewClicks = clicks;
-  status(`selected ${selection.selected} of the reconstruction's ${selection.total} points (${selection.pixels} pixels ` +
-    `of the view); ${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds`);
+  viewNotClicks = notClicks;
+  status(selection.how === "segmenter"
+    ? `${api.info.segmenter.network}: ${selection.pixels} pixels of the view from ${clicks.length} point` +
+      `${clicks.length > 1 ? "s" : ""} on the object and ${notClicks.length} off it; ` +
+      `${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds a point, alt-click ` +
+      "marks what is not the object"
+    : `selected ${selection.selected} of the reconstruction's ${selection.total} points (${selection.pixels} pixels ` +
+      `of the view); ${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds`);
 });
 $("clear").onclick = () => paint.clearRect(0, 0, paintCanvas.width, paintCanvas.height);
 $("mask-file").onchange = async (e) => {
@@ -551,6 +568,7 @@ $("run").onclick = () => runJob("/api/edit");
 // splats; shift-click adds). Fill sends it with the splats on screen to the server.
 let fillMode = null; // "box" | "paint" | "click"
 let fillClicks = []; // "click": the clicks so far, in the canvas's pixels
+let fillNotClicks = []; // with a segmenter: the alt-clicks, points that are not the object
 let region = null; // the box: {object (centre, turn, scale = size), gizmo, sdf, edit}
 // The canvas painted on over the viewer, made when painting first starts.
 let fillCanvas = null, fillPaint = null;
@@ -564,20 +582,23 @@ function paintingCanvas() {
       if (fillMode !== "click") return;
       const r = fillCanvas.getBoundingClientRect();
       selectAt(((e.clientX - r.left) * fillCanvas.width) / r.width, ((e.clientY - r.top) * fillCanvas.height) / r.height,
-        e.shiftKey);
+        e);
     });
   }
   return fillCanvas;
 }
 
 // A click on the view on screen: the server selects the object's splats under it (and under the
-// clicks before it when `add`), and the selection is drawn over the view in red.
-async function selectAt(x, y, add) {
+// clicks before it with shift; with a segmenter, alt-click marks a point that is not the object),
+// and the selection is drawn over the view in red.
+async function selectAt(x, y, e = {}) {
   if (!api.loadedUrl) return status("no splats on screen", true);
-  const clicks = add ? [...fillClicks, [x, y]] : [[x, y]];
-  const selection = await requestSelection({ ply: api.loadedUrl, camera: JSON.stringify(screenCamera()) }, clicks, fillPaint);
+  const [clicks, notClicks] = nextClicks(e, x, y, fillClicks, fillNotClicks);
+  const selection = await requestSelection({ ply: api.loadedUrl, camera: JSON.stringify(screenCamera()) }, clicks,
+    fillPaint, notClicks);
   if (!selection) return;
   fillClicks = clicks;
+  fillNotClicks = notClicks;
   $("fill-result").textContent = `selected ${selection.selected} of ${selection.total} splats (${selection.pixels} ` +
     `pixels on screen) from ${clicks.length} click${clicks.length > 1 ? "s" : ""}; ${selection.clientSeconds.toFixed(2)} s`;
   status("shift-click adds another object; Fill removes the selection");
@@ -586,13 +607,15 @@ async function selectAt(x, y, add) {
 // The clicks as the server reads them: "x,y;x,y".
 const clickList = (clicks) => clicks.map(([x, y]) => `${x.toFixed(1)},${y.toFixed(1)}`).join(";");
 
-// Asks the server for the selection under `clicks` (with `fields`: a view's index, or the splats
-// and the camera on screen) and draws it on `ctx` in red: api.lastSelect (the answer, its clicks
-// and the seconds from the click), or null when refused (the reason shown).
-async function requestSelection(fields, clicks, ctx) {
+// Asks the server for the selection under `clicks` (and not at `notClicks`; with `fields`: a
+// view's index, or the splats and the camera on screen) and draws it on `ctx` in red:
+// api.lastSelect (the answer, the points sent and the seconds from the click), or null when
+// refused (the reason shown).
+async function requestSelection(fields, clicks, ctx, notClicks = []) {
   const form = new FormData();
   for (const [name, value] of Object.entries(fields)) form.append(name, value);
   form.append("clicks", clickList(clicks));
+  if (notClicks.length) form.append("not_clicks", clickList(notClicks));
   const clicked = performance.now();
   const answer = await fetch("/api/select", { method: "POST", body: form });
   const selection = await answer.json();
@@ -602,7 +625,8 @@ async function requestSelection(fields, clicks, ctx) {
     return null;
   }
   drawRuns(ctx, selection);
-  api.lastSelect = { ...selection, clicks: clicks.length, clientSeconds: (performance.now() - clicked) / 1000 };
+  api.lastSelect = { ...selection, clicks: clicks.length, sent: { clicks: clickList(clicks), notClicks: clickList(notClicks) },
+    clientSeconds: (performance.now() - clicked) / 1000 };
   return api.lastSelect;
 }
 
@@ -676,6 +700,7 @@ function setFillMode(mode) {
   $("fill-paint").classList.toggle("on", mode === "paint");
   $("fill-click").classList.toggle("on", mode === "click");
   fillClicks = [];
+  fillNotClicks = [];
   $("gizmo-modes").hidden = mode !== "box";
   // Painting and clicking hold the camera still: the stroke and the clicks are on the view on screen.
   const onView = mode === "paint" || mode === "click";
@@ -738,8 +763,10 @@ async function runFill() {
     form.append("box", [...centre, ...size, ...turn].map((v) => +v.toPrecision(7)).join(","));
   } else if (fillMode === "paint" || (fillMode === "click" && fillClicks.length)) {
     form.append("camera", JSON.stringify(screenCamera()));
-    if (fillMode === "click") form.append("clicks", clickList(fillClicks));
-    else form.append("mask", await maskBlob(fillCanvas), "mask.png");
+    if (fillMode === "click") {
+      form.append("clicks", clickList(fillClicks));
+      if (fillNotClicks.length) form.append("not_clicks", clickList(fillNotClicks));
+    } else form.append("mask", await maskBlob(fillCanvas), "mask.png");
     const reference = $("fill-reference").files[0];
     if (reference) form.append("reference", reference, reference.name);
   } else {
@@ -756,6 +783,7 @@ async function runFill() {
   setDownloads();
   if (fillMode === "paint" || fillMode === "click") fillPaint.clearRect(0, 0, fillCanvas.width, fillCanvas.height);
   fillClicks = [];
+  fillNotClicks = [];
   const seconds = (performance.now() - clicked) / 1000;
   const f = job.result.fill;
   api.lastFill = { ...job, clientSeconds: seconds };
