@@ -1,0 +1,101 @@
+#!/usr/bin/env python3
+"""One click in every view of a scene with object masks (SPIn-NeRF scene 1: 60 views): for each
+view, `instainpaint masks --click` at the pixel deepest inside that view's own mask (the farthest
+from its outline), and the masks it makes compared with the scene's own in every view. Prints a
+row per run (the run's mean recall and precision over the views, or why the click was refused,
+and its seconds) and the figures over all runs: mean recall, mean precision, the worst run's
+recall, the clicks refused. Writes OUT/summary.json.
+
+  scripts/measure-click-every-view.py SCENE [--segmenter FILE] [--every K] [--out DIR]
+      [--cli build/instainpaint] [-- more masks options]
+Example (the targets' table of docs/editing.md):
+  .venv-py/bin/python scripts/measure-click-every-view.py /work/spinnerf/data/1 --out click-every-view
+Needs the Python package (make python: .venv-py) for the scene's masks."""
+import argparse
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+import instainpaint as ii
+
+
+def deepest_pixel(mask: np.ndarray):
+    """The pixel of `mask` farthest from its outline (erosion by the 4-neighbourhood until none is
+    left: the last pixels standing), as (x, y) pixel centres."""
+    inside = mask > 0.5
+    if not inside.any():
+        return None
+    while True:
+        eroded = inside.copy()
+        eroded[1:, :] &= inside[:-1, :]
+        eroded[:-1, :] &= inside[1:, :]
+        eroded[:, 1:] &= inside[:, :-1]
+        eroded[:, :-1] &= inside[:, 1:]
+        eroded[0, :] = eroded[-1, :] = eroded[:, 0] = eroded[:, -1] = False
+        if not eroded.any():
+            break
+        inside = eroded
+    ys, xs = np.nonzero(inside)
+    k = len(xs) // 2  # the middle one of the last ridge, in row order
+    return float(xs[k]) + 0.5, float(ys[k]) + 0.5
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scene")
+    ap.add_argument("--segmenter", help="masks --segmenter (SAM or MobileSAM file)")
+    ap.add_argument("--every", type=int, default=1, help="every K-th view only (1: all)")
+    ap.add_argument("--out", default="click-every-view")
+    ap.add_argument("--cli", default="build/instainpaint")
+    ap.add_argument("more", nargs="*", help="more options for masks (after --)")
+    args = ap.parse_args()
+    scene = ii.load_scene(args.scene)
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for view in scene.views[:: args.every]:
+        click = deepest_pixel(scene.mask(view))
+        if click is None:
+            continue
+        cmd = [args.cli, "masks", "--scene", args.scene, "--view", view, "--click", f"{click[0]},{click[1]}",
+               "--out", str(out / view)] + (["--segmenter", args.segmenter] if args.segmenter else []) + args.more
+        start = time.perf_counter()
+        run = subprocess.run(cmd, capture_output=True, text=True)
+        seconds = time.perf_counter() - start
+        row = {"view": view, "click": click, "seconds": seconds}
+        if run.returncode != 0:
+            row["refused"] = (run.stderr.strip().splitlines() or ["?"])[-1]
+        else:
+            report = json.loads((out / view / "masks.json").read_text())
+            row["recall"] = report["agreement"]["mean_recall"]
+            row["precision"] = report["agreement"]["mean_precision"]
+            row["worst_view_recall"] = report["agreement"]["worst_recall"]
+            row["clicked_mask"] = report.get("clicked_mask", "")
+        rows.append(row)
+        shown = (f"refused: {row['refused']}" if "refused" in row
+                 else f"recall {row['recall']:.3f} precision {row['precision']:.3f}")
+        print(f"{view} click {click[0]:.1f},{click[1]:.1f}: {shown} ({seconds:.1f} s)", flush=True)
+    done = [r for r in rows if "refused" not in r]
+    summary = {
+        "scene": args.scene, "segmenter": args.segmenter, "options": args.more, "runs": len(rows),
+        "refused": len(rows) - len(done),
+        "mean_recall": float(np.mean([r["recall"] for r in done])) if done else None,
+        "mean_precision": float(np.mean([r["precision"] for r in done])) if done else None,
+        "worst_run_recall": float(min(r["recall"] for r in done)) if done else None,
+        "median_seconds": float(np.median([r["seconds"] for r in rows])) if rows else None,
+        "rows": rows,
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    print(f"{len(rows)} runs, {summary['refused']} refused; mean recall {summary['mean_recall']}, mean precision "
+          f"{summary['mean_precision']}, worst run's recall {summary['worst_run_recall']}, median "
+          f"{summary['median_seconds']} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
