@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
 """One click in every view of a scene with object masks (SPIn-NeRF scene 1: 60 views): for each
 view, `instainpaint masks --click` at the pixel deepest inside that view's own mask (the farthest
-from its outline), and the masks it makes compared with the scene's own in every view. Prints a
+from its outline), and the masks it makes compared with the scene's own in every view. With
+--drawn, each view's own mask is the drawn region instead (`masks --mask`; the other views
+compared). Prints a
 row per run (the run's mean recall and precision over the views, or why the click was refused,
 and its seconds) and the figures over all runs: mean recall, mean precision, the worst run's
 recall, the clicks refused. Writes OUT/summary.json.
 
-  scripts/measure-click-every-view.py SCENE [--segmenter FILE] [--every K] [--out DIR]
+  scripts/measure-click-every-view.py SCENE [--segmenter FILE] [--drawn] [--every K] [--out DIR]
       [--cli build/instainpaint] [-- more masks options]
 Example (the targets' table of docs/editing.md):
   .venv-py/bin/python scripts/measure-click-every-view.py /work/spinnerf/data/1 --out click-every-view
@@ -45,10 +47,23 @@ def deepest_pixel(mask: np.ndarray):
     return float(xs[k]) + 0.5, float(ys[k]) + 0.5
 
 
+def _write_mask_png(path: pathlib.Path, mask: np.ndarray) -> None:
+    """An 8-bit grey PNG of a boolean mask (zlib, no image library needed)."""
+    import struct
+    import zlib
+    h, w = mask.shape
+    rows = b"".join(b"\x00" + (mask[y].astype(np.uint8) * 255).tobytes() for y in range(h))
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0, 0, 0, 0))
+                     + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scene")
     ap.add_argument("--segmenter", help="masks --segmenter (SAM or MobileSAM file)")
+    ap.add_argument("--drawn", action="store_true", help="each view's own mask drawn, in place of the click")
     ap.add_argument("--every", type=int, default=1, help="every K-th view only (1: all)")
     ap.add_argument("--out", default="click-every-view")
     ap.add_argument("--cli", default="build/instainpaint")
@@ -62,8 +77,13 @@ def main():
         click = deepest_pixel(scene.mask(view))
         if click is None:
             continue
-        cmd = [args.cli, "masks", "--scene", args.scene, "--view", view, "--click", f"{click[0]},{click[1]}",
-               "--out", str(out / view)] + (["--segmenter", args.segmenter] if args.segmenter else []) + args.more
+        if args.drawn:
+            label = out / f"{view}.drawn.png"
+            _write_mask_png(label, scene.mask(view) > 0.5)
+            marked = ["--mask", str(label)]
+        else:
+            marked = ["--click", f"{click[0]},{click[1]}"] + (["--segmenter", args.segmenter] if args.segmenter else [])
+        cmd = [args.cli, "masks", "--scene", args.scene, "--view", view, "--out", str(out / view)] + marked + args.more
         start = time.perf_counter()
         run = subprocess.run(cmd, capture_output=True, text=True)
         seconds = time.perf_counter() - start

@@ -218,8 +218,10 @@ void select_the_clicked_object(const Scene& scene, const std::vector<Camera>& ca
                                const ViewReconstruction& reconstruction, StageTimes& times, SceneMasks& out) {
   const View& marked = marked_view(scene, request.view);
   const std::vector<uint8_t> selected = times.time("masks: select", [&] {
+    SelectOptions selecting = request.selecting;
+    if (!selecting.scene_far) selecting.scene_far = scene.far;
     return select_objects(marked.camera, marked.name, reconstruction.points, reconstruction.colours, request.clicks,
-                          request.selecting);
+                          selecting);
   });
   const std::vector<CarvedMask> carved = times.time("masks: the selection in every view, carved", [&] {
     return selection_masks(cameras, [&](size_t i) { return load_view_image(scene.views[i]); }, reconstruction.points,

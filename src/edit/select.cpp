@@ -158,7 +158,7 @@ size_t clicked_point(const Camera& camera, const std::string& view, const std::v
   const auto [best_z, best] = under[static_cast<size_t>(front)];
   const auto k = static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(depths.size() - 1));
   std::nth_element(depths.begin(), depths.begin() + k, depths.end());
-  const double far = depths[static_cast<size_t>(k)];
+  const double far = std::max(depths[static_cast<size_t>(k)], options.scene_far.value_or(0.0));
   if (best_z > options.far_background * far)
     fail("the click ({}, {}) on view {} is on the sky or the far background ({:.3g} deep, the view's far depth "
          "{:.3g}): click on an object",

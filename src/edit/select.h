@@ -8,6 +8,7 @@
 //       select_object(camera, "IMG_2707", points, colours, parse_click("512,300", "--click"));
 //   const Image mask = selection_mask(camera, points, object, 1, 8);  // then carve_masks (edit/carve.h)
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -44,8 +45,14 @@ struct SelectOptions {
   // (recall 0.988-0.995 against 0.533-0.994: its shaded sides lie about 0.04 from its top).
   double colour_step = 0.02, colour_spread = 0.05, brightness_weight = 0.2;
   // A click on a point farther than this fraction of the view's far depth (its 99th percentile
-  // of the points it sees) is on the sky or the far background: an error.
+  // of the points it sees, or the scene's own far bound when that is farther) is on the sky or
+  // the far background: an error.
   double far_background = 0.8;
+  // The scene's far depth bound, when its format stores one (LLFF's poses_bounds, COLMAP's
+  // points): a network's reconstruction often ends just behind the object (SPIn-NeRF scene 1: the
+  // box at 70, the points' far depth 81-89, the capture's bound 268), which put clicks squarely on
+  // the box beyond 0.8 of it.
+  std::optional<double> scene_far;
   // Each view's mask before carving: the selection's image and this fraction of the view's
   // larger side around it (room for GrabCut to find the outline).
   double mask_margin = 0.02;

@@ -412,6 +412,9 @@ TEST(Select, OneClickSelectsTheObjectAndNothingItTouches) {
   EXPECT_EQ(on_wall.rfind("the click (2.5, 2.5) on view front is on the sky or the far background (6.21 deep, ", 0),
             0u)
       << on_wall;
+  // The scene's own far bound, beyond what the points reach, makes the same surface near enough.
+  near_is_far.scene_far = 20.0;
+  EXPECT_NO_THROW(clicked_point(cams[0], "front", points, {2.5, 2.5}, near_is_far));
   // The whole of it: the click's point grown, the same selection.
   EXPECT_EQ(select_object(cams[0], "front", points, colours, click), selected);
   EXPECT_EQ(test::error_message([] { parse_click("12;30", "--click"); }),
