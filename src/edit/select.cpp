@@ -135,8 +135,9 @@ void check_click_inside(const Camera& camera, const std::string& view, const Cli
     fail("the click ({}, {}) is outside view {}'s image ({}x{})", click.x, click.y, view, W, H);
 }
 
-size_t clicked_point(const Camera& camera, const std::string& view, const std::vector<Eigen::Vector3d>& points,
-                     const Click& click, const SelectOptions& options) {
+std::vector<size_t> clicked_points(const Camera& camera, const std::string& view,
+                                   const std::vector<Eigen::Vector3d>& points, const Click& click,
+                                   const SelectOptions& options) {
   check_click_inside(camera, view, click);
   const int W = camera.K.width, H = camera.K.height;
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
@@ -153,9 +154,9 @@ size_t clicked_point(const Camera& camera, const std::string& view, const std::v
     fail("nothing was reconstructed at the click ({}, {}) on view {}: click on an object", click.x, click.y, view);
   // The surface the view sees there: near the front of the points under the click, not the very
   // nearest (a stray Gaussian floats in front of many surfaces).
-  const auto front = static_cast<std::ptrdiff_t>(0.25 * static_cast<double>(under.size() - 1));
-  std::nth_element(under.begin(), under.begin() + front, under.end());
-  const auto [best_z, best] = under[static_cast<size_t>(front)];
+  std::sort(under.begin(), under.end());
+  auto at = [&](double q) { return under[static_cast<size_t>(q * static_cast<double>(under.size() - 1))]; };
+  const double best_z = at(0.25).first;
   const auto k = static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(depths.size() - 1));
   std::nth_element(depths.begin(), depths.begin() + k, depths.end());
   const double far = std::max(depths[static_cast<size_t>(k)], options.scene_far.value_or(0.0));
@@ -163,7 +164,19 @@ size_t clicked_point(const Camera& camera, const std::string& view, const std::v
     fail("the click ({}, {}) on view {} is on the sky or the far background ({:.3g} deep, the view's far depth "
          "{:.3g}): click on an object",
          click.x, click.y, view, best_z, far);
-  return best;
+  // That point first, then points across the depths under the click: when strays lie at the
+  // front quarter, the middle is the surface.
+  std::vector<size_t> out;
+  for (const double q : {0.25, 0.5, 0.35, 0.15, 0.45, 0.6, 0.05, 0.75}) {
+    const size_t i = at(q).second;
+    if (std::find(out.begin(), out.end(), i) == out.end()) out.push_back(i);
+  }
+  return out;
+}
+
+size_t clicked_point(const Camera& camera, const std::string& view, const std::vector<Eigen::Vector3d>& points,
+                     const Click& click, const SelectOptions& options) {
+  return clicked_points(camera, view, points, click, options).front();
 }
 
 std::vector<uint8_t> grow_selection(const std::vector<Eigen::Vector3d>& points,
@@ -204,8 +217,17 @@ std::vector<uint8_t> select_object(const Camera& camera, const std::string& view
                                    const std::vector<Eigen::Vector3d>& points,
                                    const std::vector<Eigen::Vector3f>& colours, const Click& click,
                                    const SelectOptions& options) {
-  const size_t seed = clicked_point(camera, view, points, click, options);
-  std::vector<uint8_t> selected = grow_selection(points, colours, seed, camera, options);
+  // The clicked point grown; when it joins too few (a stray point at an edge, of its own colour),
+  // the next points under the click on the same surface, until one reaches options.min_points.
+  const std::vector<size_t> seeds = clicked_points(camera, view, points, click, options);
+  std::vector<uint8_t> selected;
+  size_t most = 0;
+  for (size_t t = 0; t < std::min<size_t>(seeds.size(), options.seed_tries); ++t) {
+    std::vector<uint8_t> grown = grow_selection(points, colours, seeds[t], camera, options);
+    const auto n = static_cast<size_t>(std::count(grown.begin(), grown.end(), uint8_t{1}));
+    if (t == 0 || n > most) selected = std::move(grown), most = n;
+    if (most >= options.min_points) break;
+  }
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
   size_t seen = 0, taken = 0;
   for (size_t i = 0; i < points.size(); ++i)

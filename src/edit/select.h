@@ -59,13 +59,23 @@ struct SelectOptions {
   // A selection that holds more than this share of the points the clicked view sees is the
   // ground, a wall or the sky: an error.
   double max_share = 0.5;
+  // A clicked point that grows to fewer than `min_points` is a stray one (SPIn-NeRF scene 1, view
+  // 104503: 2 points, recall 0.000): the next of the points under the click on the same surface
+  // are tried (clicked_points), up to `seed_tries` of them; the largest selection is kept.
+  size_t min_points = 20, seed_tries = 8;
 };
 
 // An Error naming the click when it is outside `camera`'s image (checked before any work).
 void check_click_inside(const Camera& camera, const std::string& view, const Click& click);
 
-// The index of the point the click lands on in `camera`'s view (named `view` in errors). Errors
-// name the click: outside the image, on no point, or on the far background.
+// The points the click lands on in `camera`'s view (named `view` in errors): the one on the
+// surface seen there (the front quarter of the depths under the click) first, then points at
+// other quantiles of those depths (the middle, then around it).
+// Errors name the click: outside the image, on no point, or on the far background.
+std::vector<size_t> clicked_points(const Camera& camera, const std::string& view,
+                                   const std::vector<Eigen::Vector3d>& points, const Click& click,
+                                   const SelectOptions& options = {});
+// The first of them.
 size_t clicked_point(const Camera& camera, const std::string& view, const std::vector<Eigen::Vector3d>& points,
                      const Click& click, const SelectOptions& options = {});
 
