@@ -9,13 +9,12 @@ and its seconds) and the figures over all runs: mean recall, mean precision, the
 recall, the clicks refused. Writes OUT/summary.json.
 
   scripts/measure-click-every-view.py SCENE [--segmenter FILE] [--drawn] [--every K] [--out DIR]
-      [--cli build/instainpaint] [-- more masks options]
+      [--cli build/instainpaint] [-- more masks options, e.g. --carve on]
 Example (the targets' table of docs/editing.md):
   .venv-py/bin/python scripts/measure-click-every-view.py /work/spinnerf/data/1 --out click-every-view
 Needs the Python package (make python: .venv-py) for the scene's masks."""
 import argparse
 import json
-import os
 import pathlib
 import subprocess
 import sys
@@ -24,39 +23,7 @@ import time
 import numpy as np
 
 import instainpaint as ii
-
-
-def deepest_pixel(mask: np.ndarray):
-    """The pixel of `mask` farthest from its outline (erosion by the 4-neighbourhood until none is
-    left: the last pixels standing), as (x, y) pixel centres."""
-    inside = mask > 0.5
-    if not inside.any():
-        return None
-    while True:
-        eroded = inside.copy()
-        eroded[1:, :] &= inside[:-1, :]
-        eroded[:-1, :] &= inside[1:, :]
-        eroded[:, 1:] &= inside[:, :-1]
-        eroded[:, :-1] &= inside[:, 1:]
-        eroded[0, :] = eroded[-1, :] = eroded[:, 0] = eroded[:, -1] = False
-        if not eroded.any():
-            break
-        inside = eroded
-    ys, xs = np.nonzero(inside)
-    k = len(xs) // 2  # the middle one of the last ridge, in row order
-    return float(xs[k]) + 0.5, float(ys[k]) + 0.5
-
-
-def _write_mask_png(path: pathlib.Path, mask: np.ndarray) -> None:
-    """An 8-bit grey PNG of a boolean mask (zlib, no image library needed)."""
-    import struct
-    import zlib
-    h, w = mask.shape
-    rows = b"".join(b"\x00" + (mask[y].astype(np.uint8) * 255).tobytes() for y in range(h))
-    def chunk(kind, data):
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
-    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0, 0, 0, 0))
-                     + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+from mask_clicks import deepest_pixel, write_png
 
 
 def main():
@@ -67,8 +34,8 @@ def main():
     ap.add_argument("--every", type=int, default=1, help="every K-th view only (1: all)")
     ap.add_argument("--out", default="click-every-view")
     ap.add_argument("--cli", default="build/instainpaint")
-    ap.add_argument("more", nargs="*", help="more options for masks (after --)")
-    args = ap.parse_args()
+    args, more = ap.parse_known_args()  # the rest (after --) goes to masks
+    args.more = [a for a in more if a != "--"]
     scene = ii.load_scene(args.scene)
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -79,7 +46,7 @@ def main():
             continue
         if args.drawn:
             label = out / f"{view}.drawn.png"
-            _write_mask_png(label, scene.mask(view) > 0.5)
+            write_png(label, (scene.mask(view) > 0.5).astype(np.uint8) * 255)
             marked = ["--mask", str(label)]
         else:
             marked = ["--click", f"{click[0]},{click[1]}"] + (["--segmenter", args.segmenter] if args.segmenter else [])

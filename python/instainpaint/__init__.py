@@ -147,6 +147,12 @@ class Gaussians:
         rgb, z = self._g._render(camera, tuple(float(c) for c in background))
         return (rgb, z) if depth else rgb
 
+    def subset(self, keep) -> "Gaussians":
+        """The Gaussians where keep (a bool array, one per Gaussian: select()'s answer) is true, in the
+        same frame."""
+        import numpy as np
+        return Gaussians(self._g._subset(np.ascontiguousarray(keep, dtype=bool)))
+
     def render_video(self, scene: Scene, path: PathLike, *, trajectory: str = "orbit", frames: int = 48,
                      height: int = 256, fps: int = 24, progress: Optional[Callable[[int, int], Any]] = None) -> None:
         """Renders a camera path around `scene` to an MP4 video (ffmpeg): "orbit" (the official

@@ -336,6 +336,20 @@ NB_MODULE(_core, m) {
         const GaussianSet set = normalized ? g.set : in_scene_frame(g.set, g.normalization);
         write_splats(path, splats_from_gaussians(set.to(torch::kCPU)));
       }, "path"_a, "normalized"_a)
+      .def("_subset",
+           [](const PyGaussians& g, const AnyArray& keep) {
+             if (keep.ndim() != 1 || keep.shape(0) != static_cast<size_t>(g.set.size()) || keep.dtype() != nb::dtype<bool>())
+               fail("subset: expected a bool array of {} values, one per Gaussian", g.set.size());
+             const torch::Tensor take =
+                 torch::from_blob(const_cast<void*>(keep.data()), {static_cast<int64_t>(keep.shape(0))},
+                                  {static_cast<int64_t>(keep.stride(0))}, torch::kBool)
+                     .clone();
+             PyGaussians out;
+             out.normalization = g.normalization;
+             out.set = select_rows(g.set, take.to(g.set.means.device()));
+             return out;
+           },
+           "keep"_a)
       .def("_render",
            [](const PyGaussians& g, const Camera& camera, std::array<float, 3> background) {
              RenderCamera rc;

@@ -259,6 +259,10 @@ def test_select_masks_the_clicked_object_in_every_view(tmp_path, statue, predict
     scene = ii.load_gaussians(tmp_path / "scene.ply")
     chosen = scene.select(statue.camera(view), click, view=view)
     assert chosen.dtype == bool and chosen.shape == (len(scene),) and 0 < chosen.sum() < len(scene)
+    part = scene.subset(chosen)
+    assert len(part) == chosen.sum() and np.array_equal(part.means, scene.means[chosen])
+    with pytest.raises(ii.Error, match="subset: expected a bool array of"):
+        scene.subset(chosen[:-1])
     filled = scene.fill(view=view, click=click, scene=statue, views=2, height=HEIGHT, predictor=predictor)
     assert filled.fill_report["splats"]["removed"] == chosen.sum()
     with pytest.raises(ii.Error, match="click= is on a view: name it with view="):
