@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Times the official InstaInpaint network's forward pass on the CPU (random weights), for
-# comparison in the same session with
+# comparison on the same machine with
 #   build/instainpaint bench --presets release --sizes 256 --baseline none
 # OFFICIAL is a checkout of github.com/dhmbb2/InstaInpaint: a work tree, or a bare git
 # directory whose instainpaint/ folder is extracted to a temporary folder (removed on exit).

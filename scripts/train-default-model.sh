@@ -3,7 +3,7 @@
 # real scenes of ../shared/data, stage 1 (RGB-only reconstruction) then stage 2 (masked
 # inpainting, finally with a depth loss) on the `mini` preset, on 2 CPU cores. Usage:
 #   scripts/train-default-model.sh [WORK_DIR]      (default: runs/default-model)
-#   CONTINUE=1 scripts/train-default-model.sh [WORK_DIR]   (session 24's continuation alone)
+#   CONTINUE=1 scripts/train-default-model.sh [WORK_DIR]   (the 2026-11-27 continuation alone)
 # Each stage resumes after an interruption: run the script again.
 set -euo pipefail
 BIN=${BIN:-build/instainpaint}
@@ -24,10 +24,10 @@ SCENES="$WORK/train,$SHARED/data/fern,$SHARED/data/fox,$SHARED/data/statue"
 resume() { [ -f "$1/checkpoint.safetensors" ] && echo --resume || true; }
 
 # The last step of the embedded model, alone with CONTINUE=1: stage 2 continued on 2 CPU cores
-# at 128 x 128 with six real captures of ../shared/data/realtrain beside the rooms (session 24;
+# at 128 x 128 with six real captures of ../shared/data/realtrain beside the rooms (2026-11-27;
 # the LLFF ones: the Strecha scenes need scripts/strecha-to-nerfstudio.py first, and a run with
-# them was not adopted, session 25), from the weights the stages below and 240 steps on an H200 made
-# (scripts/device/finetune-default-model.sh, session 16; INIT, default: the embedded model):
+# them was not adopted, 2026-11-27), from the weights the stages below and 240 steps on an H200 made
+# (scripts/device/finetune-default-model.sh, 2026-11-26; INIT, default: the embedded model):
 # 1,500 steps, 17 minutes.
 if [ "${CONTINUE:-0}" = 1 ]; then
   REAL="$SHARED/data/realtrain"

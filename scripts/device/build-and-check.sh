@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Run ON a lent GPU machine, in the repository root, with .device/ carried (made here by
-# scripts/device/prepare.sh). One command does the whole GPU check, so that a session spends
-# its device time once:
+# scripts/device/prepare.sh). One command does the whole GPU check, so that the device time
+# is spent in one call:
 #   1. unpacks the carried Debian packages into a private prefix (nothing can be installed);
 #   2. builds with scripts/gpu/build.sh, the recipe of `make test-gpu-build`, against the
 #      LibTorch of the machine's own PyTorch (CUDA) and for its GPU (sm_90);
@@ -122,7 +122,7 @@ if [[ " $STEPS " == *" eval "* ]]; then
     { cat /tmp/ii-train.log; exit 1; }
   # Twice with the release-size model (the second run is the figure: files cached), then the
   # default model; each run's whole wall time as the user waits for it, and its stage table.
-  # (Session 30 measured the first network call's extra ~190 ms on an H200: CUDA_MODULE_LOADING=EAGER
+  # (The first network call's extra ~190 ms, measured 2026-11-28 on an H200: CUDA_MODULE_LOADING=EAGER
   # moved 0.8 s into the context and 1.4 s more into the first call; a one-view warm-up beside the
   # input's preparation took 290 ms itself and saved nothing; docs/benchmarks.md.)
   for run in release release default; do

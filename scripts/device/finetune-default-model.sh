@@ -3,10 +3,10 @@
 # models/default.safetensors) in bf16, first at 128 x 128 (the model card's rooms), then at
 # 256 x 256 (where the statue is judged and `mini` never trained). Starting from the embedded
 # model, a short call can only add to it; a 10 M `medium` model from scratch needed far more
-# than one call (session 12, docs/benchmarks.md). Data as the model card's: synthetic rooms
+# than one call (2026-11-25, docs/benchmarks.md). Data as the model card's: synthetic rooms
 # (seed 1001), the validation rooms (seed 777001), the real fern and statue when carried (fox is left
 # out to fit the 64 MiB a call carries), and the real captures of .device/realtrain when carried
-# (DTU scans 24 and 37, the four Strecha scenes: exact cameras; session 25 found that the Strecha
+# (DTU scans 24 and 37, the four Strecha scenes: exact cameras; measured 2026-11-27, the Strecha
 # ones move SPIn-NeRF scene 1 and the fern on the CPU); the real captures' depth is supervised at
 # points triangulated from their photos (train --depth-from-photos). The judging happens afterwards on any machine
 # (scripts/measure-refinement.sh --steps 0 with --checkpoint). Writes to $OUT:
@@ -21,11 +21,11 @@
 # of them: the 256 phase then starts from the embedded model), REAL_REPEAT (each real scene listed
 # this many times: a sample draws scenes uniformly, so this weighs real photos against the rooms),
 # OWN_VIEW_WEIGHT (train --own-view-weight, default 0: each input's own Gaussians at its own
-# camera against its photo; session 27 on 2 CPU cores at 128²: 1 raised the rooms' own views
+# camera against its photo; measured 2026-11-28 on 2 CPU cores at 128²: 1 raised the rooms' own views
 # 23.2 → 27.9 dB but lost 1.1 dB masked, so try it where the issue's own-views target is judged);
 # PHASES="cycle" trains at the sizes of SIZE_CYCLE in turn, one per step (train --size-cycle,
-# default 128,128,128,256; STEPS_CYCLE, SECONDS_CYCLE; model-cycle.safetensors): session 27's
-# CPU run kept the rooms at 128² within 0.4 dB where the 256 phase after the 128 one lost 2.8.
+# default 128,128,128,256; STEPS_CYCLE, SECONDS_CYCLE; model-cycle.safetensors): a CPU run
+# (2026-11-28) kept the rooms at 128² within 0.4 dB where the 256 phase after the 128 one lost 2.8.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-$PWD/device-out}

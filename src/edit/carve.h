@@ -32,7 +32,7 @@ struct CarveOptions {
   int grabcut_size = 160;
   // Within this fraction of the view's larger side of an object seed, a seen point of the rest
   // only says "probably not the object": it may be one the object hides where the object's own
-  // points are missing. Measured (docs/editing.md, session 46, the surface band's roles): 0.02 /
+  // points are missing. Measured (docs/editing.md, 2026-12-03, the surface band's roles): 0.02 /
   // 0.03 / 0.035 / 0.04 gave scene 1 0.985 / 0.929, 0.989 / 0.857, 0.989 / 0.844, 0.990 / 0.840
   // and the statue 0.936 / 0.836, 0.955 / 0.829, 0.961 / 0.829, 0.965 / 0.829 (recall / precision).
   double near_object = 0.03;
@@ -42,7 +42,7 @@ struct CarveOptions {
   // A point of the lifted volume is the object's when it lies this close to the marked view's
   // depth at its pixel (fractions of that depth, in front and behind: the object's own surface
   // and its hidden back); the volume's others seed nothing. Scene 1 from the true mask
-  // (docs/editing.md, session 46): the whole volume's points 0.997 / 0.789; 0.1 / 0.2 0.984 /
+  // (docs/editing.md, 2026-12-03): the whole volume's points 0.997 / 0.789; 0.1 / 0.2 0.984 /
   // 0.917, 0.1 / 0.3 0.988 / 0.901, 0.1 / 0.5 0.994 / 0.822.
   double surface_in_front = 0.1, surface_behind = 0.25;
 };

@@ -60,7 +60,7 @@ class PointGrid {
 
 // Colour compared by its chromaticity (r and g over r + g + b) and a little of its brightness:
 // one object's faces differ in shading more than in hue (scene 1's box against the bench it
-// stands on: RGB 0.982 / 0.476 from one click, chromaticity 0.992 / 0.955; session 46).
+// stands on: RGB 0.982 / 0.476 from one click, chromaticity 0.992 / 0.955; 2026-12-03).
 Eigen::Vector3f chromaticity(const Eigen::Vector3f& rgb, double brightness_weight) {
   const Eigen::Vector3f c = rgb.cwiseMax(0.f);
   const float sum = std::max(c.sum(), 0.05f);
@@ -137,7 +137,7 @@ void check_click_inside(const Camera& camera, const std::string& view, const Cli
 
 std::vector<size_t> clicked_points(const Camera& camera, const std::string& view,
                                    const std::vector<Eigen::Vector3d>& points, const Click& click,
-                                   const SelectOptions& options) {
+                                   const SelectOptions& options, size_t* under_count) {
   check_click_inside(camera, view, click);
   const int W = camera.K.width, H = camera.K.height;
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
@@ -152,6 +152,7 @@ std::vector<size_t> clicked_points(const Camera& camera, const std::string& view
   }
   if (under.empty())
     fail("nothing was reconstructed at the click ({}, {}) on view {}: click on an object", click.x, click.y, view);
+  if (under_count) *under_count = under.size();
   // The surface the view sees there: near the front of the points under the click, not the very
   // nearest (a stray Gaussian floats in front of many surfaces).
   std::sort(under.begin(), under.end());
@@ -176,7 +177,7 @@ std::vector<size_t> clicked_points(const Camera& camera, const std::string& view
 
 size_t clicked_point(const Camera& camera, const std::string& view, const std::vector<Eigen::Vector3d>& points,
                      const Click& click, const SelectOptions& options) {
-  return clicked_points(camera, view, points, click, options).front();
+  return clicked_points(camera, view, points, click, options, nullptr).front();
 }
 
 std::vector<uint8_t> grow_selection(const std::vector<Eigen::Vector3d>& points,
@@ -219,14 +220,17 @@ std::vector<uint8_t> select_object(const Camera& camera, const std::string& view
                                    const SelectOptions& options) {
   // The clicked point grown; when it joins too few (a stray point at an edge, of its own colour),
   // the next points under the click on the same surface, until one reaches options.min_points.
-  const std::vector<size_t> seeds = clicked_points(camera, view, points, click, options);
+  size_t under = 0;
+  const std::vector<size_t> seeds = clicked_points(camera, view, points, click, options, &under);
+  // An object holds at least half of the points under the click (they cover its pick disc).
+  const size_t enough = std::max(options.min_points, under / 2);
   std::vector<uint8_t> selected;
   size_t most = 0;
   for (size_t t = 0; t < std::min<size_t>(seeds.size(), options.seed_tries); ++t) {
     std::vector<uint8_t> grown = grow_selection(points, colours, seeds[t], camera, options);
     const auto n = static_cast<size_t>(std::count(grown.begin(), grown.end(), uint8_t{1}));
     if (t == 0 || n > most) selected = std::move(grown), most = n;
-    if (most >= options.min_points) break;
+    if (most >= enough) break;
   }
   const Eigen::Matrix4d w2c = camera.w2c_opencv();
   size_t seen = 0, taken = 0;

@@ -41,7 +41,7 @@ struct SelectOptions {
   // compared as chromaticity (r, g over r + g + b) and brightness (mean of r, g, b) times
   // `brightness_weight`. Measured in docs/editing.md ("One click"): step 0.02 / spread 0.04 against
   // 0.04 / 0.07 (scene 1's precision 0.955 against 0.642, the statue's recall 0.656 against 0.793);
-  // spread 0.05 against 0.04 (session 48): scene 1's box whole at every height and click tried
+  // spread 0.05 against 0.04 (2026-12-03): scene 1's box whole at every height and click tried
   // (recall 0.988-0.995 against 0.533-0.994: its shaded sides lie about 0.04 from its top).
   double colour_step = 0.02, colour_spread = 0.05, brightness_weight = 0.2;
   // A click on a point farther than this fraction of the view's far depth (its 99th percentile
@@ -59,9 +59,10 @@ struct SelectOptions {
   // A selection that holds more than this share of the points the clicked view sees is the
   // ground, a wall or the sky: an error.
   double max_share = 0.5;
-  // A clicked point that grows to fewer than `min_points` is a stray one (SPIn-NeRF scene 1, view
-  // 104503: 2 points, recall 0.000): the next of the points under the click on the same surface
-  // are tried (clicked_points), up to `seed_tries` of them; the largest selection is kept.
+  // A clicked point that grows to fewer than `min_points`, or than half the points under the
+  // click (an object covers its pick disc), is a stray or a fragment (SPIn-NeRF scene 1, view
+  // 104503: 2 points, then 72 of its box's thousands): points at other depths under the click are
+  // tried (clicked_points), up to `seed_tries` of them; the first big enough, else the largest, is kept.
   size_t min_points = 20, seed_tries = 8;
 };
 
@@ -72,9 +73,10 @@ void check_click_inside(const Camera& camera, const std::string& view, const Cli
 // surface seen there (the front quarter of the depths under the click) first, then points at
 // other quantiles of those depths (the middle, then around it).
 // Errors name the click: outside the image, on no point, or on the far background.
+// `under_count` (optional) gets how many points fall within the pick radius of the click.
 std::vector<size_t> clicked_points(const Camera& camera, const std::string& view,
                                    const std::vector<Eigen::Vector3d>& points, const Click& click,
-                                   const SelectOptions& options = {});
+                                   const SelectOptions& options = {}, size_t* under_count = nullptr);
 // The first of them.
 size_t clicked_point(const Camera& camera, const std::string& view, const std::vector<Eigen::Vector3d>& points,
                      const Click& click, const SelectOptions& options = {});

@@ -17,7 +17,7 @@
 
 namespace ii {
 
-// Measured (docs/benchmarks.md, session 35; feed-forward): a 32nd of the height gained the held-out
+// Measured (docs/benchmarks.md, 2026-11-29; feed-forward): a 32nd of the height gained the held-out
 // rooms' whole images 0.21 / 0.72 dB (128 / 256 rows) and make demo's 0.51 / 1.29 (whole /
 // masked), left SPIn-NeRF scene 1, the statue and the fern within 0.04, for 19 % more Gaussians.
 // A 16th closed make demo's last white slivers but lost the statue 0.13; the farthest deeper pixel
@@ -28,7 +28,7 @@ struct BehindEdgesOptions {
   // How far under the near side, as a fraction of the view's height (0: none).
   double fraction = 0.03125;
   // ... this many times as far where the context views' depth is their depth maps: an edge there
-  // is where the map says, and the ground behind it is the map's (session 37, with the maps' flying
+  // is where the map says, and the ground behind it is the map's (2026-11-29, with the maps' flying
   // pixels on the far side: make demo's last white sliver closed, +0.22 dB whole, the held-out
   // rooms +0.02 / +0.03 masked; a 16th everywhere had lost the statue 0.13).
   double depth_map_factor = 2;

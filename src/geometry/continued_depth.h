@@ -6,7 +6,7 @@
 // depth from its surroundings by colour instead (geometry/region_surface.h); the two measured on
 // fill's path, SPIn-NeRF scene 1 with three object-free photos as references: this one's region
 // 17.16 / 17.70 / 15.70 dB, the region surface's 16.74 / 16.99 / 14.86 with 400-1,700 pixels left
-// uncovered (docs/benchmarks.md, session 44).
+// uncovered (docs/benchmarks.md, 2026-12-03).
 #include <optional>
 
 #include "common/torch.h"

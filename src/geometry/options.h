@@ -16,7 +16,7 @@ namespace ii {
 
 // Which of a scene's own 3D points the network's depth is aligned to. COLMAP's sparse points are
 // not the default: on the fern they scaled the views' depth by 0.90-0.97 and its held-out views
-// lost 0.4 dB (16.88 -> 16.50; session 16's weights: 0.6), where the points triangulated from the
+// lost 0.4 dB (16.88 -> 16.50; the weights of 2026-11-26: 0.6), where the points triangulated from the
 // context views' photos (0.97-1.02) gained 0.1 and the synthetic rooms' depth maps gained too
 // (see the model card).
 enum class DepthPoints { none, depth_maps, photos, any };

@@ -24,7 +24,7 @@ namespace ii {
 struct SceneInput;
 
 // Measured on SPIn-NeRF scene 1 with an object-free photo as the reference, the held-out rooms
-// and make demo (docs/benchmarks.md, session 36).
+// and make demo (docs/benchmarks.md, 2026-11-29).
 struct RegionSurfaceOptions {
   double opacity = 0.95;  // the splats' least opacity; 0 = none (the network's Gaussians stay)
   // A ring pixel's weight falls off over this fraction of the height from the region pixel
@@ -42,7 +42,7 @@ struct RegionSurfaceOptions {
   double slope_fit = 0.02;
   // Where the weighted mean lands between two surfaces (a flying pixel of the region's depth with
   // the measured depth around it, geometry/flying_pixels.h), the pixel goes to the far one: a splat
-  // between a table's edge and the floor is a speck from elsewhere (session 37: the held-out rooms
+  // between a table's edge and the floor is a speck from elsewhere (2026-11-29: the held-out rooms
   // +0.04 / +0.44 dB masked at 128² / 256², make demo's room -0.6 masked, +0.2 whole and fewer
   // specks; scene 1's region -0.03, the statue unchanged; to the side whose colour the pixel
   // shares instead, the rooms -0.35 / -0.48).

@@ -17,7 +17,7 @@
 
 namespace ii {
 
-// Measured on SPIn-NeRF scene 1, the statue and the fern (docs/benchmarks.md, session 33): 24,
+// Measured on SPIn-NeRF scene 1, the statue and the fern (docs/benchmarks.md, 2026-11-28): 24,
 // 32 or 48 depths, 96-192 rows gave the same held-out figures to 0.05 dB; a least correlation of
 // 0.3 and agreement within 4 % knew 62 % of scene 1's pixels instead of 44 % (0.5 and 2 %), the
 // statue +0.1 dB, the fern +0.15, each view's own picture +1.5; within 1 % lost 0.3 dB.

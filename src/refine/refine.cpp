@@ -643,7 +643,7 @@ torch::Tensor reference_region(const Prediction& prediction, bool keep_object) {
 // view or layer made it, and the region's cover are kept as they are: the other views' masks hide
 // the region, so nothing but the reference would move them, and it would slide them along its own
 // rays (scene 1 with an object-free reference: refined from the network's Gaussians there, the
-// region lost 4 dB; docs/benchmarks.md, session 43). Prediction::gaussians()'s order: one per pixel
+// region lost 4 dB; docs/benchmarks.md, 2026-12-02). Prediction::gaussians()'s order: one per pixel
 // of each context view, then each layer's.
 RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction& prediction, bool keep_object,
                                  int stride) {

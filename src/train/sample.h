@@ -56,7 +56,7 @@ struct SamplerOptions {
   // Working sizes (width, height) taken in turn, one per training step (step_samples consecutive
   // sample indices: the global batch), in place of width x height when not empty: a model run at
   // several sizes is trained at each of them in one run, which training them one after the other
-  // did not give (session 24: 200 steps at 256² after 128² lost 2.8 dB at 128²).
+  // did not give (2026-11-27: 200 steps at 256² after 128² lost 2.8 dB at 128²).
   std::vector<std::pair<int, int>> size_cycle;
   int step_samples = 1;
 };

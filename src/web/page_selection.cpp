@@ -127,7 +127,8 @@ void PageSelection::set_reconstruction(const GaussianSet& reconstruction) {
 }
 
 std::optional<json> PageSelection::select_on_view(const View& view, const Camera& camera,
-                                                  const std::vector<Click>& clicks, const std::vector<Click>& not_clicks) {
+                                                  const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
+                                                  std::optional<double> scene_far) {
   Stopwatch watch;
   if (segmenter_) {
     for (const Click& c : clicks) check_click_inside(view.camera, view.name, c);
@@ -153,7 +154,10 @@ std::optional<json> PageSelection::select_on_view(const View& view, const Camera
     }
     points = points_;
   }
-  const std::vector<uint8_t> selected = select_objects(camera, view.name, points->points, points->colours, clicks);
+  SelectOptions selecting;
+  selecting.scene_far = scene_far;
+  const std::vector<uint8_t> selected =
+      select_objects(camera, view.name, points->points, points->colours, clicks, selecting);
   const double select_ms = watch.lap();
   // The selection's image carved to the object by the view's photo, as `masks --click` does.
   const Image mask =

@@ -1245,7 +1245,11 @@ json WebServer::State::select_on_view(const httplib::Request& req, const std::ve
   if (index < 0 || index >= static_cast<int>(scene->views.size()))
     throw Refusal{400, fmt::format("view must be the index of one of the scene's {} views", scene->views.size())};
   const View& view = scene->views[static_cast<size_t>(index)];
-  std::optional<json> answer = selection.select_on_view(view, normalization.apply(view.camera), clicks, not_clicks);
+  // The scene's far bound in the reconstruction's (pose-normalised) frame.
+  const std::optional<double> far =
+      scene->far ? std::optional<double>(*scene->far / normalization.scale) : std::nullopt;
+  std::optional<json> answer =
+      selection.select_on_view(view, normalization.apply(view.camera), clicks, not_clicks, far);
   if (!answer) throw Refusal{409, "the scene's reconstruction is not ready yet: click again in a moment"};
   return *answer;
 }

@@ -320,7 +320,7 @@ TEST(Select, AnObjectLongerThanTheFirstReachIsSelectedWhole) {
 // A box's side in shade: its colour darkens away from the lit top until it lies 0.045 from it
 // (chromaticity and a fifth of the brightness, as scene 1's box at 512 rows). The click on the
 // top takes the side too; the brown gravel beside it stays out. With the colour around the click
-// allowed 0.04 (sessions 46-47) the side's farther part was left out.
+// allowed 0.04 (the default until 2026-12-03) the side's farther part was left out.
 TEST(Select, AShadedSideOfTheClickedObjectIsSelected) {
   const Camera camera = cameras_around({0.9, 0.15, -3})[0];
   const Eigen::Vector3f lit(0.62f, 0.66f, 0.68f), shade(0.40f, 0.44f, 0.49f), gravel(0.45f, 0.38f, 0.30f);
