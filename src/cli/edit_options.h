@@ -23,7 +23,7 @@ struct EditArgs {
   double extent = 0;        // 0 = the region's width in 3D
   double depth_margin = -1;  // < 0 = the depth source's own
   int dilate = -1;  // -1 = automatic
-  std::string carve = "off";  // --carve: on, off
+  std::string carve = "on";  // --carve: on, off
   std::string reference_view;       // --reference-view
   std::string inpainter = "telea";  // --reference-inpainter
   GeometryOptions geometry;  // add_geometry_options

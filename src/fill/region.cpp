@@ -180,9 +180,15 @@ RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, co
 RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
                               const std::vector<Click>& clicks, const SelectOptions& options) {
   // Grown over the opaque splats: faint ones float around every object and bridge it to the rest.
+  // Opaque: above 0.5, or in the most opaque quarter where fewer are (a refined or another tool's
+  // file can be mostly translucent: scene 1 refined for 3 minutes, 2 % above 0.5, median 0.02).
+  std::vector<float> logits(cloud.opacity_logit.begin(), cloud.opacity_logit.end());
+  const auto upper = static_cast<std::ptrdiff_t>(0.75 * static_cast<double>(logits.size() - 1));
+  std::nth_element(logits.begin(), logits.begin() + upper, logits.end());
+  const float threshold = logits.empty() ? 0.f : std::min(0.f, logits[static_cast<size_t>(upper)]);
   std::vector<size_t> opaque;
   for (size_t i = 0; i < cloud.size(); ++i)
-    if (cloud.opacity_logit[i] > 0) opaque.push_back(i);
+    if (cloud.opacity_logit[i] > threshold || (threshold < 0.f && cloud.opacity_logit[i] == threshold)) opaque.push_back(i);
   std::vector<Eigen::Vector3d> points(opaque.size());
   std::vector<Eigen::Vector3f> colours(opaque.size());
   for (size_t k = 0; k < opaque.size(); ++k) {
