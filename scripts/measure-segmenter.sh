@@ -27,9 +27,7 @@ done
 BIN=${BIN:-$SEGMENTER_REPO/build/instainpaint}
 TMP=$(mktemp -d /tmp/measure-segmenter.XXXXXX)
 trap 'rm -rf "$TMP"' EXIT
-mkdir -p "$TMP/sam" "$TMP/mobile"
-extract_reference_package "$SAM" segment_anything "$TMP/sam"
-extract_reference_package "$MOBILE" mobile_sam "$TMP/mobile"
+extract_reference_packages "$SAM" "$MOBILE" "$TMP"
 PYTHON=$(reference_python)
 echo "machine: $(lscpu | sed -n 's/^Model name: *//p'), $THREADS threads; $(git -C "$SEGMENTER_REPO" rev-parse --short HEAD); $(date -u +%F)"
 for layout in $LAYOUTS; do

@@ -20,3 +20,11 @@ reference_python() {
     -r "$SEGMENTER_REFERENCE_DIR/requirements.txt" >&2
   echo "$SEGMENTER_VENV/bin/python"
 }
+
+# extract_reference_packages SAM MOBILE_SAM DEST: both packages, DEST/sam/segment_anything and
+# DEST/mobile/mobile_sam.
+extract_reference_packages() {
+  mkdir -p "$3/sam" "$3/mobile"
+  extract_reference_package "$1" segment_anything "$3/sam"
+  extract_reference_package "$2" mobile_sam "$3/mobile"
+}

@@ -17,9 +17,7 @@ if [ $# -lt 2 ] || [ "$1" = -h ] || [ "$1" = --help ]; then sed -n '2,13p' "$0";
 OUT=${3:-$SEGMENTER_REPO/tests/segment/fixture}
 TMP=$(mktemp -d /tmp/segmenter-reference.XXXXXX)
 trap 'rm -rf "$TMP"' EXIT
-mkdir -p "$TMP/sam" "$TMP/mobile"
-extract_reference_package "$1" segment_anything "$TMP/sam"
-extract_reference_package "$2" mobile_sam "$TMP/mobile"
+extract_reference_packages "$1" "$2" "$TMP"
 PYTHON=$(reference_python)
 STATUE=${INSTAINPAINT_SHARED:-$SEGMENTER_REPO/../shared}/data/statue
 "$PYTHON" "$SEGMENTER_REFERENCE_DIR/make_fixture.py" --segment-anything "$TMP/sam" --mobile-sam "$TMP/mobile" \

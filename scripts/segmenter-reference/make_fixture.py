@@ -50,45 +50,45 @@ def randomise(module, seed):
                 t.copy_(torch.randn(t.shape, generator=g) / fan_in ** 0.5)
 
 
+DIM = 32  # the prompt encoder's and mask decoder's width
+
+
+def small_sam_around(m, encoder, image_size):
+    """SAM's prompt encoder and mask decoder, small, around `encoder` (of the same package `m`)."""
+    grid = image_size // 16
+    return m.Sam(
+        image_encoder=encoder,
+        prompt_encoder=m.PromptEncoder(embed_dim=DIM, image_embedding_size=(grid, grid),
+                                       input_image_size=(image_size, image_size), mask_in_chans=8),
+        mask_decoder=m.MaskDecoder(
+            num_multimask_outputs=3,
+            transformer=m.TwoWayTransformer(depth=2, embedding_dim=DIM, mlp_dim=64, num_heads=8),
+            transformer_dim=DIM, iou_head_depth=3, iou_head_hidden_dim=24),
+        pixel_mean=[123.675, 116.28, 103.53], pixel_std=[58.395, 57.12, 57.375])
+
+
 def small_sam(sam_pkg):
     from functools import partial
     m = sam_pkg.modeling
-    dim = 32
-    return m.Sam(
-        image_encoder=m.ImageEncoderViT(
-            depth=3, embed_dim=32, img_size=256, mlp_ratio=4, num_heads=2, patch_size=16,
-            norm_layer=partial(torch.nn.LayerNorm, eps=1e-6), qkv_bias=True, use_rel_pos=True,
-            global_attn_indexes=(1,), window_size=6, out_chans=dim),
-        prompt_encoder=m.PromptEncoder(embed_dim=dim, image_embedding_size=(16, 16),
-                                       input_image_size=(256, 256), mask_in_chans=8),
-        mask_decoder=m.MaskDecoder(
-            num_multimask_outputs=3,
-            transformer=m.TwoWayTransformer(depth=2, embedding_dim=dim, mlp_dim=64, num_heads=8),
-            transformer_dim=dim, iou_head_depth=3, iou_head_hidden_dim=24),
-        pixel_mean=[123.675, 116.28, 103.53], pixel_std=[58.395, 57.12, 57.375])
+    encoder = m.ImageEncoderViT(
+        depth=3, embed_dim=32, img_size=256, mlp_ratio=4, num_heads=2, patch_size=16,
+        norm_layer=partial(torch.nn.LayerNorm, eps=1e-6), qkv_bias=True, use_rel_pos=True,
+        global_attn_indexes=(1,), window_size=6, out_chans=DIM)
+    return small_sam_around(m, encoder, 256)
 
 
 def small_mobile_sam(mobile_pkg):
     m = mobile_pkg.modeling
     from mobile_sam.modeling.tiny_vit_sam import LayerNorm2d
-    dim = 32
     encoder = m.TinyViT(img_size=1024, in_chans=3, num_classes=10, embed_dims=[8, 16, 24, 32],
                         depths=[1, 1, 2, 1], num_heads=[1, 2, 3, 4], window_sizes=[7, 7, 14, 7],
                         mlp_ratio=2.0, drop_rate=0.0, drop_path_rate=0.0, use_checkpoint=False,
                         mbconv_expand_ratio=2.0, local_conv_size=3, layer_lr_decay=0.8)
     encoder.layers[2].downsample.conv2.c.stride = (1, 1)
     encoder.neck = torch.nn.Sequential(
-        torch.nn.Conv2d(32, dim, kernel_size=1, bias=False), LayerNorm2d(dim),
-        torch.nn.Conv2d(dim, dim, kernel_size=3, padding=1, bias=False), LayerNorm2d(dim))
-    return m.Sam(
-        image_encoder=encoder,
-        prompt_encoder=m.PromptEncoder(embed_dim=dim, image_embedding_size=(64, 64),
-                                       input_image_size=(1024, 1024), mask_in_chans=8),
-        mask_decoder=m.MaskDecoder(
-            num_multimask_outputs=3,
-            transformer=m.TwoWayTransformer(depth=2, embedding_dim=dim, mlp_dim=64, num_heads=8),
-            transformer_dim=dim, iou_head_depth=3, iou_head_hidden_dim=24),
-        pixel_mean=[123.675, 116.28, 103.53], pixel_std=[58.395, 57.12, 57.375])
+        torch.nn.Conv2d(32, DIM, kernel_size=1, bias=False), LayerNorm2d(DIM),
+        torch.nn.Conv2d(DIM, DIM, kernel_size=3, padding=1, bias=False), LayerNorm2d(DIM))
+    return small_sam_around(m, encoder, 1024)
 
 
 def fixture_image(h=48, w=64):
