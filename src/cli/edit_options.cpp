@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "common/error.h"
 #include "data/view_selection.h"
 #include "geometry/settings.h"
 #include "model/default_model.h"

@@ -1,4 +1,5 @@
 // SAM's ViT and MobileSAM's TinyViT image encoders, and the modules' basic layers.
+#include "common/error.h"
 #include "segment/sam_model.h"
 
 namespace ii::sam {

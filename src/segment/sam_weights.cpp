@@ -1,6 +1,8 @@
 // Reading SAM's and MobileSAM's published checkpoints into segment/sam_model.h's modules.
 #include <set>
 
+#include <fmt/ranges.h>
+
 #include "common/error.h"
 #include "segment/sam_model.h"
 
