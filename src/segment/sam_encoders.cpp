@@ -19,6 +19,8 @@ torch::Tensor Norm::channels(const torch::Tensor& x) const {
   return weight.view({-1, 1, 1}) * ((x - u) / torch::sqrt(s + eps)) + bias.view({-1, 1, 1});
 }
 
+torch::Tensor Neck::operator()(const torch::Tensor& x) const { return norm2.channels(conv2(norm1.channels(conv1(x)))); }
+
 torch::Tensor Conv::operator()(const torch::Tensor& x) const {
   if (half_weight.defined())
     return torch::conv2d(x.to(torch::kBFloat16), half_weight, half_bias, {stride, stride}, {padding, padding}, {1, 1}, groups)
@@ -43,7 +45,7 @@ void use_bf16(Model& m) {
   m.bf16 = true;
   if (m.tiny_vit) {
     TinyVitEncoder& e = m.tiny;
-    for (Conv* c : {&e.embed1, &e.embed2, &e.neck1, &e.neck2}) halve(*c);
+    for (Conv* c : {&e.embed1, &e.embed2, &e.neck.conv1, &e.neck.conv2}) halve(*c);
     for (TinyVitStage& s : e.stages) {
       for (MbConv& c : s.convs) {
         halve(c.conv1);
@@ -60,7 +62,7 @@ void use_bf16(Model& m) {
     }
   } else {
     VitEncoder& e = m.vit;
-    for (Conv* c : {&e.patch_embed, &e.neck1, &e.neck2}) halve(*c);
+    for (Conv* c : {&e.patch_embed, &e.neck.conv1, &e.neck.conv2}) halve(*c);
     for (VitBlock& b : e.blocks) {
       for (Linear* l : {&b.qkv, &b.proj, &b.lin1, &b.lin2}) halve(*l);
       b.products.bf16 = true;
@@ -174,16 +176,12 @@ torch::Tensor tiny_block(const TinyVitBlock& blk, const torch::Tensor& x, int64_
   return out + blk.fc2(torch::gelu(blk.fc1(blk.mlp_norm(out))));
 }
 
-torch::Tensor neck(const Conv& c1, const Norm& n1, const Conv& c2, const Norm& n2, const torch::Tensor& x) {
-  return n2.channels(c2(n1.channels(c1(x))));
-}
-
 }  // namespace
 
 torch::Tensor encode_vit(const VitEncoder& e, const torch::Tensor& image) {
   torch::Tensor x = e.patch_embed(image).permute({0, 2, 3, 1}) + e.pos_embed;
   for (const VitBlock& blk : e.blocks) x = vit_block(blk, x);
-  return neck(e.neck1, e.neck_norm1, e.neck2, e.neck_norm2, x.permute({0, 3, 1, 2}));
+  return e.neck(x.permute({0, 3, 1, 2}));
 }
 
 torch::Tensor encode_tiny_vit(const TinyVitEncoder& e, const torch::Tensor& image, int64_t image_size) {
@@ -212,7 +210,7 @@ torch::Tensor encode_tiny_vit(const TinyVitEncoder& e, const torch::Tensor& imag
   if (!tokens) x = x.flatten(2).transpose(1, 2);
   if (h != last || w != last) fail("TinyViT ends at {} x {} tokens, expected {} x {}", h, w, last, last);
   x = x.reshape({x.size(0), last, last, -1}).permute({0, 3, 1, 2});
-  return neck(e.neck1, e.neck_norm1, e.neck2, e.neck_norm2, x);
+  return e.neck(x);
 }
 
 }  // namespace ii::sam

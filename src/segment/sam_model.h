@@ -40,6 +40,13 @@ struct Conv {
   torch::Tensor operator()(const torch::Tensor& x) const;
 };
 
+// Both encoders end in the same neck: 1 x 1 convolution, LayerNorm2d, 3 x 3 convolution, LayerNorm2d.
+struct Neck {
+  Conv conv1, conv2;
+  Norm norm1, norm2;
+  torch::Tensor operator()(const torch::Tensor& x) const;
+};
+
 // ---- SAM's ViT ----
 struct VitBlock {
   Norm norm1, norm2;
@@ -52,8 +59,7 @@ struct VitEncoder {
   Conv patch_embed;  // 16 x 16, stride 16
   torch::Tensor pos_embed;  // (1, G, G, E)
   std::vector<VitBlock> blocks;
-  Conv neck1, neck2;
-  Norm neck_norm1, neck_norm2;
+  Neck neck;
 };
 
 // ---- MobileSAM's TinyViT ----
@@ -80,8 +86,7 @@ struct TinyVitStage {
 struct TinyVitEncoder {
   Conv embed1, embed2;
   std::vector<TinyVitStage> stages;
-  Conv neck1, neck2;
-  Norm neck_norm1, neck_norm2;
+  Neck neck;
 };
 
 // ---- prompts and masks ----

@@ -104,6 +104,12 @@ Conv conv_bn(TensorTaker& t, const std::string& key, int64_t out, int64_t in, in
 }
 int64_t first_dim(TensorTaker& t, const std::string& key) { return t.size(t.shape(key), 0); }
 
+// The encoders' neck from `dim` channels to the decoder's `width`.
+Neck neck(TensorTaker& t, const std::string& prefix, int64_t dim, int64_t width) {
+  return Neck{conv(t, prefix + "0", width, dim, 1, false, 1, 0), conv(t, prefix + "2", width, width, 3, false, 1, 1),
+              norm(t, prefix + "1", width, 1e-6), norm(t, prefix + "3", width, 1e-6)};
+}
+
 VitEncoder read_vit(TensorTaker& t, int64_t width, int64_t& image_size) {
   VitEncoder e;
   const std::string p = "image_encoder.";
@@ -137,10 +143,7 @@ VitEncoder read_vit(TensorTaker& t, int64_t width, int64_t& image_size) {
     k.lin2 = linear(t, b + "mlp.lin2", dim, hidden);
     e.blocks.push_back(std::move(k));
   }
-  e.neck1 = conv(t, p + "neck.0", width, dim, 1, false, 1, 0);
-  e.neck_norm1 = norm(t, p + "neck.1", width, 1e-6);
-  e.neck2 = conv(t, p + "neck.2", width, width, 3, false, 1, 1);
-  e.neck_norm2 = norm(t, p + "neck.3", width, 1e-6);
+  e.neck = neck(t, p + "neck.", dim, width);
   return e;
 }
 
@@ -211,10 +214,7 @@ TinyVitEncoder read_tiny_vit(TensorTaker& t, int64_t width) {
     }
     e.stages.push_back(std::move(stage));
   }
-  e.neck1 = conv(t, p + "neck.0", width, dim, 1, false, 1, 0);
-  e.neck_norm1 = norm(t, p + "neck.1", width, 1e-6);
-  e.neck2 = conv(t, p + "neck.2", width, width, 3, false, 1, 1);
-  e.neck_norm2 = norm(t, p + "neck.3", width, 1e-6);
+  e.neck = neck(t, p + "neck.", dim, width);
   return e;
 }
 
