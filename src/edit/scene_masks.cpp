@@ -262,15 +262,14 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
   for (const View& v : scene.views) cameras.push_back(v.camera);
 
   if (!request.clicks.empty() && request.segmenter) {
-    // The segmenter's mask of the clicked view is the region, lifted and carved as a drawn one.
+    // The segmenter's mask of the clicked view is the region, lifted (and carved) as a drawn one.
     const ClickedMask clicked =
         segmented_view_mask(*request.segmenter, marked, request.clicks, request.not_clicks, stages);
     OneMask drawn = request;
     drawn.clicks.clear();
     drawn.not_clicks.clear();
     drawn.segmenter = nullptr;
-    drawn.region = clicked.mask;
-    drawn.carve = true;
+    drawn.region = clicked.mask;  // carved as the request says (on by default)
     SceneMasks out = masks_from_one(scene, drawn, predictor, options, stages);
     out.clicked_mask = "segmenter";
     out.segmenter = clicked.describe(*request.segmenter);

@@ -47,7 +47,7 @@ struct OneMask {
   CarveOptions carving;
   // Clicks on the view in place of `region`. With a segmenter, its mask of the clicked view
   // (points on the object: `clicks`, points that are not: `not_clicks`) becomes the region,
-  // lifted and carved like a drawn one. Without, the object under each click is selected in the
+  // lifted and carved (`carve`) like a drawn one. Without, the object under each click is selected in the
   // network's reconstruction (edit/select.h) and each view's mask carved to it.
   std::vector<Click> clicks, not_clicks;
   std::shared_ptr<const Segmenter> segmenter;

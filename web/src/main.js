@@ -601,7 +601,9 @@ async function selectAt(x, y, e = {}) {
   fillNotClicks = notClicks;
   $("fill-result").textContent = `selected ${selection.selected} of ${selection.total} splats (${selection.pixels} ` +
     `pixels on screen) from ${clicks.length} click${clicks.length > 1 ? "s" : ""}; ${selection.clientSeconds.toFixed(2)} s`;
-  status("shift-click adds another object; Fill removes the selection");
+  status(selection.how === "segmenter"
+    ? "shift-click adds a point on the object, alt-click marks what is not; Fill removes the selection"
+    : "shift-click adds another object; Fill removes the selection");
 }
 
 // The clicks as the server reads them: "x,y;x,y".
