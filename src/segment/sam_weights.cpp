@@ -147,6 +147,34 @@ VitEncoder read_vit(TensorTaker& t, int64_t width, int64_t& image_size) {
   return e;
 }
 
+// One TinyViT block of `dim` channels under key prefix `b`: its heads and window from the
+// attention biases' table (heads x window²), the table expanded to every pair of window positions.
+TinyVitBlock tiny_vit_block(TensorTaker& t, const std::string& b, int64_t dim) {
+  TinyVitBlock k;
+  const torch::Tensor biases = t.take(b + "attn.attention_biases", {-1, -1});
+  k.heads = biases.size(0);
+  k.window = static_cast<int64_t>(std::lround(std::sqrt(static_cast<double>(biases.size(1)))));
+  if (k.heads == 0 || dim % k.heads != 0 || k.window * k.window != biases.size(1))
+    fail("{}: {}attn.attention_biases has shape {}: not (heads dividing {}, window x window)",
+         t.file().string(), b, shape_text(biases.sizes()), dim);
+  k.key_dim = dim / k.heads;
+  // Offset (|dy|, |dx|) of two window positions is entry |dy| * window + |dx| (TinyViT numbers
+  // the offsets as the first position meets them).
+  const torch::Tensor pos = torch::arange(k.window * k.window);
+  const torch::Tensor dy = (pos.div(k.window, "floor").unsqueeze(1) - pos.div(k.window, "floor").unsqueeze(0)).abs();
+  const torch::Tensor dx = (pos.remainder(k.window).unsqueeze(1) - pos.remainder(k.window).unsqueeze(0)).abs();
+  k.biases = biases.index_select(1, (dy * k.window + dx).flatten()).view({k.heads, pos.size(0), pos.size(0)});
+  k.attn_norm = norm(t, b + "attn.norm", dim, 1e-5);
+  k.qkv = linear(t, b + "attn.qkv", 3 * dim, dim);
+  k.proj = linear(t, b + "attn.proj", dim, dim);
+  k.mlp_norm = norm(t, b + "mlp.norm", dim, 1e-5);
+  const int64_t hidden = first_dim(t, b + "mlp.fc1.weight");
+  k.fc1 = linear(t, b + "mlp.fc1", hidden, dim);
+  k.fc2 = linear(t, b + "mlp.fc2", dim, hidden);
+  k.local_conv = conv_bn(t, b + "local_conv", dim, dim, 3, 1, 1, dim);
+  return k;
+}
+
 TinyVitEncoder read_tiny_vit(TensorTaker& t, int64_t width) {
   TinyVitEncoder e;
   const std::string p = "image_encoder.";
@@ -177,29 +205,7 @@ TinyVitEncoder read_tiny_vit(TensorTaker& t, int64_t width) {
       if (n == 0) fail("{}: {}blocks.0.attn is missing", t.file().string(), l);
       for (int64_t i = 0; i < n; ++i) {
         const std::string b = l + "blocks." + std::to_string(i) + ".";
-        TinyVitBlock k;
-        const torch::Tensor biases = t.take(b + "attn.attention_biases", {-1, -1});
-        k.heads = biases.size(0);
-        k.window = static_cast<int64_t>(std::lround(std::sqrt(static_cast<double>(biases.size(1)))));
-        if (k.heads == 0 || dim % k.heads != 0 || k.window * k.window != biases.size(1))
-          fail("{}: {}attn.attention_biases has shape {}: not (heads dividing {}, window x window)",
-               t.file().string(), b, shape_text(biases.sizes()), dim);
-        k.key_dim = dim / k.heads;
-        // Offset (|dy|, |dx|) of two window positions is entry |dy| * window + |dx| (TinyViT numbers
-        // the offsets as the first position meets them).
-        const torch::Tensor pos = torch::arange(k.window * k.window);
-        const torch::Tensor dy = (pos.div(k.window, "floor").unsqueeze(1) - pos.div(k.window, "floor").unsqueeze(0)).abs();
-        const torch::Tensor dx = (pos.remainder(k.window).unsqueeze(1) - pos.remainder(k.window).unsqueeze(0)).abs();
-        k.biases = biases.index_select(1, (dy * k.window + dx).flatten()).view({k.heads, pos.size(0), pos.size(0)});
-        k.attn_norm = norm(t, b + "attn.norm", dim, 1e-5);
-        k.qkv = linear(t, b + "attn.qkv", 3 * dim, dim);
-        k.proj = linear(t, b + "attn.proj", dim, dim);
-        k.mlp_norm = norm(t, b + "mlp.norm", dim, 1e-5);
-        const int64_t hidden = first_dim(t, b + "mlp.fc1.weight");
-        k.fc1 = linear(t, b + "mlp.fc1", hidden, dim);
-        k.fc2 = linear(t, b + "mlp.fc2", dim, hidden);
-        k.local_conv = conv_bn(t, b + "local_conv", dim, dim, 3, 1, 1, dim);
-        stage.blocks.push_back(std::move(k));
+        stage.blocks.push_back(tiny_vit_block(t, b, dim));
       }
     }
     if (t.has(l + "downsample.conv1.c.weight")) {

@@ -159,11 +159,12 @@ SegmenterImage Segmenter::encode(const Image& rgb) const {
   return out;
 }
 
-Segmentation Segmenter::segment(const SegmenterImage& image, const SegmentPrompt& prompt) const {
-  torch::NoGradGuard no_grad;
-  const Model& m = *model_;
-  if (prompt.points.empty() && !prompt.box && !prompt.previous)
-    fail("a segmentation prompt needs a point, a box or a previous mask");
+namespace {
+
+// The prompt encoder: the points' and the box's embeddings (1, T, D) and the dense one (1, D, G, G),
+// from the previous mask or the "no mask" embedding.
+std::pair<torch::Tensor, torch::Tensor> prompt_embeddings(const Model& m, const SegmenterImage& image,
+                                                          const SegmentPrompt& prompt) {
   // The photo's pixels to the encoder's input (ResizeLongestSide.apply_coords, in double).
   const double sx = static_cast<double>(image.input_width) / image.width;
   const double sy = static_cast<double>(image.input_height) / image.height;
@@ -190,41 +191,46 @@ Segmentation Segmenter::segment(const SegmenterImage& image, const SegmentPrompt
                                   .view({1, 4});
     sparse.push_back(embed_box(m.prompt, m, box));
   }
-  const torch::Tensor sparse_embedding =
-      sparse.empty() ? torch::empty({1, 0, m.width}) : torch::cat(sparse, 1);
+  const torch::Tensor sparse_embedding = sparse.empty() ? torch::empty({1, 0, m.width}) : torch::cat(sparse, 1);
   const int64_t g = m.embedding_size;
-  torch::Tensor dense;
-  if (prompt.previous) {
-    const torch::Tensor prev = prompt.previous->to(torch::kFloat).reshape({1, 1, -1, prompt.previous->size(-1)});
-    if (prev.size(2) != 4 * g || prev.size(3) != 4 * g)
-      fail("a previous mask must be the decoder's {} x {} logits, got {} x {}", 4 * g, 4 * g, prev.size(2), prev.size(3));
-    dense = embed_mask(m.prompt, prev);
-  } else {
-    dense = m.prompt.no_mask.view({1, -1, 1, 1}).expand({1, m.width, g, g});
-  }
+  if (!prompt.previous) return {sparse_embedding, m.prompt.no_mask.view({1, -1, 1, 1}).expand({1, m.width, g, g})};
+  const torch::Tensor prev = prompt.previous->to(torch::kFloat).reshape({1, 1, -1, prompt.previous->size(-1)});
+  if (prev.size(2) != 4 * g || prev.size(3) != 4 * g)
+    fail("a previous mask must be the decoder's {} x {} logits, got {} x {}", 4 * g, 4 * g, prev.size(2), prev.size(3));
+  return {sparse_embedding, embed_mask(m.prompt, prev)};
+}
 
-  // MaskDecoder.predict_masks.
+// MaskDecoder.predict_masks: every mask token's low-resolution logits (1, M, S/4, S/4) and IoU
+// estimates (1, M).
+std::pair<torch::Tensor, torch::Tensor> decode_masks(const Model& m, const torch::Tensor& embedding,
+                                                     const torch::Tensor& sparse, const torch::Tensor& dense) {
   const sam::MaskDecoder& d = m.decoder;
-  const torch::Tensor tokens = torch::cat({torch::cat({d.iou_token, d.mask_tokens}, 0).unsqueeze(0), sparse_embedding}, 1);
-  const torch::Tensor src = image.embedding + dense;
-  const auto [hs, keys] = two_way(d, src, m.dense_pe, tokens);
-  const int64_t masks = d.mask_tokens.size(0);
+  const int64_t g = m.embedding_size, masks = d.mask_tokens.size(0);
+  const torch::Tensor tokens = torch::cat({torch::cat({d.iou_token, d.mask_tokens}, 0).unsqueeze(0), sparse}, 1);
+  const auto [hs, keys] = two_way(d, embedding + dense, m.dense_pe, tokens);
   const torch::Tensor grid = keys.transpose(1, 2).reshape({1, m.width, g, g});
   torch::Tensor up = torch::gelu(d.upscale_norm.channels(transposed(d.upscale1, grid)));
   up = torch::gelu(transposed(d.upscale2, up));
   std::vector<torch::Tensor> hyper;
   for (int64_t i = 0; i < masks; ++i) hyper.push_back(run_mlp(d.hypernetworks[i], hs.select(1, 1 + i)));
   const int64_t side = up.size(2);
-  torch::Tensor low = torch::matmul(torch::stack(hyper, 1), up.view({1, up.size(1), side * side})).view({1, masks, side, side});
-  torch::Tensor iou = run_mlp(d.iou_head, hs.select(1, 0));
-  if (prompt.multimask) {
-    low = low.slice(1, 1);
-    iou = iou.slice(1, 1);
-  } else {
-    low = low.slice(1, 0, 1);
-    iou = iou.slice(1, 0, 1);
-  }
+  const torch::Tensor low =
+      torch::matmul(torch::stack(hyper, 1), up.view({1, up.size(1), side * side})).view({1, masks, side, side});
+  return {low, run_mlp(d.iou_head, hs.select(1, 0))};
+}
 
+}  // namespace
+
+Segmentation Segmenter::segment(const SegmenterImage& image, const SegmentPrompt& prompt) const {
+  torch::NoGradGuard no_grad;
+  const Model& m = *model_;
+  if (prompt.points.empty() && !prompt.box && !prompt.previous)
+    fail("a segmentation prompt needs a point, a box or a previous mask");
+  const auto [sparse, dense] = prompt_embeddings(m, image, prompt);
+  auto [low, iou] = decode_masks(m, image.embedding, sparse, dense);
+  // The three masks of different extent, or the one mask.
+  low = prompt.multimask ? low.slice(1, 1) : low.slice(1, 0, 1);
+  iou = prompt.multimask ? iou.slice(1, 1) : iou.slice(1, 0, 1);
   // Sam.postprocess_masks: to the encoder's size, the padding cut, then to the photo's size.
   torch::Tensor full = torch::upsample_bilinear2d(low, {m.image_size, m.image_size}, false);
   full = full.slice(2, 0, image.input_height).slice(3, 0, image.input_width);
