@@ -57,7 +57,9 @@ def main():
             for command, opts in commands(line):
                 if command not in helps:
                     run = subprocess.run([binary, command, "--help"], capture_output=True, text=True)
-                    helps[command] = run.stdout if run.returncode == 0 else None
+                    # An unknown command prints the program's own help: its usage line names no command.
+                    own = re.search(r"Usage: \S*instainpaint " + re.escape(command) + r"\b", run.stdout)
+                    helps[command] = run.stdout if run.returncode == 0 and own else None
                 if helps[command] is None:
                     problems.append(f"{path}: `{command}` is not a command ({line.strip()})")
                     continue
