@@ -240,8 +240,7 @@ void select_the_clicked_object(const Scene& scene, const std::vector<Camera>& ca
 
 ClickedMask segmented_view_mask(const Segmenter& segmenter, const View& view, const std::vector<Click>& clicks,
                                 const std::vector<Click>& not_clicks, StageTimes* stages) {
-  for (const Click& click : clicks) check_click_inside(view.camera, view.name, click);
-  for (const Click& click : not_clicks) check_click_inside(view.camera, view.name, click);
+  check_clicks_inside(view.camera, view.name, clicks, not_clicks);
   Image photo = load_view_image(view);
   if (photo.width != view.camera.K.width || photo.height != view.camera.K.height)
     fail("view {}: its photo is {}x{}, its camera {}x{}", view.name, photo.width, photo.height, view.camera.K.width,
@@ -279,7 +278,7 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
   SceneMasks out;
   if (!request.clicks.empty()) {
     out.clicked_mask = "colour growth over the reconstruction";
-    for (const Click& click : request.clicks) check_click_inside(marked.camera, marked.name, click);
+    check_clicks_inside(marked.camera, marked.name, request.clicks);
     if (!predictor) fail("a click on view {} needs the network's reconstruction, and no model was given", marked.name);
     const ViewReconstruction reconstruction = predicted_view_reconstruction(predictor(), scene, marked.name, options, stages);
     select_the_clicked_object(scene, cameras, request, reconstruction, times, out);

@@ -135,6 +135,12 @@ void check_click_inside(const Camera& camera, const std::string& view, const Cli
     fail("the click ({}, {}) is outside view {}'s image ({}x{})", click.x, click.y, view, W, H);
 }
 
+void check_clicks_inside(const Camera& camera, const std::string& view, const std::vector<Click>& clicks,
+                         const std::vector<Click>& not_clicks) {
+  for (const Click& click : clicks) check_click_inside(camera, view, click);
+  for (const Click& click : not_clicks) check_click_inside(camera, view, click);
+}
+
 std::vector<size_t> clicked_points(const Camera& camera, const std::string& view,
                                    const std::vector<Eigen::Vector3d>& points, const Click& click,
                                    const SelectOptions& options, size_t* under_count) {

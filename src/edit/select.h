@@ -68,6 +68,9 @@ struct SelectOptions {
 
 // An Error naming the click when it is outside `camera`'s image (checked before any work).
 void check_click_inside(const Camera& camera, const std::string& view, const Click& click);
+// The same for every click on the object and every point that is not it.
+void check_clicks_inside(const Camera& camera, const std::string& view, const std::vector<Click>& clicks,
+                         const std::vector<Click>& not_clicks = {});
 
 // The points the click lands on in `camera`'s view (named `view` in errors): the one on the
 // surface seen there (the front quarter of the depths under the click) first, then points at

@@ -214,8 +214,7 @@ Image splats_seen(const SplatCloud& cloud, const Camera& camera) {
 RegionMask region_from_segmented_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
                                         const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
                                         const Segmenter& segmenter, ClickedMask* clicked) {
-  for (const Click& click : clicks) check_click_inside(camera, view, click);
-  for (const Click& click : not_clicks) check_click_inside(camera, view, click);
+  check_clicks_inside(camera, view, clicks, not_clicks);
   ClickedMask mask;
   try {
     mask = mask_from_clicks(segmenter, splats_seen(cloud, camera), clicks, not_clicks);

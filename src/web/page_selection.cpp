@@ -92,8 +92,7 @@ json PageSelection::select_splats(const std::filesystem::path& ply, const Camera
   const std::shared_ptr<const SplatCloud> cloud = splats(ply);
   const double read_ms = watch.lap();
   if (segmenter_) {
-    for (const Click& c : clicks) check_click_inside(camera, "the page's view", c);
-    for (const Click& c : not_clicks) check_click_inside(camera, "the page's view", c);
+    check_clicks_inside(camera, "the page's view", clicks, not_clicks);
     double encode_ms = 0;
     const auto encoded = encoding(view_key(ply, camera), [&] { return splats_seen(*cloud, camera); }, encode_ms);
     watch.lap();
@@ -131,8 +130,7 @@ std::optional<json> PageSelection::select_on_view(const View& view, const Camera
                                                   std::optional<double> scene_far) {
   Stopwatch watch;
   if (segmenter_) {
-    for (const Click& c : clicks) check_click_inside(view.camera, view.name, c);
-    for (const Click& c : not_clicks) check_click_inside(view.camera, view.name, c);
+    check_clicks_inside(view.camera, view.name, clicks, not_clicks);
     double encode_ms = 0;
     const auto encoded = encoding("view " + view.name, [&] { return load_view_image(view); }, encode_ms);
     watch.lap();
