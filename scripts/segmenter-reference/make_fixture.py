@@ -142,6 +142,16 @@ def answer_cases(predictor, image, out, prefix):
         out[key + ".low_res"] = torch.from_numpy(np.ascontiguousarray(low[:, ::s, ::s]).astype(np.float32))
 
 
+def fixture_model(model, seed, path, predictor, image, out, prefix):
+    """`model` with seeded random weights, saved at `path` as the authors save theirs, and its
+    reference answers to CASES on `image` in `out` under `prefix`."""
+    randomise(model, seed)
+    model.eval()
+    torch.save(model.state_dict(), path)
+    answer_cases(predictor(model), image, out, prefix)
+    return model
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--segment-anything", required=True, help="folder holding segment_anything/")
@@ -160,11 +170,8 @@ def main():
 
     sys.path.insert(0, args.segment_anything)
     import segment_anything
-    sam = small_sam(segment_anything)
-    randomise(sam, 1)
-    sam.eval()
-    torch.save(sam.state_dict(), os.path.join(args.out, "sam_vit_small.pth"))
-    answer_cases(segment_anything.SamPredictor(sam), image, out, "sam")
+    fixture_model(small_sam(segment_anything), 1, os.path.join(args.out, "sam_vit_small.pth"),
+                  segment_anything.SamPredictor, image, out, "sam")
     # Pillow's bilinear resize as SamPredictor.set_image uses it, up and down (odd sizes).
     from segment_anything.utils.transforms import ResizeLongestSide
     for size in (37, 131):
@@ -174,11 +181,8 @@ def main():
 
     sys.path.insert(0, args.mobile_sam)
     import mobile_sam
-    mobile = small_mobile_sam(mobile_sam)
-    randomise(mobile, 2)
-    mobile.eval()
-    torch.save(mobile.state_dict(), os.path.join(args.out, "mobile_sam_small.pt"))
-    answer_cases(mobile_sam.SamPredictor(mobile), image, out, "mobile_sam")
+    mobile = fixture_model(small_mobile_sam(mobile_sam), 2, os.path.join(args.out, "mobile_sam_small.pt"),
+                           mobile_sam.SamPredictor, image, out, "mobile_sam")
 
     if args.statue:
         # The masks command's click 301.5,259.5 (pixel centres at +0.5) is SAM's point (301, 259).
