@@ -28,6 +28,16 @@ export function skipUnlessReady() {
   }
 }
 
+// A real capture of ../shared/data (or $INSTAINPAINT_SHARED/data), or a skip naming it.
+export function sharedScene(name) {
+  const dir = resolve(process.env.INSTAINPAINT_SHARED ?? "../shared", "data", name);
+  if (!existsSync(dir)) {
+    console.log(`skipped: no ${dir} (the real capture this test clicks on)`);
+    process.exit(77);
+  }
+  return dir;
+}
+
 export const scratch = (tag) => mkdtempSync(join(tmpdir(), `instainpaint-${tag}-`));
 
 export function run(args) {

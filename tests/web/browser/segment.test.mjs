@@ -4,16 +4,12 @@
 // point the page sent; alt-click adds a point that is not the object; a click on the splats
 // selects those under the segmenter's outline of their render, and the later click on the same
 // view runs the decoder alone (no encoding).
-import { existsSync, readFileSync } from "node:fs";
+import { readFileSync } from "node:fs";
 import { join, resolve } from "node:path";
 import * as h from "./harness.mjs";
 
 h.skipUnlessReady();
-const statue = resolve(process.env.INSTAINPAINT_SHARED ?? "../shared", "data", "statue");
-if (!existsSync(statue)) {
-  console.log(`skipped: no ${statue} (the real capture this test clicks on)`);
-  process.exit(77);
-}
+const statue = h.sharedScene("statue");
 const fixture = resolve("tests/segment/fixture/mobile_sam_small.pt");
 const dir = h.scratch("segment");
 const server = await h.serve(["--scene", statue, "--height", "128", "--views", "2", "--segmenter", fixture,

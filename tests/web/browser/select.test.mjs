@@ -3,16 +3,12 @@
 // click with the click tool draws the statue's outline as the region, which Preview masks takes.
 // On the splats (the camera on one of the views), a click selects splats that lie on the statue
 // there and not on the ground below it, shift-click adds, and Fill then removes every one.
-import { existsSync, writeFileSync } from "node:fs";
-import { join, resolve } from "node:path";
+import { writeFileSync } from "node:fs";
+import { join } from "node:path";
 import * as h from "./harness.mjs";
 
 h.skipUnlessReady();
-const statue = resolve(process.env.INSTAINPAINT_SHARED ?? "../shared", "data", "statue");
-if (!existsSync(statue)) {
-  console.log(`skipped: no ${statue} (the real capture this test clicks on)`);
-  process.exit(77);
-}
+const statue = h.sharedScene("statue");
 const dir = h.scratch("select");
 const server = await h.serve(["--scene", statue, "--height", "128", "--views", "2", "--out", join(dir, "serve")]);
 const browser = await h.browser();
