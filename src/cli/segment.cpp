@@ -25,16 +25,6 @@ struct SegmentArgs {
   RuntimeOptions runtime;
 };
 
-std::array<double, 4> parse_box(const std::string& text) {
-  std::array<double, 4> b{};
-  char c1 = 0, c2 = 0, c3 = 0;
-  std::istringstream in(text);
-  if (!(in >> b[0] >> c1 >> b[1] >> c2 >> b[2] >> c3 >> b[3]) || c1 != ',' || c2 != ',' || c3 != ',' || !in.eof() ||
-      b[2] <= b[0] || b[3] <= b[1])
-    fail("--box {}: expected X0,Y0,X1,Y1 with X1 > X0 and Y1 > Y0", text);
-  return b;
-}
-
 // The photo darkened outside the mask, the mask's pixels tinted.
 Image overlay_of(const Image& photo, const Image& mask) {
   Image out = photo;
@@ -67,7 +57,7 @@ void run(const SegmentArgs& args) {
     const Click k = parse_click(c, "--not");
     prompt.points.push_back({k.x - 0.5, k.y - 0.5, false});
   }
-  if (!args.box.empty()) prompt.box = parse_box(args.box);
+  if (!args.box.empty()) prompt.box = parse_segment_box(args.box, "--box");
   if (prompt.points.empty() && !prompt.box) fail("give at least one --click or a --box");
   prompt.multimask = prompt.points.size() == 1 && !prompt.box;  // SAM's advice: one point is ambiguous
   SegmenterImage encoded;

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <sstream>
 
 #include "common/cpu_features.h"
 #include "common/error.h"
@@ -258,24 +259,44 @@ ClickedMask mask_from_clicks(const Segmenter& segmenter, const Image& photo, con
 
 ClickedMask mask_from_clicks(const Segmenter& segmenter, const SegmenterImage& encoded, const std::vector<Click>& clicks,
                              const std::vector<Click>& not_clicks, StageTimes* stages) {
+  if (clicks.empty()) fail("the segmenter needs a click on the object");
+  return mask_from_prompt(segmenter, encoded, clicks, not_clicks, std::nullopt, stages);
+}
+
+ClickedMask mask_from_prompt(const Segmenter& segmenter, const SegmenterImage& encoded, const std::vector<Click>& clicks,
+                             const std::vector<Click>& not_clicks, const std::optional<SegmentBox>& box,
+                             StageTimes* stages) {
   StageTimes unrecorded;
   StageTimes& times = stages ? *stages : unrecorded;
-  if (clicks.empty()) fail("the segmenter needs a click on the object");
+  if (clicks.empty() && !box) fail("the segmenter needs a click on the object or a box around it");
   SegmentPrompt prompt;
+  prompt.box = box;
   // A click's pixel centres are at +0.5; the network's points are pixel indices (it adds the 0.5).
   for (const Click& c : clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, true});
   for (const Click& c : not_clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, false});
-  prompt.multimask = clicks.size() == 1 && not_clicks.empty();  // one point is ambiguous: three masks
+  prompt.multimask = clicks.size() == 1 && not_clicks.empty() && !box;  // one point is ambiguous: three masks
   const Segmentation s = times.time("segmenter: decode the clicks", [&] { return segmenter.segment(encoded, prompt); });
   ClickedMask out;
   out.chosen = s.best();
   out.mask = s.mask(out.chosen);
   for (int k = 0; k < static_cast<int>(s.scores.size(0)); ++k) out.scores.push_back(s.scores[k].item<double>());
   out.pixels = std::count(out.mask.pixels.begin(), out.mask.pixels.end(), 1.f);
-  if (out.pixels == 0)
+  if (out.pixels == 0) {
+    if (clicks.empty()) fail("the segmenter found no object in the box {:.0f},{:.0f},{:.0f},{:.0f}", (*box)[0], (*box)[1], (*box)[2], (*box)[3]);
     fail("the segmenter found no object under the click{} at {:.0f},{:.0f}", clicks.size() == 1 ? "" : "s", clicks[0].x,
          clicks[0].y);
+  }
   return out;
+}
+
+SegmentBox parse_segment_box(const std::string& text, const std::string& what) {
+  SegmentBox b{};
+  char c1 = 0, c2 = 0, c3 = 0;
+  std::istringstream in(text);
+  if (!(in >> b[0] >> c1 >> b[1] >> c2 >> b[2] >> c3 >> b[3]) || c1 != ',' || c2 != ',' || c3 != ',' || !in.eof() ||
+      !std::isfinite(b[0] + b[1] + b[2] + b[3]) || b[2] <= b[0] || b[3] <= b[1])
+    fail("{} {}: expected X0,Y0,X1,Y1 with X1 > X0 and Y1 > Y0", what, text);
+  return b;
 }
 
 nlohmann::json ClickedMask::describe(const Segmenter& segmenter) const {

@@ -127,14 +127,15 @@ void PageSelection::set_reconstruction(const GaussianSet& reconstruction) {
 
 std::optional<json> PageSelection::select_on_view(const View& view, const Camera& camera,
                                                   const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
-                                                  std::optional<double> scene_far) {
+                                                  std::optional<double> scene_far, const std::optional<SegmentBox>& box) {
   Stopwatch watch;
+  if (box && !segmenter_) fail("a box around the object needs serve --segmenter");
   if (segmenter_) {
     check_clicks_inside(view.camera, view.name, clicks, not_clicks);
     double encode_ms = 0;
     const auto encoded = encoding("view " + view.name, [&] { return load_view_image(view); }, encode_ms);
     watch.lap();
-    const ClickedMask clicked = mask_from_clicks(*segmenter_, *encoded, clicks, not_clicks);
+    const ClickedMask clicked = mask_from_prompt(*segmenter_, *encoded, clicks, not_clicks, box);
     json answer = selection_answer(clicked.pixels, static_cast<int64_t>(clicked.mask.pixels.size()), clicked.mask);
     answer["how"] = "segmenter";
     answer["scores"] = clicked.scores;

@@ -418,7 +418,8 @@ struct WebServer::State {
   json select(const httplib::Request& req);
   // The request's `ply`: splats this server serves.
   fs::path selection_splats_file(const httplib::Request& req);
-  json select_on_view(const httplib::Request& req, const std::vector<Click>& clicks, const std::vector<Click>& not_clicks);
+  json select_on_view(const httplib::Request& req, const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
+                      const std::optional<SegmentBox>& box);
 
   ~State() { stop_worker(); }
   void worker_loop();
@@ -1211,14 +1212,21 @@ void serve_reads(WebServer::State& s) {
 json WebServer::State::select(const httplib::Request& req) {
   if (req.is_multipart_form_data() && !req.has_file("clicks") && req.has_file("ply") && !req.has_file("camera"))
     return {{"total", selection.splats(selection_splats_file(req))->size()}};  // read ahead: the click tool was chosen
-  if (!req.is_multipart_form_data() || !req.has_file("clicks") || !(req.has_file("camera") || req.has_file("view")))
+  const bool boxed = req.is_multipart_form_data() && req.has_file("box") && req.has_file("view");
+  if (!req.is_multipart_form_data() || !(req.has_file("clicks") || boxed) ||
+      !(req.has_file("camera") || req.has_file("view")))
     throw Refusal{400, "send multipart/form-data with clicks, and view (a scene view's index) or ply and camera"};
   std::vector<Click> clicks, not_clicks;
-  if (auto r = read_clicks(req, clicks)) throw *r;
+  if (req.has_file("clicks") && !(boxed && req.get_file_value("clicks").content.empty()))
+    if (auto r = read_clicks(req, clicks)) throw *r;
   if (req.has_file("not_clicks") && !req.get_file_value("not_clicks").content.empty())
     if (auto r = read_clicks(req, not_clicks, "not_clicks")) throw *r;
   try {
-    if (req.has_file("view")) return select_on_view(req, clicks, not_clicks);
+    if (req.has_file("view")) {
+      std::optional<SegmentBox> box;
+      if (boxed) box = parse_segment_box(req.get_file_value("box").content, "box");
+      return select_on_view(req, clicks, not_clicks, box);
+    }
     Camera camera;
     if (auto r = read_page_camera(req, out / "select", camera)) throw *r;
     return selection.select_splats(selection_splats_file(req), camera, clicks, not_clicks);
@@ -1235,7 +1243,7 @@ fs::path WebServer::State::selection_splats_file(const httplib::Request& req) {
 }
 
 json WebServer::State::select_on_view(const httplib::Request& req, const std::vector<Click>& clicks,
-                                      const std::vector<Click>& not_clicks) {
+                                      const std::vector<Click>& not_clicks, const std::optional<SegmentBox>& box) {
   if (!scene) throw Refusal{400, "the server was started without --scene: no views to click on"};
   int index = -1;
   try {
@@ -1249,7 +1257,7 @@ json WebServer::State::select_on_view(const httplib::Request& req, const std::ve
   const std::optional<double> far =
       scene->far ? std::optional<double>(*scene->far / normalization.scale) : std::nullopt;
   std::optional<json> answer =
-      selection.select_on_view(view, normalization.apply(view.camera), clicks, not_clicks, far);
+      selection.select_on_view(view, normalization.apply(view.camera), clicks, not_clicks, far, box);
   if (!answer) throw Refusal{409, "the scene's reconstruction is not ready yet: click again in a moment"};
   return *answer;
 }

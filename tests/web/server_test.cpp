@@ -250,6 +250,14 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
             "reference: 4000x4000 pixels, more than this server decodes for view view_001 (48x40: at most 4 times its "
             "pixels)");
   EXPECT_LT(test::peak_rss_mb() - peak, 100.0);
+  // A box on a view's photo prompts a segmenter: refused without one, and when it is not a box.
+  auto select = [&](httplib::MultipartFormDataItems items) { return s.client->Post("/api/select", items); };
+  EXPECT_EQ(error_of(select({{"view", "1", "", ""}, {"box", "2,3,20,30", "", ""}})),
+            "a box around the object needs serve --segmenter");
+  EXPECT_EQ(error_of(select({{"view", "1", "", ""}, {"box", "20,3,2,30", "", ""}})),
+            "box 20,3,2,30: expected X0,Y0,X1,Y1 with X1 > X0 and Y1 > Y0");
+  EXPECT_EQ(error_of(select({{"view", "1", "", ""}, {"box", "2,3,nan,30", "", ""}})),
+            "box 2,3,nan,30: expected X0,Y0,X1,Y1 with X1 > X0 and Y1 > Y0");
   r = s.client->Post("/api/masks", edit_form("view_001", std::string(80 << 10, 'x')));
   EXPECT_EQ(r->status, 413);
   // Nothing ran, nothing was left behind.

@@ -329,6 +329,7 @@ function selectView(i) {
   paintCanvas.height = view.height;
   viewClicks = [];
   viewNotClicks = [];
+  viewBox = null;
 }
 
 // A brush on `canvas`: red strokes of radius radiusOf() canvas pixels, or erasing while
@@ -371,22 +372,26 @@ function attachBrush(canvas, erasingNow, radiusOf, enabled = () => true) {
   return ctx;
 }
 let picking = false; // the click tool: a click selects the object under it instead of painting
+let boxing = false; // the box tool (with a segmenter): a box dragged around the object
 let viewClicks = []; // its clicks so far on the selected view, in the view's pixels
 let viewNotClicks = []; // with a segmenter: alt-clicks, points that are not the object
+let viewBox = null; // with a segmenter: the box dragged around the object, [x0, y0, x1, y1]
 const paint = attachBrush(paintCanvas, () => erasing, () => (Number($("size").value) * paintCanvas.width) / 400,
-  () => !picking);
+  () => !picking && !boxing);
 function setTool(tool) {
   erasing = tool === "eraser";
   picking = tool === "pick";
-  for (const t of ["brush", "eraser", "pick"]) $(t).classList.toggle("on", t === tool);
+  boxing = tool === "photo-box";
+  for (const t of ["brush", "eraser", "pick", "photo-box"]) $(t).classList.toggle("on", t === tool);
 }
 $("brush").onclick = () => setTool("brush");
 $("eraser").onclick = () => setTool("eraser");
 $("pick").onclick = () => setTool("pick");
+$("photo-box").onclick = () => setTool("photo-box");
 // The clicks after a click at (x, y): a plain click starts again, shift-click adds a point on the
 // object, alt-click (with a segmenter) a point that is not the object.
 function nextClicks(e, x, y, clicks, notClicks) {
-  if (e.altKey && api.info?.segmenter && clicks.length) return [clicks, [...notClicks, [x, y]]];
+  if (e.altKey && api.info?.segmenter && (clicks.length || viewBox)) return [clicks, [...notClicks, [x, y]]];
   if (e.shiftKey) return [[...clicks, [x, y]], notClicks];
   return [[[x, y]], []];
 }
@@ -400,17 +405,58 @@ paintCanvas.addEventListener("pointerdown", async (e) => {
   const r = paintCanvas.getBoundingClientRect();
   const x = ((e.clientX - r.left) * paintCanvas.width) / r.width, y = ((e.clientY - r.top) * paintCanvas.height) / r.height;
   const [clicks, notClicks] = nextClicks(e, x, y, viewClicks, viewNotClicks);
-  const selection = await requestSelection({ view: String(selected) }, clicks, paint, notClicks);
+  const box = e.shiftKey || e.altKey ? viewBox : null;  // a plain click starts again
+  const selection = await requestSelection({ view: String(selected), ...(box ? { box: boxText(box) } : {}) }, clicks,
+    paint, notClicks);
   if (!selection) return;
   viewClicks = clicks;
   viewNotClicks = notClicks;
+  viewBox = box;
   status(selection.how === "segmenter"
-    ? `${api.info.segmenter.network}: ${selection.pixels} pixels of the view from ${clicks.length} point` +
-      `${clicks.length > 1 ? "s" : ""} on the object and ${notClicks.length} off it; ` +
+    ? `${api.info.segmenter.network}: ${selection.pixels} pixels of the view from ${box ? "a box and " : ""}` +
+      `${clicks.length} point${clicks.length === 1 ? "" : "s"} on the object and ${notClicks.length} off it; ` +
       `${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds a point, alt-click ` +
       "marks what is not the object"
     : `selected ${selection.selected} of the reconstruction's ${selection.total} points (${selection.pixels} pixels ` +
       `of the view); ${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds`);
+});
+
+// The box tool: a box dragged on the photo (drawn as it is dragged), sent to the segmenter when
+// the button is released; a later shift-click adds points to it.
+const boxText = (b) => b.map((v) => +v.toFixed(2)).join(",");
+let boxStart = null;
+function canvasPoint(e) {
+  const r = paintCanvas.getBoundingClientRect();
+  return [((e.clientX - r.left) * paintCanvas.width) / r.width, ((e.clientY - r.top) * paintCanvas.height) / r.height];
+}
+function draggedBox(e) {
+  const [x, y] = canvasPoint(e);
+  return [Math.min(boxStart[0], x), Math.min(boxStart[1], y), Math.max(boxStart[0], x), Math.max(boxStart[1], y)];
+}
+paintCanvas.addEventListener("pointerdown", (e) => {
+  if (!boxing || selected < 0) return;
+  paintCanvas.setPointerCapture(e.pointerId);
+  boxStart = canvasPoint(e);
+});
+paintCanvas.addEventListener("pointermove", (e) => {
+  if (!boxing || !boxStart) return;
+  const [x0, y0, x1, y1] = draggedBox(e);
+  paint.clearRect(0, 0, paintCanvas.width, paintCanvas.height);
+  paint.strokeStyle = "#ff0000";
+  paint.lineWidth = Math.max(2, paintCanvas.width / 300);
+  paint.strokeRect(x0, y0, x1 - x0, y1 - y0);
+});
+paintCanvas.addEventListener("pointerup", async (e) => {
+  if (!boxing || !boxStart) return;
+  const box = draggedBox(e);
+  boxStart = null;
+  if (box[2] - box[0] < 2 || box[3] - box[1] < 2) return status("drag a box around the object", true);
+  const selection = await requestSelection({ view: String(selected), box: boxText(box) }, [], paint);
+  if (!selection) return;
+  [viewClicks, viewNotClicks, viewBox] = [[], [], box];
+  status(`${api.info.segmenter.network}: ${selection.pixels} pixels of the view from the box; ` +
+    `${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it; with the click tool, shift-click adds a ` +
+    "point, alt-click marks what is not the object");
 });
 $("clear").onclick = () => paint.clearRect(0, 0, paintCanvas.width, paintCanvas.height);
 $("mask-file").onchange = async (e) => {
@@ -627,7 +673,8 @@ async function requestSelection(fields, clicks, ctx, notClicks = []) {
     return null;
   }
   drawRuns(ctx, selection);
-  api.lastSelect = { ...selection, clicks: clicks.length, sent: { clicks: clickList(clicks), notClicks: clickList(notClicks) },
+  api.lastSelect = { ...selection, clicks: clicks.length,
+    sent: { clicks: clickList(clicks), notClicks: clickList(notClicks), box: fields.box ?? "" },
     clientSeconds: (performance.now() - clicked) / 1000 };
   return api.lastSelect;
 }
@@ -855,6 +902,7 @@ async function start() {
   }
   if (reconstruction?.result?.splats) listPlys([first]);  // not "none given": the scene's own
   $("fill-panel").hidden = !info.filling || !first;
+  $("photo-box").hidden = !info.segmenter;  // a box prompts the segmenter only
   const reference = views.findIndex((v) => v.name === reconstruction?.result?.reference_view);
   if (reference >= 0 && !exact) selectView(reference);
   $("hud").textContent = first ? first.name : "no splats: serve --ply FILE, or run an edit";
