@@ -1,5 +1,7 @@
 #include "common/parallel.h"
 
+#include <dlfcn.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cstdlib>
@@ -114,6 +116,39 @@ ThreadPlan thread_plan() {
 void set_thread_plan(const ThreadPlan& plan) {
   std::lock_guard<std::mutex> lock(plan_mutex);
   process_plan = plan;
+}
+
+namespace {
+using SetThreads = void (*)(int);
+using GetThreads = int (*)();
+// OpenBLAS's own functions, looked up in the process (no link to OpenBLAS itself).
+SetThreads openblas_set() { return reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads")); }
+GetThreads openblas_get() { return reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads")); }
+std::mutex blas_mutex;
+int blas_holders = 0, blas_before = 0;
+}  // namespace
+
+int openblas_threads() {
+  const GetThreads get = openblas_get();
+  return get ? get() : 0;
+}
+
+OneBlasThread::OneBlasThread() {
+  const SetThreads set = openblas_set();
+  const GetThreads get = openblas_get();
+  if (!set || !get) return;
+  std::lock_guard<std::mutex> lock(blas_mutex);
+  if (blas_holders++ == 0) {
+    blas_before = get();
+    set(1);
+  }
+}
+
+OneBlasThread::~OneBlasThread() {
+  const SetThreads set = openblas_set();
+  if (!set || !openblas_get()) return;
+  std::lock_guard<std::mutex> lock(blas_mutex);
+  if (--blas_holders == 0) set(blas_before);
 }
 
 BackgroundJobs::~BackgroundJobs() {

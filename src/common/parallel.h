@@ -37,6 +37,22 @@ void parallel_dynamic(int64_t n, int threads, const std::function<void(int64_t)>
 // Whether the two above run on OpenMP's team (LibTorch's), not on threads of their own.
 bool parallel_on_openmp();
 
+// While alive, OpenBLAS (Debian's LibTorch's BLAS, its own pthreads) runs each call on one
+// thread: LibTorch calls it from inside its OpenMP team (batched matrix products), and both
+// teams on the same cores slow each other down. MobileSAM's encoder in fp32 on 2 cores: 1.197
+// against 1.005 s with one BLAS thread (docs/editing.md, "With a segmentation network", its speed
+// table). Nothing where the BLAS is another (PyPI's torch: MKL). Safe side by side: the count is
+// restored when the last one ends.
+class OneBlasThread {
+ public:
+  OneBlasThread();
+  ~OneBlasThread();
+  OneBlasThread(const OneBlasThread&) = delete;
+  OneBlasThread& operator=(const OneBlasThread&) = delete;
+};
+// OpenBLAS's thread count now (0 where the BLAS is not OpenBLAS).
+int openblas_threads();
+
 // Jobs (file writes: PNG encoding, the atomic writes' fsync) on background threads while the
 // caller goes on, at most `limit` at a time: add() waits for the oldest when that many run.
 // add() and finish() rethrow the first failure; the destructor waits for what still runs.

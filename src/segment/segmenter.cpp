@@ -6,6 +6,7 @@
 
 #include "common/cpu_features.h"
 #include "common/error.h"
+#include "common/parallel.h"
 #include "segment/pillow_resize.h"
 #include "segment/sam_model.h"
 
@@ -151,6 +152,7 @@ torch::Tensor Segmenter::encoder_input(const Image& rgb, int& input_width, int& 
 
 SegmenterImage Segmenter::encode(const Image& rgb) const {
   torch::NoGradGuard no_grad;
+  const OneBlasThread blas;
   SegmenterImage out;
   const torch::Tensor input = encoder_input(rgb, out.input_width, out.input_height);
   out.width = rgb.width;
@@ -224,6 +226,7 @@ std::pair<torch::Tensor, torch::Tensor> decode_masks(const Model& m, const torch
 
 Segmentation Segmenter::segment(const SegmenterImage& image, const SegmentPrompt& prompt) const {
   torch::NoGradGuard no_grad;
+  const OneBlasThread blas;
   const Model& m = *model_;
   if (prompt.points.empty() && !prompt.box && !prompt.previous)
     fail("a segmentation prompt needs a point, a box or a previous mask");

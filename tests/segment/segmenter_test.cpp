@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/parallel.h"
 #include "io/image.h"
 #include "segment/pillow_resize.h"
 #include "segment/sam_model.h"
@@ -179,6 +180,26 @@ TEST(Segmenter, APromptNeedsSomething) {
   const SegmenterImage image = segmenter.encode(grey);
   EXPECT_EQ(test::error_message([&] { segmenter.segment(image, {}); }),
             "a segmentation prompt needs a point, a box or a previous mask");
+  EXPECT_EQ(test::error_message([&] { mask_from_prompt(segmenter, image, {}, {}, std::nullopt); }),
+            "the segmenter needs a click on the object or a box around it");
+  EXPECT_EQ(test::error_message([&] { parse_segment_box("4,5,3,9", "--box"); }),
+            "--box 4,5,3,9: expected X0,Y0,X1,Y1 with X1 > X0 and Y1 > Y0");
+  EXPECT_EQ(parse_segment_box("1.5,2,30,40.25", "--box"), (SegmentBox{1.5, 2, 30, 40.25}));
+}
+
+// The encoder and decoder run OpenBLAS on one thread (beside LibTorch's team) and give it back.
+TEST(Segmenter, OpenBlasRunsOneThreadWhileASegmenterWorks) {
+  const Segmenter segmenter = Segmenter::load(kMobile, SegmenterPrecision::Float32);
+  segmenter.encode(Image(40, 30, 3, 0.5f));  // OpenBLAS is set up by its first call
+  const int before = openblas_threads();
+  if (before == 0) GTEST_SKIP() << "LibTorch's BLAS here is not OpenBLAS";
+  {
+    const OneBlasThread outer;
+    EXPECT_EQ(openblas_threads(), 1);
+    { const OneBlasThread inner; }
+    EXPECT_EQ(openblas_threads(), 1);  // until the last one ends
+  }
+  EXPECT_EQ(openblas_threads(), before);
 }
 
 }  // namespace segmenter_errors_test
