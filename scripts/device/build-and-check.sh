@@ -124,7 +124,7 @@ if [[ " $STEPS " == *" eval "* ]]; then
   # default model; each run's whole wall time as the user waits for it, and its stage table.
   # (The first network call's extra ~190 ms, measured 2026-11-28 on an H200: CUDA_MODULE_LOADING=EAGER
   # moved 0.8 s into the context and 1.4 s more into the first call; a one-view warm-up beside the
-  # input's preparation took 290 ms itself and saved nothing; docs/benchmarks.md.)
+  # input's preparation took 290 ms itself and saved nothing; docs/benchmarks.md, "Not kept".)
   for run in release release default; do
     args=(--checkpoint /tmp/ii-release/model.safetensors)
     [ "$run" = default ] && args=()

@@ -3,7 +3,7 @@
 # models/default.safetensors) in bf16, first at 128 x 128 (the model card's rooms), then at
 # 256 x 256 (where the statue is judged and `mini` never trained). Starting from the embedded
 # model, a short call can only add to it; a 10 M `medium` model from scratch needed far more
-# than one call (2026-11-25, docs/benchmarks.md). Data as the model card's: synthetic rooms
+# than one call (2026-11-25, docs/benchmarks.md, "Not kept"). Data as the model card's: synthetic rooms
 # (seed 1001), the validation rooms (seed 777001), the real fern and statue when carried (fox is left
 # out to fit the 64 MiB a call carries), and the real captures of .device/realtrain when carried
 # (DTU scans 24 and 37, the four Strecha scenes: exact cameras; measured 2026-11-27, the Strecha

@@ -9,7 +9,7 @@
 #                             cut short still returns one), in pieces under the tool's 16 MiB a file:
 #                             cat model.part-* > model.safetensors
 #   train.log                 everything printed; stage1-log.jsonl, stage2-log.jsonl the runs' logs
-# Here, before: scripts/device/prepare.sh. Run 2026-11-25 at 128 x 128 (see docs/benchmarks.md):
+# Here, before: scripts/device/prepare.sh. Run 2026-11-25 at 128 x 128 (see docs/benchmarks.md, "Training"):
 #   run(command="SIZE=128 BATCH=16 STAGE_SECONDS=185 bash scripts/device/train-default-model.sh",
 #       carry=[".device/debs", ".device/scenes"])
 # Environment: SIZE (pixels, square), STAGE1_STEPS, STAGE2_STEPS, BATCH, ROOMS (training rooms),

@@ -243,14 +243,15 @@ nlohmann::json capture_scene(const fs::path& input, const fs::path& out, const C
   ColmapRunOptions colmap;
   colmap.executable = o.colmap;
   colmap.matcher = matcher;
-  // COLMAP's own default camera (focal, centre, one radial term): the 8 numbers of OPENCV made
-  // mapping 24 % slower on 60 photos for no better poses (docs/benchmarks.md, issue 47). A
-  // global bundle adjustment when the model has grown by 40 % rather than 10 %: most of the
-  // mapper's time, for what the local adjustments and the final global one settle anyway.
+  // COLMAP's own default camera (focal, centre, one radial term): the 8 numbers of OPENCV made mapping
+  // 24 % slower on 60 photos for no better poses (2026-11-27; docs/benchmarks.md, "Not kept"). A global
+  // bundle adjustment when the model has grown by 40 % rather than 10 %: most of the mapper's time, for
+  // what the local adjustments and the final global one settle anyway.
   colmap.camera_model = "SIMPLE_RADIAL";
   colmap.mapper_options = {"--Mapper.ba_global_images_ratio", "1.4", "--Mapper.ba_global_points_ratio", "1.4"};
-  // Each image matched with its next 5 (and 8, 16, 32 on) rather than 10: 40 % less matching
-  // for the same poses on 60 frames (issue 47); photos left unposed still get every pair.
+  // Each image matched with its next 5 (and 8, 16, 32 on) rather than 10: 40 % less matching for the
+  // same poses on 60 frames (2026-11-27, 0cd41cf; docs/benchmarks.md, "Capture from photos or a video
+  // (`capture`)"); photos left unposed still get every pair.
   colmap.sequential_overlap = 5;
   colmap.progress = o.on_colmap_progress;
   const ColmapRun run = run_colmap_steps(work, colmap);

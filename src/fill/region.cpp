@@ -86,9 +86,10 @@ RegionMask missing_within(const SplatCloud& cloud, const SplatCloud& kept, doubl
   return region;
 }
 
-// What `camera` sees of the splats within a box of its picture: depth and opacity, row-major over
-// the box. Only the box is drawn, with the splats that reach into it: drawing the whole view of a
-// million splats took most of a page's click (docs/benchmarks.md, "Selecting the object").
+// What `camera` sees of the splats within a box of its picture: depth and opacity, row-major over the
+// box. Only the box is drawn, with the splats that reach into it: drawing the whole view of a million
+// splats took most of a page's click (docs/benchmarks.md, "Selecting the object"; CHANGELOG.md,
+// 2026-12-03).
 struct SurfaceInBox {
   int x0 = 0, y0 = 0, width = 0, height = 0;
   std::vector<float> depth, alpha;

@@ -17,13 +17,13 @@
 
 namespace ii {
 
-// Measured (docs/benchmarks.md, 2026-11-29; feed-forward): a 32nd of the height gained the held-out
-// rooms' whole images 0.21 / 0.72 dB (128 / 256 rows) and make demo's 0.51 / 1.29 (whole /
-// masked), left SPIn-NeRF scene 1, the statue and the fern within 0.04, for 19 % more Gaussians.
-// A 16th closed make demo's last white slivers but lost the statue 0.13; the farthest deeper pixel
-// as the source, not the far side of an edge, smeared a slanted floor's colours (rooms -0.5);
-// the far side next to the edge carried the near side's colour (brown smears); one Gaussian per
-// 2 x 2 block lost the fern 0.13.
+// Measured (2026-11-29, 8d35f13; feed-forward; docs/usage.md, "The steps after the network, measured"):
+// a 32nd of the height gained the held-out rooms' whole images 0.21 / 0.72 dB (128 / 256 rows) and make
+// demo's 0.51 / 1.29 (whole / masked), left SPIn-NeRF scene 1, the statue and the fern within 0.04, for
+// 19 % more Gaussians. A 16th closed make demo's last white slivers but lost the statue 0.13; the
+// farthest deeper pixel as the source, not the far side of an edge, smeared a slanted floor's colours
+// (rooms -0.5); the far side next to the edge carried the near side's colour (brown smears); one
+// Gaussian per 2 x 2 block lost the fern 0.13.
 struct BehindEdgesOptions {
   // How far under the near side, as a fraction of the view's height (0: none).
   double fraction = 0.03125;

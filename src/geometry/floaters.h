@@ -21,7 +21,7 @@ namespace ii {
 struct FloaterOptions {
   // The opacity a floater keeps (1: none faded, the paper's Gaussians). 0 drops them and loses
   // the statue 0.2 dB (its far background's depths disagree between views); 0.3 and 0.5 lose
-  // nothing held out (docs/benchmarks.md, 2026-11-28).
+  // nothing held out (2026-11-28, 279a7e8; docs/usage.md, "The steps after the network, measured").
   double fade = 0.3;
   double tolerance = 0.1;  // in front of another view's depth by more than this fraction
   double edge = 0.15;      // on a depth edge: the log depths of its 3 x 3 pixels span more than this

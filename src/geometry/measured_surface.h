@@ -23,9 +23,10 @@ namespace ii {
 
 struct SceneInput;
 
-// Measured on the held-out synthetic rooms (128 and 256 rows) and make demo's room
-// (docs/benchmarks.md, 2026-11-28): opacity 0.6 lost the demo 1.6 dB; widths 0.2-0.7 traded the
-// rooms against the demo; the margin traded the region against the views' own pictures.
+// Measured on the held-out synthetic rooms (128 and 256 rows) and make demo's room (2026-11-28, bd2b3bc;
+// docs/usage.md, "The steps after the network, measured"): opacity 0.6 lost the demo 1.6 dB; widths
+// 0.2-0.7 traded the rooms against the demo; the margin traded the region against the views' own
+// pictures.
 struct MeasuredSurfaceOptions {
   // The splats' least opacity (0: none, the network's Gaussians as aligned to the points).
   double opacity = 0.95;
@@ -54,7 +55,7 @@ struct MeasuredSurfaceOptions {
   StereoOptions stereo;
   // A depth map's pixels that straddle an edge, moved to its far side (geometry/flying_pixels.h;
   // false: where they were measured). The held-out rooms +0.35 / +0.26 dB masked (128² / 256²),
-  // make demo's room +0.33 (docs/benchmarks.md, 2026-11-29).
+  // make demo's room +0.33 (2026-11-29, 6144227; docs/usage.md, "The steps after the network, measured").
   bool far_side = true;
   FlyingPixelOptions flying;
 };

@@ -34,7 +34,8 @@ struct DepthDetailOptions {
   double front = 1.2;      // a point this much farther than the nearest beside it counts as hidden
   // Inside a view's mask the correction is this many times wider: the hole's depth follows its
   // wider surroundings rather than the edge of the object that stood there (held-out rooms at
-  // 256², 2 spacings: 23.92 dB masked with the same width, 25.46 with 3x; docs/benchmarks.md).
+  // 256², 2 spacings: 23.92 dB masked with the same width, 25.46 with 3x; 2026-11-28, ec2bb79;
+  // docs/usage.md, "The steps after the network, measured").
   double region_factor = 4;
 };
 

@@ -24,7 +24,7 @@ namespace ii {
 struct SceneInput;
 
 // Measured on SPIn-NeRF scene 1 with an object-free photo as the reference, the held-out rooms
-// and make demo (docs/benchmarks.md, 2026-11-29).
+// and make demo (2026-11-29, bf15c3e; docs/usage.md, "The steps after the network, measured").
 struct RegionSurfaceOptions {
   double opacity = 0.95;  // the splats' least opacity; 0 = none (the network's Gaussians stay)
   // A ring pixel's weight falls off over this fraction of the height from the region pixel

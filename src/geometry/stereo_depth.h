@@ -17,10 +17,11 @@
 
 namespace ii {
 
-// Measured on SPIn-NeRF scene 1, the statue and the fern (docs/benchmarks.md, 2026-11-28): 24,
-// 32 or 48 depths, 96-192 rows gave the same held-out figures to 0.05 dB; a least correlation of
-// 0.3 and agreement within 4 % knew 62 % of scene 1's pixels instead of 44 % (0.5 and 2 %), the
-// statue +0.1 dB, the fern +0.15, each view's own picture +1.5; within 1 % lost 0.3 dB.
+// Measured on SPIn-NeRF scene 1, the statue and the fern (2026-11-28, 67e4edf; docs/usage.md, "The steps
+// after the network, measured"): 24, 32 or 48 depths, 96-192 rows gave the same held-out figures to
+// 0.05 dB; a least correlation of 0.3 and agreement within 4 % knew 62 % of scene 1's pixels instead of
+// 44 % (0.5 and 2 %), the statue +0.1 dB, the fern +0.15, each view's own picture +1.5; within 1 % lost
+// 0.3 dB.
 struct StereoOptions {
   int planes = 24;       // depths tried per pixel, evenly in log depth about the guide's
   double spread = 1.6;   // from the guide's depth / spread to its depth x spread

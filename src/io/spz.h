@@ -23,7 +23,7 @@ SplatCloud decode_spz(const uint8_t* data, size_t size, const std::filesystem::p
 // Version 3 (gzip, what viewers read), 12 fractional bits for positions unless the cloud's
 // extent needs fewer; SH with all 8 bits (Niantic's library keeps 5 and 4 by default: on a
 // refined statue with SH 3 that costs 18 dB of render PSNR for 23 % fewer bytes,
-// docs/benchmarks.md). Atomic.
+// docs/benchmarks.md, "Splat file formats"). Atomic.
 std::vector<uint8_t> encode_spz(const SplatCloud& cloud, const std::filesystem::path& name);
 void write_spz(const std::filesystem::path& path, const SplatCloud& cloud);
 

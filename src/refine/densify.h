@@ -14,9 +14,9 @@ struct DensifyOptions {
   double grad_threshold = 2e-4;  // mean |dL/d(projected centre)| in NDC units, 3DGS's
   double dense_fraction = 0.01;  // largest scale / scene extent at or below: clone; above: split
   double min_opacity = 0.005;    // pruned below
-  // Cap = start count x (1 + this), unless max_gaussians is set. 8x: a 10-minute statue run
-  // settles near 310 k Gaussians from 38.5 k (590 MB); at 2x its trees stayed blurred
-  // (23.75 dB held out against 24.32, docs/benchmarks.md).
+  // Cap = start count x (1 + this), unless max_gaussians is set. 8x: a 10-minute statue run settles near
+  // 310 k Gaussians from 38.5 k (590 MB); at 2x its trees stayed blurred (23.75 dB held out against
+  // 24.32, 2026-11-26, f8195f0; docs/benchmarks.md, "Refinement (`--refine`)").
   double max_growth = 7.0;
   int64_t max_gaussians = 0;
 };

@@ -639,12 +639,12 @@ torch::Tensor reference_region(const Prediction& prediction, bool keep_object) {
 
 }  // namespace
 
-// What the reference sees in its region (the region surface's pixels, else its mask), whichever
-// view or layer made it, and the region's cover are kept as they are: the other views' masks hide
-// the region, so nothing but the reference would move them, and it would slide them along its own
-// rays (scene 1 with an object-free reference: refined from the network's Gaussians there, the
-// region lost 4 dB; docs/benchmarks.md, 2026-12-02). Prediction::gaussians()'s order: one per pixel
-// of each context view, then each layer's.
+// What the reference sees in its region (the region surface's pixels, else its mask), whichever view or
+// layer made it, and the region's cover are kept as they are: the other views' masks hide the region, so
+// nothing but the reference would move them, and it would slide them along its own rays (scene 1 with an
+// object-free reference: refined from the network's Gaussians there, the region lost 4 dB; 2026-12-02,
+// 76931df; CHANGELOG.md, 2026-12-02). Prediction::gaussians()'s order: one per pixel of each context
+// view, then each layer's.
 RefinementStart refinement_start(const GaussianSet& gaussians, const Prediction& prediction, bool keep_object,
                                  int stride) {
   int64_t pixels = 0;

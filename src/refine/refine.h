@@ -59,12 +59,12 @@ struct RefineOptions {
   // coefficients up to this degree fitted from zero (3DGS's rate: colour_lr / 20), one degree
   // more at each tenth of the run, as 3DGS raises it over its first 3000 of 30000 steps.
   int sh_degree = 0;
-  // Adam learning rates, 3DGS's but for positions: scaled by the set's extent, starting at
-  // 30 times 3DGS's and decaying exponentially to position_lr_final (over the run, or sooner:
-  // position_decay_views). From the network's raw depth (off by a good part of a real scene)
-  // 300x was best; from the whole prediction, on the measured surfaces, 300x shakes what is
-  // right (docs/benchmarks.md, 2026-12-02: `fast` on the fern 26.6 dB at 300x, 28.1 at 30x; the
-  // statue 22.6 / 24.7; scene 1 whole 22.2 / 23.3; 10x 22.9; the synthetic rooms like 10x).
+  // Adam learning rates, 3DGS's but for positions: scaled by the set's extent, starting at 30 times
+  // 3DGS's and decaying exponentially to position_lr_final (over the run, or sooner:
+  // position_decay_views). From the network's raw depth (off by a good part of a real scene) 300x was
+  // best; from the whole prediction, on the measured surfaces, 300x shakes what is right (2026-12-02,
+  // 76931df; docs/benchmarks.md, "Refinement (`--refine`)": `fast` on the fern 26.6 dB at 300x, 28.1 at
+  // 30x; the statue 22.6 / 24.7; scene 1 whole 22.2 / 23.3; 10x 22.9; the synthetic rooms like 10x).
   double position_lr = 30 * kGaussianSplattingPositionLr, position_lr_final = kGaussianSplattingPositionLr,
          scale_lr = 5e-3, rotation_lr = 1e-3, opacity_lr = 5e-2, colour_lr = 2.5e-3;
   // The position rate's decay ends by the end of the run or after this many views' worth of
@@ -109,11 +109,11 @@ struct RefineOptions {
   // the opacity resets and the densification, while the position rate has decayed.
   std::vector<double> score_at = {0.7, 0.85};
   std::function<void(const RefineProgress&)> progress;  // after each step
-  // refine_prediction: each view's mask (the object, which the reference's region replaces) is
-  // fitted to what the prediction draws there, instead of being left free: the moved Gaussians
-  // then do not grow over the region where only masked views see it (make demo's room at 2,300
-  // steps: the test views 28.79 / 24.12 dB whole / masked refined without, 29.85 / 26.73 with,
-  // the feed-forward 29.01 / 27.86; docs/benchmarks.md, 2026-12-03).
+  // refine_prediction: each view's mask (the object, which the reference's region replaces) is fitted to
+  // what the prediction draws there, instead of being left free: the moved Gaussians then do not grow
+  // over the region where only masked views see it (make demo's room at 2,300 steps: the test views
+  // 28.79 / 24.12 dB whole / masked refined without, 29.85 / 26.73 with, the feed-forward 29.01 / 27.86;
+  // 2026-12-03, 2242c94; docs/benchmarks.md, "Refinement (`--refine`)"; CHANGELOG.md, 2026-12-03).
   bool start_in_masks = true;
   // Gaussians drawn with the optimised ones and never changed (a fill optimises its new
   // Gaussians alone in front of the rest of the scene; refine_prediction keeps the reference's
@@ -125,10 +125,10 @@ struct RefineOptions {
   GaussianSet whole_start;
 };
 
-// `--refine`'s settings by name: "fast" (1 minute), "balanced" (9 minutes, what a user gets by
-// default: on 2 cores the step count where scene 1's refined whole gains its 1 dB, docs/benchmarks.md,
-// 2026-12-03), "best" (20 minutes), a time budget ("90s", "2m", "1.5m"), or a number of steps
-// ("300"; "0" = no refinement). Error naming the text otherwise.
+// `--refine`'s settings by name: "fast" (1 minute), "balanced" (9 minutes, what a user gets by default:
+// on 2 cores the step count where scene 1's refined whole gains its 1 dB, 2026-12-03, 83c9a6f;
+// docs/benchmarks.md, "Refinement (`--refine`)"), "best" (20 minutes), a time budget ("90s", "2m",
+// "1.5m"), or a number of steps ("300"; "0" = no refinement). Error naming the text otherwise.
 RefineOptions refine_setting(const std::string& text);
 // Whether the options ask for any optimisation.
 bool refine_requested(const RefineOptions& options);
