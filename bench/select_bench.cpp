@@ -1,5 +1,5 @@
 // One click's selection on a splat scene of a million splats, as the page's click and
-// `fill --click` run it (issue 74's target: a click to the drawn selection in at most 1 s on
+// `fill --click` run it (the target: a click to the drawn selection in at most 1 s on
 // 2 cores): a floor and a wall of fine splats, a box of another colour standing on the floor,
 // clicked from a camera of 1008 x 567 pixels. `select object` is the grown selection alone,
 // `fill region` adds the outline taken as a stroke (fill/region.h).

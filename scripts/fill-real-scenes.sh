@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Fill the hole on real captures (issue 46): the statue and the fern, each refined into a splat
+# Fill the hole on real captures: the statue and the fern, each refined into a splat
 # scene with its object kept (infer --keep-object --refine, every 8th view held out), then an
 # object removed with one stroke on one view and filled (fill --view --mask). Writes, per scene,
 # held-out views before and after (compare.png: a row each) and an orbit of the filled scene.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The filled region on a real capture with object-free photos (SPIn-NeRF layout; issue 52):
+# The filled region on a real capture with object-free photos (SPIn-NeRF layout):
 #  1. the capture refined into splats with its object kept (infer --keep-object --refine 3m);
 #  2. ground-truth reference: for each test view given, the object removed with that view's test
 #     mask as the stroke and filled with its own photo as the reference (fill --view --mask

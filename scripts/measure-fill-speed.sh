@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# How long `instainpaint fill` takes on a large splat scene (issue 46: 1 M Gaussians filled
+# How long `instainpaint fill` takes on a large splat scene (the target: 1 M Gaussians filled
 # without refinement in 10 s or less on a 2-core CPU): a synthetic room written at 512 x 512 with
 # dense Gaussians (synth --detail), its splat scene (scene.ply) filled with the object's box at
 # the default working height; prints the whole command's wall time and its stage table.

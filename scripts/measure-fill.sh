@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Filling the hole in splat scenes with exact ground truth (issue 46): synthetic rooms, each
+# Filling the hole in splat scenes with exact ground truth: synthetic rooms, each
 # written as the splat scene a fit to its training views could hold (synth --save-gaussians:
 # scene.ply, the object in it, the floor under it never seen), the object's box removed and
 # the hole filled, the held-out views compared inside the object's mask with the room without it.

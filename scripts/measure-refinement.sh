@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Measures --refine (issues 21 and 35) with the default model (or --checkpoint):
+# Measures --refine with the default model (or --checkpoint):
 #   rooms:  the model card's evaluation rooms (synth --seed 9000, never used in training), at
 #           128² (8 rooms) and 256² (4 rooms), 12 input views and 4 object-free test views each:
 #           PSNR, SSIM, masked PSNR, masked SSIM of the test views for each of --rooms-settings,

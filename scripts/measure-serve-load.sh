@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Load and faults against `instainpaint serve --scene statue` (issue 34), as an attacker or an
+# Load and faults against `instainpaint serve --scene statue`, as an attacker or an
 # unlucky user would try them; prints the figures that docs/reliability.md records:
 #   1. wrk, 64 connections for 30 s on /api/info and on a view image, while an edit job runs:
 #      errors, latency percentiles, and whether the job still finishes;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Compressed splat formats against the float PLY (issue 32), for splat PLYs that `infer` wrote:
+# Compressed splat formats against the float PLY, for splat PLYs that `infer` wrote:
 # each converted to SPZ, SOG and compressed PLY (`instainpaint convert`: write time), converted
 # back (read time), its bytes per Gaussian and ratio to the PLY, and the PSNR of its renders
 # against the PLY's renders from every camera of the PLY's scene (`render --scene`: infer writes the scene's frame).

@@ -306,7 +306,7 @@ void add_bench_command(CLI::App& app) {
       "Examples: instainpaint bench --presets release --sizes 256\n"
       "          instainpaint bench --attention --tokens 16384   (release model's attention at 4 x 512²)\n"
       "          instainpaint bench --presets release --sizes 256 --baseline unfused --profile\n"
-      "          instainpaint bench --device cuda --presets release --sizes 512,904x512   (issue 9's configurations)");
+      "          instainpaint bench --device cuda --presets release --sizes 512,904x512   (the GPU speed targets' sizes)");
   cmd->callback([args] { run(*args); });
 }
 

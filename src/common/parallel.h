@@ -18,7 +18,7 @@ namespace ii {
 // the CPU; on a GPU run only the main thread's few CPU operations), the threads decoding inputs
 // ahead, and those encoding and writing outputs behind. Busy threads never outnumber the cores:
 // on an H100 machine's 16 cores, LibTorch's 16 threads beside 8 decoding and 8 writing made
-// eval's renders and metrics 3-4x slower (issue 45); LibTorch 8 and 4 + 4 gave back the speed.
+// eval's renders and metrics 3-4x slower (2026-11-26); LibTorch 8 and 4 + 4 gave back the speed.
 struct ThreadPlan {
   int cores = 1;    // what the command may use: --threads, else $OMP_NUM_THREADS, else every core
   int compute = 1;  // LibTorch's intra-op threads: every core on a CPU run, half on a GPU run

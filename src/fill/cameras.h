@@ -50,7 +50,7 @@ torch::Tensor region_flags(const RegionMask& region, const torch::Device& device
 // Which rows of `set` may draw near the region in `camera` (a flag per row): the pixels the
 // `region`'s Gaussians cover, grown by a tenth of that window's size and 4 pixels; every row when the
 // region is not in front of the camera. Renders that are read near the region alone draw only
-// these (issue 54: every render projected every splat of the scene).
+// these (until 2026-11-27 every render projected every splat of the scene).
 torch::Tensor near_region(const GaussianSet& set, const GaussianSet& region, const Camera& camera);
 // That window (nullopt: the region is not in front of the camera).
 std::optional<PixelWindow> region_window(const GaussianSet& region, const Camera& camera);

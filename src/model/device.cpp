@@ -76,7 +76,7 @@ void reset_peak_memory(const torch::Device& device) {
   }
 #if II_HAS_CUDA_TORCH
   // LibTorch 2.x's caching allocator answers "Invalid device argument" for a device it has not
-  // set up yet, which its first allocation does (seen on an H100; unverified fix, issue 30).
+  // set up yet, which its first allocation does (seen on an H100; unverified fix, 2026-11-25).
   static_cast<void>(torch::empty({1}, torch::TensorOptions().device(device)));
   c10::cuda::CUDACachingAllocator::resetPeakStats(device.index());
 #endif

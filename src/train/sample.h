@@ -1,5 +1,5 @@
 #pragma once
-// Training samples (spec §6.1-6.3, issue 7 "Data"): from any Scene, a clip of nearby frames;
+// Training samples (spec §6.1-6.3): from any Scene, a clip of nearby frames;
 // inputs at clip positions [0, 4, 9, 14] with the reference (4 or 9) first; 8 supervision
 // views from the other clip frames; poses normalised over the clip (translation only);
 // resize to cover the working size, then one random crop with exact intrinsics; masks drawn

@@ -714,7 +714,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   request.region = edit.region;
   request.propagation.mode = edit.mode;
   // The marked view's depth from the scene's reconstruction (made when the page opened): drawn
-  // at its working camera, in place of a second network call (issue 54).
+  // at its working camera, in place of a second network call (one network call per edit).
   if (reconstruction) {
     request.working_depth = stages.time("masks: depth from the scene's reconstruction",
                                         [&] { return reconstruction_depth_in(static_cast<size_t>(edit.view), input.preprocess); });

@@ -93,7 +93,7 @@ TEST(SceneMasks, CarvedMasksHoldLessBesideTheStatue) {
   EXPECT_EQ(carved.masks.at("IMG_2707").pixels, propagated.masks.at("IMG_2707").pixels);  // the marked view's own
 }
 
-// What serve does after the scene's reconstruction (issue 54): the marked view's depth drawn from
+// What serve does after the scene's reconstruction: the marked view's depth drawn from
 // that reconstruction's Gaussians instead of a second network call, the masks as good as with
 // the network's depth of that view. The statue and a synthetic room.
 void expect_reconstructions_depth_as_good(const Scene& scene, const OneMask& marked, int height) {

@@ -427,7 +427,7 @@ TEST(TruthReference, MovesAnObjectFreeTestViewToTheInputsOnly) {
   EXPECT_EQ(scene.test_views[0].name, "u");
 }
 
-// The issue-9 agreement target on a GPU: the default model's bf16 fast path on the GPU (network,
+// The agreement target on a GPU: the default model's bf16 fast path on the GPU (network,
 // CUDA rasterizer, metrics on the device) against the float32 CPU path: renders at least 40 dB
 // apart, the same metrics.
 TEST_F(Protocol, GpuEvaluationAgreesWithTheCpu) {

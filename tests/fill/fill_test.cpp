@@ -315,7 +315,7 @@ TEST(Fill, TheSurfacePlacementCoversEveryHolePixelOfItsViews) {
 }
 
 // Renders read near the region alone draw only the splats that reach it there: the filled
-// scene is the same, value for value, as with every splat drawn (issue 54).
+// scene is the same, value for value, as with every splat drawn.
 TEST(Fill, CullingTheRendersChangesNothing) {
   const SplatCloud with = room(true, false);
   FillOptions options = box_fill();
