@@ -93,14 +93,15 @@ std::string key_text(const PickleValue& k) {
     case Kind::Float: return fmt::format("{}", k.real);
     case Kind::Bytes: return fmt::format("<{} bytes>", k.text.size());
     case Kind::Global: return "<" + k.text + ">";
+    case Kind::Object: return "<" + k.text + " object>";
     default: return fmt::format("<{}>", k.kind_name());
   }
 }
 
 class Unpickler {
  public:
-  Unpickler(ByteReader& reader, const std::string& name, const PersistentLoad& load)
-      : r_(reader), name_(name), load_(load) {
+  Unpickler(ByteReader& reader, const std::string& name, const PersistentLoad& load, const PickleOptions& options)
+      : r_(reader), name_(name), load_(load), options_(options) {
     // Values shared through the memo may be repeated, but only in proportion to the input.
     budget_ = 16 * static_cast<uint64_t>(reader.remaining()) + (uint64_t{1} << 20);
   }
@@ -434,7 +435,8 @@ class Unpickler {
     if (!allowed_callables().count(name) && !storage_dtypes().count(name)) {
       if (name.rfind("torch.", 0) == 0 && name.size() > 7 && name.compare(name.size() - 7, 7, "Storage") == 0)
         fail_file(r_.file(), "refusing to load: unsupported tensor storage type '{}'", name);
-      fail_file(r_.file(), "refusing to load: the pickle references '{}', which is not a tensor, container or plain value",
+      if (!options_.opaque_objects)
+        fail_file(r_.file(), "refusing to load: the pickle references '{}', which is not a tensor, container or plain value",
                 name);
     }
     PickleValue v = scalar(Kind::Global);
@@ -529,7 +531,12 @@ class Unpickler {
     if (args.kind != Kind::Tuple) fail("{} arguments are a {}, not a tuple", op, args.kind_name());
     const Items& a = *args.items;
     const auto it = allowed_callables().find(callable.text);
-    if (it == allowed_callables().end()) fail("refusing to call '{}'", callable.text);
+    if (it == allowed_callables().end()) {
+      if (!options_.opaque_objects) fail("refusing to call '{}'", callable.text);
+      PickleValue object = scalar(Kind::Object);  // never called: what it would have made, unknown
+      object.text = callable.text;
+      return object;
+    }
     switch (it->second) {
       case Builtin::OrderedDict:
       case Builtin::Namespace:
@@ -574,6 +581,7 @@ class Unpickler {
     // An OrderedDict's state is its instance attributes: for a state dict, `_metadata`
     // (module versions), which says nothing about the tensors.
     if (target.kind == Kind::Dict && target.text == "collections.OrderedDict") return;
+    if (target.kind == Kind::Object) return;  // an opaque object's state is dropped with it
     fail("BUILD on a {} is not supported", target.kind_name());
   }
 
@@ -631,6 +639,7 @@ class Unpickler {
   ByteReader& r_;
   std::string name_;
   const PersistentLoad& load_;
+  PickleOptions options_;
   size_t at_ = 0;
   uint64_t budget_ = 0;
   std::vector<PickleValue> stack_;
@@ -661,6 +670,7 @@ std::optional<nlohmann::ordered_json> extra_json(const PickleValue& v, size_t de
     case Kind::String: return json(v.text);
     case Kind::Bytes: return json(fmt::format("<{} bytes>", v.text.size()));
     case Kind::Global: return json("<" + v.text + ">");
+    case Kind::Object: return json("<" + v.text + " object>");
     case Kind::Tensor: case Kind::Storage: return std::nullopt;
     case Kind::List: case Kind::Tuple: {
       json a = json::array();
@@ -799,12 +809,14 @@ const char* PickleValue::kind_name() const {
     case Kind::Tensor: return "tensor";
     case Kind::Global: return "global";
     case Kind::Storage: return "storage";
+    case Kind::Object: return "object";
   }
   return "value";
 }
 
-PickleValue unpickle(ByteReader& reader, const std::string& name, const PersistentLoad& persistent_load) {
-  Unpickler u(reader, name, persistent_load);
+PickleValue unpickle(ByteReader& reader, const std::string& name, const PersistentLoad& persistent_load,
+                     const PickleOptions& options) {
+  Unpickler u(reader, name, persistent_load, options);
   return u.run();
 }
 

@@ -38,14 +38,15 @@ size_t pth_dtype_size(const std::string& dtype);
 std::string pth_storage_dtype(const std::string& storage_class);
 
 struct PickleValue {
-  enum class Kind { None, Bool, Int, BigInt, Float, String, Bytes, List, Tuple, Dict, Tensor, Global, Storage };
+  enum class Kind { None, Bool, Int, BigInt, Float, String, Bytes, List, Tuple, Dict, Tensor, Global, Storage, Object };
   Kind kind = Kind::None;
   bool boolean = false;
   int64_t integer = 0;
   double real = 0;  // Float; BigInt's approximate value
   // String (UTF-8 as stored), Bytes, Global ("module.name"), BigInt (little-endian two's
   // complement bytes, as pickled), Dict (its class: "" for a dict, "collections.OrderedDict",
-  // "argparse.Namespace"), Storage (dtype).
+  // "argparse.Namespace"), Storage (dtype), Object (its class: an instance of a class outside the
+  // allow-list, read with PickleOptions::opaque_objects; nothing of it is kept).
   std::string text;
   std::shared_ptr<std::vector<PickleValue>> items;                            // List, Tuple
   std::shared_ptr<std::vector<std::pair<PickleValue, PickleValue>>> entries;  // Dict, in order
@@ -60,10 +61,19 @@ struct PickleValue {
 // value. It is handed the id as unpickled; the unpickler checks what it returns.
 using PersistentLoad = std::function<PickleValue(const PickleValue& pid)>;
 
+struct PickleOptions {
+  // A global outside the allow-list (a class, a function) is an opaque value instead of an
+  // Error, and an instance made from one an opaque Object: still never imported nor called, its
+  // arguments and state dropped. For checkpoints that keep training objects beside their
+  // tensors (PyTorch Lightning's: its callbacks' classes as keys, their states).
+  bool opaque_objects = false;
+};
+
 // Reads one pickle from `reader`'s position through its STOP opcode and leaves the reader
 // just after it. Errors read "<file>: <name> byte <offset>: <problem>", offsets being reader
 // positions. Without `persistent_load`, a persistent id is an error.
-PickleValue unpickle(ByteReader& reader, const std::string& name, const PersistentLoad& persistent_load = {});
+PickleValue unpickle(ByteReader& reader, const std::string& name, const PersistentLoad& persistent_load = {},
+                     const PickleOptions& options = {});
 
 // Every tensor in nested dicts, lists and tuples, under dotted keys: dict keys as text, list
 // positions as numbers ("gaudecoder.module.blocks.0.attn.qkv.weight_v", "optimizer.state.3.exp_avg").

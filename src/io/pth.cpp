@@ -58,7 +58,7 @@ PickleValue storage_value(const StorageRef& ref, std::shared_ptr<const std::vect
   return s;
 }
 
-PickleValue read_zip(const fs::path& path) {
+PickleValue read_zip(const fs::path& path, const PickleOptions& options) {
   const ZipArchive zip(path);
   // torch names every entry `<archive name>/...`; the archive name is free (the file stem
   // when saved), so find it from data.pkl.
@@ -101,11 +101,11 @@ PickleValue read_zip(const fs::path& path) {
   };
   const std::vector<uint8_t> bytes = zip.read(pkl);
   ByteReader reader(bytes.data(), bytes.size(), path);
-  return unpickle(reader, pkl, load);
+  return unpickle(reader, pkl, load, options);
 }
 
 // torch.save before 1.6 (or with _use_new_zipfile_serialization=False).
-PickleValue read_legacy(const fs::path& path) {
+PickleValue read_legacy(const fs::path& path, const PickleOptions& options) {
   const std::vector<uint8_t> file = read_file_bytes(path);
   ByteReader r(file.data(), file.size(), path);
   const PickleValue magic = unpickle(r, "magic number pickle");
@@ -139,7 +139,7 @@ PickleValue read_legacy(const fs::path& path) {
     }
     return storage_value(ref, it->second.data);
   };
-  const PickleValue result = unpickle(r, "main pickle", load);
+  const PickleValue result = unpickle(r, "main pickle", load, options);
   const PickleValue keys = unpickle(r, "storage key pickle");
   if (keys.kind != Kind::List) fail_file(path, "the storage key pickle is a {}, not a list", keys.kind_name());
   for (const PickleValue& key : *keys.items) {
@@ -167,7 +167,7 @@ PickleValue read_legacy(const fs::path& path) {
 
 }  // namespace
 
-PickleValue read_pth(const fs::path& path) {
+PickleValue read_pth(const fs::path& path, const PickleOptions& options) {
   std::error_code ec;
   if (!fs::exists(path, ec)) fail_file(path, "file not found");
   if (fs::is_directory(path, ec)) fail_file(path, "is a directory, expected a .pth file");
@@ -177,14 +177,14 @@ PickleValue read_pth(const fs::path& path) {
     if (!in) fail_file(path, "cannot open for reading");
     in.read(head, 2);
   }
-  if (head[0] == 'P' && head[1] == 'K') return read_zip(path);
-  if (static_cast<uint8_t>(head[0]) == 0x80) return read_legacy(path);  // a pickle's PROTO opcode
+  if (head[0] == 'P' && head[1] == 'K') return read_zip(path, options);
+  if (static_cast<uint8_t>(head[0]) == 0x80) return read_legacy(path, options);  // a pickle's PROTO opcode
   fail_file(path, "not a PyTorch checkpoint: neither a zip archive (torch.save since 1.6) nor a legacy torch.save stream");
 }
 
-std::map<std::string, PthTensor> read_pth_tensors(const fs::path& path) {
+std::map<std::string, PthTensor> read_pth_tensors(const fs::path& path, const PickleOptions& options) {
   std::map<std::string, PthTensor> out;
-  collect_tensors(read_pth(path), "", out, path);
+  collect_tensors(read_pth(path, options), "", out, path);
   return out;
 }
 

@@ -15,11 +15,11 @@ namespace ii {
 
 // The whole object tree of a checkpoint. Every tensor is checked against its storage: the
 // storage exists, holds exactly its declared element count, and contains the whole view.
-PickleValue read_pth(const std::filesystem::path& path);
+PickleValue read_pth(const std::filesystem::path& path, const PickleOptions& options = {});
 
 // Every tensor in nested dicts (and lists), under dotted keys ("gaudecoder.module.blocks.0...");
 // non-tensor leaves (training arguments, epoch) are ignored.
-std::map<std::string, PthTensor> read_pth_tensors(const std::filesystem::path& path);
+std::map<std::string, PthTensor> read_pth_tensors(const std::filesystem::path& path, const PickleOptions& options = {});
 
 // Everything that is not a tensor (training arguments, epoch, ...), as JSON text.
 std::string read_pth_extras_json(const std::filesystem::path& path);

@@ -5,72 +5,10 @@
 
 #include "common/error.h"
 #include "segment/sam_model.h"
+#include "tensor/tensor_taker.h"
 
 namespace ii::sam {
 namespace {
-
-std::string shape_text(at::IntArrayRef shape) {
-  std::vector<std::string> parts;
-  for (int64_t s : shape) parts.push_back(std::to_string(s));
-  return "[" + fmt::format("{}", fmt::join(parts, ", ")) + "]";
-}
-
-// Hands out a file's tensors by key, checks their shapes, and at the end names what was left.
-class TensorTaker {
- public:
-  TensorTaker(TensorMap tensors, std::filesystem::path file) : tensors_(std::move(tensors)), file_(std::move(file)) {}
-
-  bool has(const std::string& key) const { return tensors_.count(key) > 0; }
-  at::IntArrayRef shape(const std::string& key) const {
-    const auto it = tensors_.find(key);
-    if (it == tensors_.end()) fail("{}: the tensor {} is missing (a SAM or MobileSAM checkpoint has it)", file_.string(), key);
-    return it->second.sizes();
-  }
-  int64_t size(at::IntArrayRef shape, size_t dim) const {
-    if (shape.size() <= dim) fail("{}: a tensor of shape {} where {} dimensions were expected", file_.string(), shape_text(shape), dim + 1);
-    return shape[dim];
-  }
-  // The tensor as float; `shape` entries of -1 are any size.
-  torch::Tensor take(const std::string& key, std::vector<int64_t> shape = {}) {
-    const auto it = tensors_.find(key);
-    if (it == tensors_.end()) fail("{}: the tensor {} is missing (a SAM or MobileSAM checkpoint has it)", file_.string(), key);
-    const torch::Tensor& t = it->second;
-    if (!shape.empty()) {
-      bool ok = static_cast<size_t>(t.dim()) == shape.size();
-      for (size_t i = 0; ok && i < shape.size(); ++i) ok = shape[i] < 0 || shape[i] == t.size(static_cast<int64_t>(i));
-      if (!ok) fail("{}: {} has shape {}, expected {}", file_.string(), key, shape_text(t.sizes()), shape_text(shape));
-    }
-    if (!t.is_floating_point()) fail("{}: {} holds {}, not floating-point numbers", file_.string(), key, std::string(c10::toString(t.scalar_type())));
-    used_.insert(key);
-    torch::Tensor f = t.to(torch::kFloat).contiguous();
-    if (!torch::isfinite(f).all().item<bool>()) fail("{}: {} holds a NaN or an infinity", file_.string(), key);
-    return f;
-  }
-  int64_t count(const std::string& prefix, const std::string& suffix) const {
-    int64_t n = 0;
-    while (has(prefix + std::to_string(n) + suffix)) ++n;
-    return n;
-  }
-  // Every tensor taken, but those under `ignored` prefixes (unused heads, index buffers).
-  void check_all_used(const std::vector<std::string>& ignored) const {
-    std::vector<std::string> left;
-    for (const auto& [key, t] : tensors_) {
-      if (used_.count(key)) continue;
-      bool skip = false;
-      for (const std::string& p : ignored) skip = skip || key.rfind(p, 0) == 0 || key.find(p) != std::string::npos;
-      if (!skip) left.push_back(key);
-    }
-    if (!left.empty())
-      fail("{}: {} tensor(s) that no SAM or MobileSAM module has: {}{}", file_.string(), left.size(),
-           fmt::join(left.begin(), left.begin() + std::min<size_t>(left.size(), 5), ", "), left.size() > 5 ? ", ..." : "");
-  }
-  const std::filesystem::path& file() const { return file_; }
-
- private:
-  TensorMap tensors_;
-  std::filesystem::path file_;
-  std::set<std::string> used_;
-};
 
 Linear linear(TensorTaker& t, const std::string& key, int64_t out, int64_t in, bool bias = true) {
   Linear l;
@@ -309,7 +247,7 @@ MaskDecoder read_mask_decoder(TensorTaker& t, int64_t width) {
 }  // namespace
 
 Model model_from_tensors(TensorMap tensors, const std::filesystem::path& file) {
-  TensorTaker t(std::move(tensors), file);
+  TensorTaker t(std::move(tensors), file, "a SAM or MobileSAM checkpoint", "SAM or MobileSAM module");
   Model m;
   if (!t.has("mask_decoder.iou_token.weight")) {
     fail("{}: not a SAM or MobileSAM checkpoint (no mask_decoder.iou_token.weight; segment-anything's "

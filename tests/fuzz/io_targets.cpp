@@ -232,14 +232,26 @@ const bool pickle = register_target({
           "\x80\x02]q\x00(K\x01J\xff\xff\xff\xff\x8a\x02\x00\x01G@\x09!\xfbTD-\x18\x88N"s + pickle_string("s") +
               "C\x03" "abce.",  // list of ints, float, bool, None, str, bytes
           "\x80\x04\x95\x0c\x00\x00\x00\x00\x00\x00\x00}\x94\x8c\x01k\x94\x8c\x01v\x94s."s,  // protocol 4 frame
+          // {Cls: 1, "o": Obj() with state}: a class as a key, an instance built (Lightning's callbacks)
+          "\x80\x02}q\x00(cmod\nCls\nK\x01X\x01\x00\x00\x00ocmod\nObj\n)\x81}X\x01\x00\x00\x00" "aK\x02sbu."s,
       };
     },
     [](const uint8_t* data, size_t size) {
-      ByteReader reader(data, size, "input.pkl");
-      const PickleValue value = unpickle(reader, "data.pkl");
-      std::map<std::string, PthTensor> tensors;
-      collect_tensors(value, "", tensors, "input.pkl");
-      extras_to_json(value);
+      // Both readings: the one that keeps unknown classes opaque (LaMa's Lightning checkpoint),
+      // then the strict one, which may refuse what the first accepted.
+      for (const bool opaque : {true, false}) {
+        ByteReader reader(data, size, "input.pkl");
+        PickleOptions options;
+        options.opaque_objects = opaque;
+        try {
+          const PickleValue value = unpickle(reader, "data.pkl", {}, options);
+          std::map<std::string, PthTensor> tensors;
+          collect_tensors(value, "", tensors, "input.pkl");
+          extras_to_json(value);
+        } catch (const Error&) {
+          if (opaque) throw;
+        }
+      }
     }});
 
 const bool pth = register_target({

@@ -1,0 +1,274 @@
+#include "inpaint/lama.h"
+
+#include <optional>
+
+#include <fmt/format.h>
+
+#include "common/error.h"
+#include "common/parallel.h"
+#include "io/pth.h"
+#include "tensor/tensor_taker.h"
+
+namespace ii {
+
+namespace lama {
+
+// A convolution; `reflect` pads by reflection before it (FFC's padding_mode), else by zeros.
+struct Conv {
+  torch::Tensor weight, bias;  // bias undefined when the layer has none
+  int64_t stride = 1, padding = 0;
+  bool reflect = true;
+  torch::Tensor operator()(const torch::Tensor& x) const {
+    if (reflect && padding > 0) {
+      return torch::conv2d(at::reflection_pad2d(x, {padding, padding, padding, padding}), weight, bias, stride);
+    }
+    return torch::conv2d(x, weight, bias, stride, padding);
+  }
+};
+
+// A batch norm in inference: its statistics and affine terms as one scale and shift.
+struct Norm {
+  torch::Tensor scale, shift;  // (1, C, 1, 1)
+  torch::Tensor operator()(const torch::Tensor& x) const { return torch::addcmul(shift, x, scale); }
+};
+
+// SpectralTransform: a 1x1 convolution, the Fourier unit (a 1x1 convolution over the real and
+// imaginary parts of the channels' 2D spectra), and a 1x1 convolution of the sum.
+struct Spectral {
+  Conv reduce, spectrum, expand;
+  Norm reduce_norm, spectrum_norm;
+  torch::Tensor operator()(const torch::Tensor& x) const {
+    const torch::Tensor reduced = torch::relu(reduce_norm(reduce(x)));
+    return expand(reduced + fourier(reduced));
+  }
+  torch::Tensor fourier(const torch::Tensor& x) const {
+    const int64_t b = x.size(0), c = x.size(1), h = x.size(2), w = x.size(3);
+    // (b, c, h, w/2+1) complex -> (b, c, 2, h, w/2+1) real -> (b, 2c, h, w/2+1): channel k's real
+    // part, then its imaginary part.
+    const torch::Tensor spectrum_of_x = at::fft_rfftn(x, c10::nullopt, std::vector<int64_t>{-2, -1}, "ortho");
+    torch::Tensor s = torch::view_as_real(spectrum_of_x).permute({0, 1, 4, 2, 3}).reshape({b, 2 * c, h, -1});
+    s = torch::relu(spectrum_norm(spectrum(s)));
+    s = s.view({b, -1, 2, h, s.size(3)}).permute({0, 1, 3, 4, 2}).contiguous();
+    return at::fft_irfftn(torch::view_as_complex(s), std::vector<int64_t>{h, w}, std::vector<int64_t>{-2, -1}, "ortho");
+  }
+};
+
+// FFC_BN_ACT: local and global channels, four paths between them, a norm and a ReLU on each side.
+// A missing path (no global channels in or out) is left undefined.
+struct Ffc {
+  std::optional<Conv> l2l, l2g, g2l;
+  std::optional<Spectral> g2g;
+  std::optional<Norm> norm_l, norm_g;
+  // (local, global) -> (local, global); an undefined tensor is an empty side.
+  std::pair<torch::Tensor, torch::Tensor> operator()(const torch::Tensor& l, const torch::Tensor& g) const {
+    torch::Tensor out_l, out_g;
+    if (l2l) out_l = (*l2l)(l);
+    if (g2l && g.defined()) out_l = out_l.defined() ? out_l + (*g2l)(g) : (*g2l)(g);
+    if (l2g) out_g = (*l2g)(l);
+    if (g2g && g.defined()) out_g = out_g.defined() ? out_g + (*g2g)(g) : (*g2g)(g);
+    if (out_l.defined()) out_l = torch::relu((*norm_l)(out_l));
+    if (out_g.defined()) out_g = torch::relu((*norm_g)(out_g));
+    return {out_l, out_g};
+  }
+};
+
+struct Up {
+  torch::Tensor weight, bias;  // ConvTranspose2d (in, out, 3, 3), stride 2
+  Norm norm;
+};
+
+struct Generator {
+  Ffc init;                                    // after a reflection pad of 3: 7x7
+  std::vector<Ffc> down;                       // 3x3, stride 2
+  std::vector<std::pair<Ffc, Ffc>> blocks;     // residual
+  std::vector<Up> up;
+  Conv out;                                    // after a reflection pad of 3: 7x7, to RGB
+  int64_t ngf = 0;
+};
+
+}  // namespace lama
+
+namespace {
+
+using lama::Conv;
+using lama::Ffc;
+using lama::Norm;
+
+Norm read_norm(TensorTaker& t, const std::string& key, int64_t channels) {
+  const torch::Tensor gamma = t.take(key + ".weight", {channels}), beta = t.take(key + ".bias", {channels});
+  const torch::Tensor mean = t.take(key + ".running_mean", {channels}), var = t.take(key + ".running_var", {channels});
+  const torch::Tensor scale = gamma / torch::sqrt(var + 1e-5);
+  return Norm{scale.view({1, -1, 1, 1}), (beta - mean * scale).view({1, -1, 1, 1})};
+}
+
+Conv read_conv(TensorTaker& t, const std::string& key, int64_t out, int64_t in, int64_t k, int64_t stride,
+               int64_t padding, bool bias = false) {
+  Conv c;
+  c.weight = t.take(key + ".weight", {out, in, k, k});
+  if (bias) c.bias = t.take(key + ".bias", {out});
+  c.stride = stride;
+  c.padding = padding;
+  return c;
+}
+
+// One FFC_BN_ACT under `key` from `in` channels ((in_l, in_g)) to `out` ((out_l, out_g)).
+Ffc read_ffc(TensorTaker& t, const std::string& key, std::pair<int64_t, int64_t> in, std::pair<int64_t, int64_t> out,
+             int64_t k, int64_t stride, int64_t padding) {
+  const auto [in_l, in_g] = in;
+  const auto [out_l, out_g] = out;
+  const std::string f = key + ".ffc.";
+  Ffc ffc;
+  if (in_l > 0 && out_l > 0) ffc.l2l = read_conv(t, f + "convl2l", out_l, in_l, k, stride, padding);
+  if (in_l > 0 && out_g > 0) ffc.l2g = read_conv(t, f + "convl2g", out_g, in_l, k, stride, padding);
+  if (in_g > 0 && out_l > 0) ffc.g2l = read_conv(t, f + "convg2l", out_l, in_g, k, stride, padding);
+  if (in_g > 0 && out_g > 0) {
+    if (stride != 1) fail("{}: {}: a Fourier unit with stride {} (big-lama's have 1)", t.file().string(), key, stride);
+    if (t.has(f + "convg2g.lfu.conv_layer.weight"))
+      fail("{}: {}convg2g.lfu: LaMa's local Fourier unit (enable_lfu) is not supported; big-lama has none",
+           t.file().string(), f);
+    lama::Spectral s;
+    const int64_t half = out_g / 2;
+    s.reduce = read_conv(t, f + "convg2g.conv1.0", half, in_g, 1, 1, 0);
+    s.reduce_norm = read_norm(t, f + "convg2g.conv1.1", half);
+    s.spectrum = read_conv(t, f + "convg2g.fu.conv_layer", 2 * half, 2 * half, 1, 1, 0);
+    s.spectrum_norm = read_norm(t, f + "convg2g.fu.bn", 2 * half);
+    s.expand = read_conv(t, f + "convg2g.conv2", out_g, half, 1, 1, 0);
+    ffc.g2g = s;
+  }
+  if (out_l > 0) ffc.norm_l = read_norm(t, key + ".bn_l", out_l);
+  if (out_g > 0) ffc.norm_g = read_norm(t, key + ".bn_g", out_g);
+  return ffc;
+}
+
+// The global share of a layer's output channels, from its local-to-global convolution.
+int64_t global_out(const TensorTaker& t, const std::string& key) {
+  return t.has(key + ".ffc.convl2g.weight") ? t.size(t.shape(key + ".ffc.convl2g.weight"), 0) : 0;
+}
+
+lama::Generator read_generator(TensorTaker& t, const std::string& p) {
+  lama::Generator g;
+  const std::string first = p + "1.ffc.convl2l.weight";
+  if (!t.has(first))
+    fail("{}: no LaMa generator in it ({} is missing; big-lama/models/best.ckpt has it)", t.file().string(), first);
+  g.ngf = t.size(t.shape(first), 0);
+  g.init = read_ffc(t, p + "1", {4, 0}, {g.ngf, 0}, 7, 1, 0);
+  g.init.l2l->reflect = false;  // padded by the generator's ReflectionPad2d(3) before it
+  int64_t i = 2, channels = g.ngf, global = 0;
+  for (; t.has(p + std::to_string(i) + ".ffc.convl2l.weight"); ++i) {
+    const std::string key = p + std::to_string(i);
+    const int64_t out = t.size(t.shape(key + ".ffc.convl2l.weight"), 0) + global_out(t, key);
+    const int64_t out_g = global_out(t, key);
+    g.down.push_back(read_ffc(t, key, {channels - global, global}, {out - out_g, out_g}, 3, 2, 1));
+    channels = out;
+    global = out_g;
+  }
+  if (g.down.empty()) fail("{}: {}2 is missing: a LaMa generator downsamples", t.file().string(), p);
+  for (; t.has(p + std::to_string(i) + ".conv1.ffc.convl2l.weight"); ++i) {
+    const std::string key = p + std::to_string(i);
+    const std::pair<int64_t, int64_t> split{channels - global, global};
+    g.blocks.emplace_back(read_ffc(t, key + ".conv1", split, split, 3, 1, 1),
+                          read_ffc(t, key + ".conv2", split, split, 3, 1, 1));
+  }
+  ++i;  // ConcatTupleLayer
+  for (size_t k = 0; k < g.down.size(); ++k, i += 3) {
+    const std::string key = p + std::to_string(i);
+    lama::Up up;
+    up.weight = t.take(key + ".weight", {channels, channels / 2, 3, 3});
+    up.bias = t.take(key + ".bias", {channels / 2});
+    channels /= 2;
+    up.norm = read_norm(t, p + std::to_string(i + 1), channels);
+    g.up.push_back(up);
+  }
+  ++i;  // ReflectionPad2d(3)
+  g.out = read_conv(t, p + std::to_string(i), 3, channels, 7, 1, 0, true);
+  g.out.reflect = false;
+  return g;
+}
+
+// The generator's tensors: a Lightning checkpoint's under "generator.", or a bare generator's.
+TensorMap generator_tensors(const std::filesystem::path& file) {
+  PickleOptions options;
+  options.opaque_objects = true;  // Lightning keeps its callbacks' classes beside the weights
+  TensorMap out;
+  for (const auto& [key, tensor] : read_pth_tensors(file, options)) {
+    std::string k = key;
+    if (k.rfind("state_dict.", 0) == 0) k = k.substr(11);
+    if (k.rfind("generator.", 0) == 0) out.emplace(k.substr(10), tensor_from_pth(tensor, file));
+    else if (k.rfind("model.", 0) == 0) out.emplace(k, tensor_from_pth(tensor, file));
+  }
+  return out;
+}
+
+// np.pad(mode="symmetric") on the bottom and right to (height, width): the edge row repeated,
+// then the rows before it.
+torch::Tensor pad_symmetric(const torch::Tensor& x, int64_t height, int64_t width) {
+  auto indices = [](int64_t n, int64_t to) {
+    std::vector<int64_t> idx(static_cast<size_t>(to));
+    for (int64_t k = 0; k < to; ++k) {
+      const int64_t t = k % (2 * n);
+      idx[static_cast<size_t>(k)] = t < n ? t : 2 * n - 1 - t;
+    }
+    return torch::tensor(idx, torch::kLong);
+  };
+  return x.index_select(2, indices(x.size(2), height)).index_select(3, indices(x.size(3), width));
+}
+
+}  // namespace
+
+Lama Lama::load(const std::filesystem::path& file) {
+  std::error_code ec;
+  if (!std::filesystem::exists(file, ec)) fail("{}: no such LaMa file", file.string());
+  TensorTaker t(generator_tensors(file), file, "big-lama's generator", "LaMa generator's layer");
+  Lama out;
+  out.generator_ = std::make_shared<const lama::Generator>(read_generator(t, "model."));
+  t.check_all_used({"num_batches_tracked"});
+  out.file_ = file;
+  return out;
+}
+
+std::string Lama::description() const {
+  return fmt::format("LaMa FFC-ResNet (ngf {}, {} blocks)", generator_->ngf, generator_->blocks.size());
+}
+
+torch::Tensor Lama::generate(const torch::Tensor& input) const {
+  torch::NoGradGuard no_grad;
+  const OneBlasThread blas;  // LibTorch calls OpenBLAS inside its own threads (common/parallel.h)
+  const lama::Generator& g = *generator_;
+  auto pad3 = [](const torch::Tensor& x) { return at::reflection_pad2d(x, {3, 3, 3, 3}); };
+  auto [l, gl] = g.init(pad3(input), torch::Tensor());
+  for (const Ffc& d : g.down) std::tie(l, gl) = d(l, gl);
+  for (const auto& [a, b] : g.blocks) {
+    auto [l1, g1] = a(l, gl);
+    auto [l2, g2] = b(l1, g1);
+    l = l + l2;
+    gl = gl + g2;
+  }
+  torch::Tensor x = torch::cat({l, gl}, 1);
+  for (const lama::Up& u : g.up)
+    x = torch::relu(u.norm(torch::conv_transpose2d(x, u.weight, u.bias, 2, 1, 1)));
+  return torch::sigmoid(g.out(pad3(x)));
+}
+
+Image Lama::inpaint(const Image& photo, const Image& mask) const {
+  if (photo.channels != 3) fail("LaMa paints an RGB photo, not {} channels", photo.channels);
+  if (mask.width != photo.width || mask.height != photo.height)
+    fail("LaMa: the mask is {}x{} but the photo {}x{}", mask.width, mask.height, photo.width, photo.height);
+  const int64_t H = photo.height, W = photo.width;
+  const torch::Tensor rgb = torch::from_blob(const_cast<float*>(photo.pixels.data()), {1, H, W, 3}, torch::kFloat)
+                                .permute({0, 3, 1, 2});
+  const torch::Tensor region =
+      torch::from_blob(const_cast<float*>(mask.pixels.data()), {1, 1, H, W}, torch::kFloat).gt(0.5).to(torch::kFloat);
+  const int64_t h8 = (H + 7) / 8 * 8, w8 = (W + 7) / 8 * 8;
+  const torch::Tensor padded = pad_symmetric(rgb, h8, w8), padded_region = pad_symmetric(region, h8, w8);
+  const torch::Tensor painted = generate(torch::cat({padded * (1 - padded_region), padded_region}, 1));
+  const torch::Tensor blended = (padded_region * painted + (1 - padded_region) * padded)
+                                    .slice(2, 0, H)
+                                    .slice(3, 0, W)
+                                    .permute({0, 2, 3, 1})
+                                    .contiguous();
+  Image out(photo.width, photo.height, 3);
+  std::copy(blended.data_ptr<float>(), blended.data_ptr<float>() + blended.numel(), out.pixels.begin());
+  return out;
+}
+
+}  // namespace ii

@@ -1,0 +1,89 @@
+// LaMa natively (inpaint/lama.h) against the reference code: tests/inpaint/fixture/ is a small
+// generator of big-lama's layout with seeded random weights, saved as big-lama's best.ckpt is
+// (PyTorch Lightning's file), and the reference's inpainting of two photos, one of a size LaMa
+// pads (scripts/inpainter-reference/make-fixture.sh).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "inpaint/lama.h"
+#include "io/pth.h"
+#include "tensor/tensor_file.h"
+#include "test_support.h"
+
+namespace ii {
+namespace {
+
+const std::filesystem::path kFixture = "tests/inpaint/fixture";
+const std::filesystem::path kCheckpoint = kFixture / "lama-small" / "models" / "best.ckpt";
+
+Image image_of(const torch::Tensor& t, float scale) {
+  const torch::Tensor f = (t.to(torch::kFloat) * scale).contiguous();
+  const int channels = t.dim() == 3 ? static_cast<int>(t.size(2)) : 1;
+  Image out(static_cast<int>(t.size(1)), static_cast<int>(t.size(0)), channels);
+  std::copy(f.data_ptr<float>(), f.data_ptr<float>() + f.numel(), out.pixels.begin());
+  return out;
+}
+
+TEST(LamaParity, BigLamasLayoutEqualsTheReferenceAtTwoSizes) {
+  const Lama lama = Lama::load(kCheckpoint);
+  EXPECT_EQ(lama.description(), "LaMa FFC-ResNet (ngf 8, 2 blocks)");
+  const TensorMap reference = read_tensor_file(kFixture / "reference.safetensors");
+  std::ifstream in(kFixture / "cases.json");
+  const nlohmann::json cases = nlohmann::json::parse(in)["cases"];
+  ASSERT_EQ(cases.size(), 2u);
+  for (size_t k = 0; k < cases.size(); ++k) {
+    const std::string n = std::to_string(k);
+    const Image photo = image_of(reference.at("image_" + n), 1.f / 255);
+    const Image mask = image_of(reference.at("mask_" + n), 1.f / 255);
+    ASSERT_EQ(photo.width, cases[k]["width"].get<int>());
+    const Image painted = lama.inpaint(photo, mask);
+    const Image expected = image_of(reference.at("inpainted_" + n), 1.f);
+    ASSERT_EQ(painted.pixels.size(), expected.pixels.size());
+    float worst = 0, changed = 0;
+    for (size_t i = 0; i < painted.pixels.size(); ++i) {
+      const float d = std::abs(painted.pixels[i] - expected.pixels[i]);
+      worst = std::isnan(d) ? 1e9f : std::max(worst, d);
+      changed = std::max(changed, std::abs(expected.pixels[i] - photo.pixels[i]));
+    }
+    // 6e-8 here (2026-12-06); the Fourier units' normalisation made 'backward' moves it by 1.5e-4.
+    EXPECT_LE(worst, 1e-5f) << photo.width << "x" << photo.height;
+    EXPECT_GT(changed, 0.05f) << "the region was painted";  // the comparison is not of the photo with itself
+  }
+}
+
+TEST(LamaFiles, ErrorsNameTheFileAndTheKey) {
+  EXPECT_EQ(test::error_message([] { Lama::load("no/such/best.ckpt"); }), "no/such/best.ckpt: no such LaMa file");
+  const std::filesystem::path sam = "tests/segment/fixture/mobile_sam_small.pt";
+  EXPECT_EQ(test::error_message([&] { Lama::load(sam); }),
+            sam.string() + ": no LaMa generator in it (model.1.ffc.convl2l.weight is missing; big-lama/models/best.ckpt "
+                           "has it)");
+  const std::filesystem::path dir = test::temp_dir("lama-files");
+  const std::string bytes = test::file_bytes(kCheckpoint);
+  for (const size_t keep : {size_t{0}, size_t{100}, bytes.size() / 2, bytes.size() - 30}) {
+    const std::filesystem::path cut = dir / ("cut" + std::to_string(keep) + ".ckpt");
+    test::write_bytes(cut, bytes.substr(0, keep));
+    const std::string message = test::error_message([&] { Lama::load(cut); });
+    EXPECT_NE(message.find(cut.string()), std::string::npos) << message;
+  }
+}
+
+// Lightning keeps its callbacks' classes in the file: read as opaque values when asked for, and
+// refused (naming the class) otherwise, as every other checkpoint is.
+TEST(LamaFiles, LightningsClassesAreOpaqueNeverLoaded) {
+  const std::string refused = test::error_message([] { read_pth_tensors(kCheckpoint); });
+  EXPECT_NE(refused.find("'pytorch_lightning.callbacks.model_checkpoint.ModelCheckpoint'"), std::string::npos) << refused;
+  PickleOptions options;
+  options.opaque_objects = true;
+  const auto tensors = read_pth_tensors(kCheckpoint, options);
+  EXPECT_TRUE(tensors.count("state_dict.generator.model.1.ffc.convl2l.weight"));
+  EXPECT_TRUE(tensors.count("state_dict.discriminator.model0.0.ffc.convl2l.weight"));
+  const std::string extras = extras_to_json(read_pth(kCheckpoint, options));
+  EXPECT_NE(extras.find("<omegaconf.dictconfig.DictConfig object>"), std::string::npos) << extras;
+}
+
+}  // namespace
+}  // namespace ii
