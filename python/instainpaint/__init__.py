@@ -202,7 +202,7 @@ class Gaussians:
              reference: Union[PathLike, Any, None] = None, reference_view: Optional[str] = None,
              views: int = 4, height: int = 256, up: Optional[Sequence[float]] = None,
              refine: Optional[str] = None, all_views: bool = False, placement: str = "surface",
-             inpainter: str = "telea", predictor: Optional["Predictor"] = None) -> "Gaussians":
+             inpainter: str = "", predictor: Optional["Predictor"] = None) -> "Gaussians":
         """Removes a region and fills the hole it leaves, as `instainpaint fill`; returns new
         Gaussians in the scene's frame (these stay as they are), every other splat as it was.
 
@@ -217,8 +217,9 @@ class Gaussians:
         splats alone. placement="surface" (default) continues the scene's surface around the hole
         and places the reference's pixels on it; "network" takes the network's Gaussians of the
         hole (all_views=True: of every chosen view's hole, not the reference's alone).
-        inpainter= without reference=, the built-in 2D inpainter of the reference's hole: "telea"
-        (default), "ns" or "patch" (patches copied inward: texture continues, no smear).
+        inpainter= without reference=, the 2D inpainter of the reference's hole: "telea", "ns",
+        "patch" (patches copied inward: texture continues, no smear) or a LaMa file; default
+        $INSTAINPAINT_INPAINTER, else "telea".
         predictor: default the built-in model on the best device.
         """
         given: Dict[str, Camera] = {}
@@ -232,7 +233,7 @@ class Gaussians:
             self._g, None if box is None else [float(v) for v in box],
             None if selection is None else selection._g, view or "", mask, _clicks(click), given, reference,
             reference_view or "", views, height, None if up is None else [float(v) for v in up],
-            "" if refine is None else str(refine), all_views, placement, inpainter, predictor._p))
+            "" if refine is None else str(refine), all_views, placement, os.fspath(inpainter), predictor._p))
 
 
 def load_gaussians(path: PathLike) -> Gaussians:
@@ -265,13 +266,16 @@ class Predictor:
 
     def predict(self, scene: Scene, *, context: Sequence[str] = (), views: int = 4,
                 reference: Union[PathLike, Any, None] = None, reference_view: str = "", height: int = 256,
-                masks: Optional[Mapping[str, Any]] = None, keep_object: bool = False,
+                masks: Optional[Mapping[str, Any]] = None, keep_object: bool = False, inpainter: str = "",
                 **geometry: Any) -> Gaussians:
         """Predicts the inpainted scene's Gaussians in one forward pass.
 
         context: view names, reference first (default: `views` views chosen around the reference).
-        reference: the 2D-inpainted reference photo, a file or an H x W x 3 array (default: OpenCV's
-        Telea inpainting of the reference view, a stand-in for a real 2D inpainter).
+        reference: the 2D-inpainted reference photo, a file or an H x W x 3 array (default: the
+        reference view painted by `inpainter`).
+        inpainter: without reference=, what paints the reference view's region: "telea", "ns",
+        "patch", or a LaMa file (big-lama/models/best.ckpt: a learned inpainter, far better than the
+        classical ones); default $INSTAINPAINT_INPAINTER, else "telea".
         height: the working height in pixels (a multiple of the patch size after scaling).
         masks: object masks by view name (H x W arrays at the photos' size), instead of the scene's.
         keep_object: reconstruct the scene as captured (no masks, the reference's own photo).
@@ -281,7 +285,8 @@ class Predictor:
         if reference is not None and (isinstance(reference, str) or hasattr(reference, "__fspath__")):
             reference = os.fspath(reference)
         return Gaussians(self._p._predict(scene, list(context), views, reference, reference_view, height,
-                                          keep_object, dict(masks or {}), _geometry_texts(geometry)))
+                                          keep_object, dict(masks or {}), _geometry_texts(geometry),
+                                          os.fspath(inpainter)))
 
 
 def _with_geometry_keywords(predict: Callable) -> None:

@@ -22,6 +22,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "inpaint/lama_inpainter.h"
 #include "common/error.h"
 #include "common/files.h"
 #include "data/inpaint2d.h"
@@ -423,7 +424,7 @@ NB_MODULE(_core, m) {
            const std::string& placement, const std::string& inpainter, const Predictor& predictor) {
           FillOptions o;
           o.placement = parse_fill_placement(placement);
-          o.inpainter = parse_inpainter(inpainter);
+          o.inpainter = inpainter_from_flag(inpainter, "telea");
           o.scene_name = "the Gaussians";
           if (box) {
             std::string text;
@@ -525,9 +526,11 @@ NB_MODULE(_core, m) {
       .def("_predict",
            [](const Predictor& p, const Scene& scene, const std::vector<std::string>& context, int views,
               const nb::object& reference, const std::string& reference_view, int height, bool keep_object,
-              const std::map<std::string, AnyArray>& masks, const std::map<std::string, std::string>& geometry) {
+              const std::map<std::string, AnyArray>& masks, const std::map<std::string, std::string>& geometry,
+              const std::string& inpainter) {
              auto input = std::make_shared<SceneInputOptions>(
                  input_options(context, views, reference, reference_view, height, keep_object, masks));
+             input->inpainter = inpainter_from_flag(inpainter, "telea");
              for (const auto& [name, text] : geometry) set_geometry_setting(input->geometry, name, text);
              PyGaussians g;
              {
@@ -541,7 +544,7 @@ NB_MODULE(_core, m) {
              return g;
            },
            "scene"_a, "context"_a, "views"_a, "reference"_a.none(), "reference_view"_a, "height"_a, "keep_object"_a,
-           "masks"_a, "geometry"_a);
+           "masks"_a, "geometry"_a, "inpainter"_a);
 
   m.def("_masks_from_one",
         [](const Scene& scene, const std::string& view, const nb::object& region,

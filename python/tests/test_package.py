@@ -422,8 +422,14 @@ def test_fill_removes_a_box_and_fills_it_keeping_every_other_splat(tmp_path, sta
                          predictor=predictor)
     assert patched.fill_report["inpainter"] == "patch"
     np.testing.assert_array_equal(patched.means[:kept], scene.means[~inside])
-    with pytest.raises(ii.Error, match="unknown 2D inpainter 'lama' \\(telea, ns or patch\\)"):
+    with pytest.raises(ii.Error, match="inpainter 'lama': neither telea, ns, patch nor a LaMa file"):
         scene.fill(box=[*centre, *size], scene=statue, inpainter="lama", predictor=predictor)
+    # LaMa (the small fixture of tests/inpaint in place of big-lama's weights) paints the hole.
+    lama = REPO / "tests" / "inpaint" / "fixture" / "lama-small" / "models" / "best.ckpt"
+    painted = scene.fill(box=[*centre, *size], scene=statue, views=2, height=HEIGHT, inpainter=lama,
+                         predictor=predictor)
+    assert painted.fill_report["inpainter"] == "lama"
+    assert painted.fill_report["inpainter_file"]["network"] == "LaMa FFC-ResNet (ngf 8, 2 blocks)"
     network = scene.fill(box=[*centre, *size], scene=statue, views=2, height=HEIGHT, placement="network",
                          predictor=predictor)
     assert network.fill_report["placement"] == "network"

@@ -1,5 +1,7 @@
 #include "cli/edit_options.h"
 
+#include "inpaint/lama_inpainter.h"
+
 #include <spdlog/spdlog.h>
 
 #include "common/error.h"
@@ -66,11 +68,7 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
   cmd->add_option("--reference-view", args.reference_view,
                   "The reference view when the context is chosen automatically (default: the --view of a one-mask "
                   "edit, else the view nearest the middle of the capture)");
-  cmd->add_option("--reference-inpainter", args.inpainter,
-                  "Classical 2D inpainting of the reference when no --reference is given: telea, ns "
-                  "(Navier-Stokes) or patch (patches of the photo copied inward)")
-      ->check(CLI::IsMember({"telea", "ns", "patch"}))
-      ->capture_default_str();
+  cmd->add_option("--inpainter,--reference-inpainter", args.inpainter, kInpainterHelp + std::string("telea"));
   add_geometry_options(cmd, args.geometry);
 }
 
@@ -111,7 +109,7 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
 
 void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
-  options.inpainter = parse_inpainter(args.inpainter);
+  options.inpainter = inpainter_from_flag(args.inpainter, "telea");
   options.geometry = args.geometry;
   if (args.mode == "insert") options.geometry = options.geometry.for_insertion();
 }

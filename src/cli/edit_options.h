@@ -12,6 +12,10 @@
 
 namespace ii::cli {
 
+// --inpainter's help; the caller appends the default's name.
+inline const std::string kInpainterHelp =
+    "The 2D inpainter that paints the reference's region when no --reference is given: telea, ns (OpenCV's diffusion: smooth), patch (patches of the photo copied inward), or a LaMa file (big-lama/models/best.ckpt from github.com/advimman/lama: a learned inpainter, far better); default $INSTAINPAINT_INPAINTER, else ";
+
 struct EditArgs {
   std::string view, mask;
   std::vector<std::string> clicks;      // --click X,Y (repeatable)
@@ -25,7 +29,7 @@ struct EditArgs {
   int dilate = -1;  // -1 = automatic
   std::string carve = "on";  // --carve: on, off
   std::string reference_view;       // --reference-view
-  std::string inpainter = "telea";  // --reference-inpainter
+  std::string inpainter;  // --inpainter (empty: $INSTAINPAINT_INPAINTER, else telea)
   GeometryOptions geometry;  // add_geometry_options
 };
 

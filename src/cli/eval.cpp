@@ -6,6 +6,7 @@
 
 #include "cli/commands.h"
 #include "cli/edit_options.h"
+#include "inpaint/lama_inpainter.h"
 #include "cli/refine_options.h"
 #include "cli/runtime.h"
 #include "common/error.h"
@@ -59,7 +60,7 @@ void run(const EvalArgs& a) {
   o.context = a.context;
   o.reference_view = a.edit.reference_view;
   o.geometry = a.edit.geometry;
-  o.inpainter = parse_inpainter(a.edit.inpainter);
+  o.inpainter = inpainter_from_flag(a.edit.inpainter, "telea");
   if (a.keep_object && (!a.reference.empty() || !a.edit.view.empty()))
     fail("--keep-object evaluates a reconstruction: drop --reference, --view and --mask");
   o.keep_object = a.keep_object;

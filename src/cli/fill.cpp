@@ -6,11 +6,13 @@
 #include <sstream>
 
 #include "cli/commands.h"
+#include "cli/edit_options.h"
 #include "cli/refine_options.h"
 #include "cli/runtime.h"
 #include "common/error.h"
 #include "common/files.h"
 #include "common/stage_times.h"
+#include "inpaint/lama_inpainter.h"
 #include "common/stopwatch.h"
 #include "data/image_ops.h"
 #include "data/inpaint2d.h"
@@ -43,7 +45,7 @@ struct FillArgs {
   std::string up;
   std::string checkpoint;
   std::string placement = "surface";
-  std::string inpainter = "telea";
+  std::string inpainter;  // empty: $INSTAINPAINT_INPAINTER, else telea
   int views = 4;
   int height = 256;
   bool all_views = false;
@@ -136,7 +138,7 @@ void run(const FillArgs& a) {
   o.camera_options.reference = a.reference_view;  // empty: the stroke's --view (fill_splats), else the best
   if (!a.up.empty()) o.camera_options.up = parse_up(a.up);
   o.placement = parse_fill_placement(a.placement);
-  o.inpainter = parse_inpainter(a.inpainter);
+  o.inpainter = inpainter_from_flag(a.inpainter, "telea");
   o.reference_only = !a.all_views;
   o.fill = !a.delete_only;
   if (!a.box.empty()) o.box = parse_box(a.box);
@@ -229,12 +231,7 @@ void add_fill_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--reference-view", a->reference_view, "The camera to take as the reference (default: --view's, "
                                                           "else the one that sees most of the region)");
-  cmd->add_option("--inpainter", a->inpainter,
-                  "Without --reference, the built-in 2D inpainter of the reference's hole: patch (patches of the "
-                  "picture copied inward: texture and edges continue), telea or ns (OpenCV's diffusion: smooth, a "
-                  "radial smear across a large hole)")
-      ->check(CLI::IsMember({"patch", "telea", "ns"}))
-      ->capture_default_str();
+  cmd->add_option("--inpainter", a->inpainter, kInpainterHelp + std::string("telea"));
   cmd->add_option("--views", a->views, "Views the network reads")->capture_default_str();
   cmd->add_option("--height", a->height, "Working height of the views (a multiple of 8)")->capture_default_str();
   cmd->add_option("--placement", a->placement,

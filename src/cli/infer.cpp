@@ -129,6 +129,7 @@ void run(const InferArgs& a) {
       {"format", scene.format},
       {"context", nlohmann::json::array()},
       {"reference", p.input.reference_source},
+      {"inpainter", p.input.reference_inpainter},
       {"geometry", p.describe_geometry()},
       {"edit", edit_report},
       {"refine", refine_report},

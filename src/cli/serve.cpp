@@ -7,6 +7,7 @@
 
 #include "cli/commands.h"
 #include "cli/edit_options.h"
+#include "inpaint/lama_inpainter.h"
 #include "cli/runtime.h"
 #include "common/error.h"
 #include "io/splat_file.h"
@@ -28,7 +29,7 @@ struct ServeArgs {
   std::string token;
   bool no_token = false;
   std::string checkpoint;
-  std::string segmenter;
+  std::string segmenter, inpainter;
   GeometryOptions geometry;
   RuntimeOptions runtime;
 };
@@ -67,6 +68,8 @@ void run(const ServeArgs& a) {
     predictor.emplace(a.checkpoint, runtime.device, runtime.precision);
     spdlog::info("model {} on {}", predictor->model_name(), runtime.device.str());
   }
+  o.inpainter = inpainter_from_flag(a.inpainter, "telea");
+  if (o.inpainter.learned) spdlog::info("inpainter {}", o.inpainter.describe()["network"].get<std::string>());
   if (const auto path = segmenter_path(a.segmenter)) {
     o.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
         *path, parse_segmenter_precision(a.runtime.precision)));
@@ -112,6 +115,8 @@ void add_serve_command(CLI::App& app) {
                   "SAM or MobileSAM checkpoint as published (mobile_sam.pt, sam_vit_b_01ec64.pth, ...; default "
                   "$INSTAINPAINT_SEGMENTER): the page's clicks draw its outline at once (shift-click: another point "
                   "on the object, alt-click: a point that is not)");
+  cmd->add_option("--inpainter", args->inpainter,
+                  kInpainterHelp + std::string("telea. With a LaMa file, the page's Run and Fill paint with it"));
   cmd->add_option("--height", args->height, "Working height of edits in pixels")
       ->capture_default_str()
       ->check(CLI::Range(8, 4096));

@@ -37,4 +37,15 @@ Image inpaint_classical(const Image& rgb, const Image& mask, ClassicalInpainter 
   return out;
 }
 
+nlohmann::json Inpainter::describe() const {
+  return learned ? learned->describe() : nlohmann::json{{"name", inpainter_name(classical)}};
+}
+
+Image Inpainter::paint(const Image& rgb, const Image& mask) const {
+  if (!learned) return inpaint_classical(rgb, mask, classical);
+  if (rgb.channels != 3 || mask.channels != 1 || rgb.width != mask.width || rgb.height != mask.height)
+    fail("inpainting needs an RGB image and a one-channel mask of the same size");
+  return learned->paint(rgb, mask);
+}
+
 }  // namespace ii

@@ -2,7 +2,10 @@
 // Classical 2D inpainting (OpenCV's Telea and Navier-Stokes methods, CImg's patches), used to make
 // a reference image when the user has none from a learned 2D inpainter, and as a baseline in
 // evaluation.
+#include <memory>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "io/image.h"
 
@@ -14,6 +17,30 @@ namespace ii {
 enum class ClassicalInpainter { Telea, NavierStokes, Patches };
 std::string inpainter_name(ClassicalInpainter method);            // "telea", "ns", "patch"
 ClassicalInpainter parse_inpainter(const std::string& name);       // the names above, else an error
+
+// A learned 2D inpainter (inpaint/: LaMa), seen from here through what it paints.
+class LearnedInpainter {
+ public:
+  virtual ~LearnedInpainter() = default;
+  // `rgb` with the region (mask > 0.5) painted; the rest as it was.
+  virtual Image paint(const Image& rgb, const Image& mask) const = 0;
+  virtual std::string name() const = 0;             // "lama"
+  virtual nlohmann::json describe() const = 0;      // for run.json: name, network, file, its SHA-256
+};
+
+// The 2D inpainter that paints a reference: a classical method, or a learned one when given.
+struct Inpainter {
+  ClassicalInpainter classical = ClassicalInpainter::Telea;
+  std::shared_ptr<const LearnedInpainter> learned;
+
+  Inpainter(ClassicalInpainter method = ClassicalInpainter::Telea) : classical(method) {}  // NOLINT: a method is one
+  explicit Inpainter(std::shared_ptr<const LearnedInpainter> network) : learned(std::move(network)) {}
+  std::string name() const { return learned ? learned->name() : inpainter_name(classical); }
+  nlohmann::json describe() const;  // {"name": "telea"} or the learned one's
+  Image paint(const Image& rgb, const Image& mask) const;
+  bool operator==(ClassicalInpainter method) const { return !learned && classical == method; }
+  bool operator!=(ClassicalInpainter method) const { return !(*this == method); }
+};
 
 // Fills pixels where mask == 1. `radius` is the neighbourhood considered, in pixels.
 Image inpaint_classical(const Image& rgb, const Image& mask, ClassicalInpainter method, double radius = 5.0);

@@ -165,6 +165,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   info["context"] = json::array();
   for (const PreparedView& v : p.input.views) info["context"].push_back(v.name);
   info["reference"] = p.input.reference_source;
+  info["inpainter"] = p.input.reference_inpainter;
   info["geometry"] = p.describe_geometry();
   GaussianSet g = p.gaussians();
   for (torch::Tensor* t : {&g.means, &g.quats, &g.scales, &g.opacities, &g.colors})

@@ -267,6 +267,7 @@ nlohmann::json FillResult::report() const {
                       {"stages", stages.to_json()},
                       {"total_ms", stages.waited_ms()}};
   if (!segmenter.is_null()) j["segmenter"] = segmenter;
+  if (!inpainter_file.is_null()) j["inpainter_file"] = inpainter_file;
   if (placement == FillPlacement::surface) {
     j["surface"] = {{"reference_size", {surface_width, surface_height}}};
     for (size_t i = 0; i < uncovered.size() && i < cams.size(); ++i)
@@ -501,9 +502,9 @@ Image surface_colours(const FillOptions& options, const SceneSets& sets, const S
                       const CameraViews& view, const ChosenCameras& chosen) {
   const int w = at.camera.K.width, h = at.camera.K.height;
   if (!options.reference_image && options.inpainter == ClassicalInpainter::Patches)
-    return inpaint_classical(image_from_hwc(render(sets.kept, {at.camera}).rgb.clamp(0, 1).to(torch::kCPU)), view.mask,
-                             options.inpainter);
-  if (!options.reference_image) return inpaint_classical(view.kept, view.mask, options.inpainter);
+    return options.inpainter.paint(image_from_hwc(render(sets.kept, {at.camera}).rgb.clamp(0, 1).to(torch::kCPU)),
+                                   view.mask);
+  if (!options.reference_image) return options.inpainter.paint(view.kept, view.mask);
   reference_at_working_size(*options.reference_image, options, chosen);  // one that fits nowhere fails here
   WorkingSize full;
   full.resized_width = full.width = w;
@@ -560,7 +561,7 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
   // the built-in inpainter's of the working view drawn whole (the renders above hold the hole's
   // surroundings alone).
   result.reference = !options.reference_image && options.inpainter != ClassicalInpainter::Patches
-                         ? inpaint_classical(views[0].kept, views[0].mask, options.inpainter)
+                         ? options.inpainter.paint(views[0].kept, views[0].mask)
                      : at.camera.K.height == reference.camera.K.height
                          ? colour
                          : to_working_size(colour, working_size(colour.width, colour.height, p));
@@ -682,7 +683,8 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   }
 
   result.placement = options.placement;
-  if (!options.reference_image) result.inpainter = inpainter_name(options.inpainter);
+  if (!options.reference_image) result.inpainter = options.inpainter.name();
+  if (!options.reference_image && options.inpainter.learned) result.inpainter_file = options.inpainter.describe();
   GaussianSet added;
   if (options.placement == FillPlacement::surface) {
     added = surface_fill(sets, views, extra, options, result);

@@ -51,7 +51,7 @@ struct FillOptions {
   // The reference view's 2D-inpainted image (at the reference camera's size or the working
   // size); none: the built-in inpainter's.
   std::optional<Image> reference_image;
-  ClassicalInpainter inpainter = ClassicalInpainter::Telea;
+  Inpainter inpainter;
   FillPlacement placement = FillPlacement::surface;
   // The network's placement: which views' hole pixels become Gaussians: the reference's alone (true), or every chosen
   // view's. The reference's hole holds the inpainted picture, the others' nothing: a model that
@@ -76,6 +76,7 @@ struct FillResult {
   FillPlacement placement = FillPlacement::surface;
   // What painted the reference's hole: "given" (the caller's picture), else the built-in inpainter's name.
   std::string inpainter = "given";
+  nlohmann::json inpainter_file;  // a learned inpainter's file, network and SHA-256 (null otherwise)
   // The surface placement: the reference's size it was placed at, and per chosen camera the hole
   // pixels still uncovered after the reference's splats (filled from that view).
   int surface_width = 0, surface_height = 0;

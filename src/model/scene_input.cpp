@@ -60,12 +60,11 @@ std::vector<PreparedView> prepare_masked_views(const Scene& scene, const std::ve
   return views;
 }
 
-Image classical_reference(const Scene& scene, const std::string& view, const Image& mask,
-                          const InputOptions& options) {
+Image painted_reference(const Scene& scene, const std::string& view, const Image& mask, const InputOptions& options) {
   const View& v = scene.views.at(static_cast<size_t>(input_view_index(scene, view, "reference view")));
   const PreparedView prepared =
       options.view_cache ? options.view_cache->get(v, options.preprocess) : prepare_view(v, options.preprocess);
-  return inpaint_classical(prepared.rgb, mask_at_working_size(mask, v, options.preprocess), options.inpainter);
+  return options.inpainter.paint(prepared.rgb, mask_at_working_size(mask, v, options.preprocess));
 }
 
 SceneInput prepare_scene_input(const Scene& scene, const InputOptions& options, StageTimes* stages) {
@@ -100,11 +99,13 @@ SceneInput prepare_scene_input(const Scene& scene, const InputOptions& options, 
   } else {
     if (!ref.mask)
       fail("no --reference image given and reference view {} has no mask to inpaint", ref.name);
-    spdlog::warn("no --reference given: inpainting view {} with OpenCV's {} method; a learned "
-                 "2D inpainter gives much better results",
-                 ref.name, options.inpainter == ClassicalInpainter::Telea ? "Telea" : "Navier-Stokes");
-    ref.rgb = inpaint_classical(ref.rgb, *ref.mask, options.inpainter);
-    out.reference_source = inpainter_name(options.inpainter);
+    if (!options.inpainter.learned)
+      spdlog::warn("no --reference given: inpainting view {} with the classical '{}' method; a learned 2D inpainter "
+                   "gives much better results (--inpainter big-lama/models/best.ckpt)",
+                   ref.name, options.inpainter.name());
+    ref.rgb = options.inpainter.paint(ref.rgb, *ref.mask);
+    out.reference_source = options.inpainter.name();
+    out.reference_inpainter = options.inpainter.describe();
     times.lap(fmt::format("inpaint reference ({})", out.reference_source));
   }
   out.normalization = scene_normalization(scene);

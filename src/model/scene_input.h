@@ -28,7 +28,7 @@ struct InputOptions {
   std::optional<Image> reference_image;
   std::string reference_image_source = "image in memory";  // what SceneInput::reference_source says of it
   std::optional<std::filesystem::path> reference;
-  ClassicalInpainter inpainter = ClassicalInpainter::Telea;
+  Inpainter inpainter;
   // Object masks by view name, at the view's image size (> 0.5 = object): they replace the
   // scene's own masks of those views, so a caller needs no mask files.
   std::map<std::string, Image> masks;
@@ -45,7 +45,8 @@ struct SceneInput {
   std::vector<PreparedView> views;       // working-size views; views[0].rgb = inpainted
   PoseNormalization normalization;       // fitted over all cameras of the scene
   ModelInput input;
-  std::string reference_source;          // file name, "image in memory", or "telea" / "ns" when made here
+  std::string reference_source;          // file name, "image in memory", or "telea" / "ns" / "lama" when made here
+  nlohmann::json reference_inpainter;    // when made here: the inpainter (Inpainter::describe); else null
 };
 
 // `stages` (optional) gets "prepare context views" (read, decode, resize, masks), the
@@ -56,8 +57,7 @@ SceneInput prepare_scene_input(const Scene& scene, const InputOptions& options, 
 // with `mask` (at the view's image size, > 0.5 = region) filled by options.inpainter. A caller
 // may make it ahead, beside other work (serve: beside the mask propagation), and pass it as
 // reference_image.
-Image classical_reference(const Scene& scene, const std::string& view, const Image& mask,
-                          const InputOptions& options);
+Image painted_reference(const Scene& scene, const std::string& view, const Image& mask, const InputOptions& options);
 
 // The views `indices` of scene.views at the working size with their object masks, the
 // caller's (options.masks) in place of the scene's. Every view after the first (the reference)

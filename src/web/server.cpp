@@ -218,7 +218,7 @@ struct JobRequest {
   std::optional<Camera> camera;
   std::vector<Click> clicks;  // fill: in place of `region`, clicks on the object on `camera`
   std::vector<Click> not_clicks;  // with a segmenter: points on `camera` that are not the object
-  ClassicalInpainter inpainter = ClassicalInpainter::Telea;  // fill without a reference: its built-in one
+  Inpainter inpainter;  // fill without a reference: the server's (serve --inpainter), else the one asked for
 };
 
 // The form's `refine`: fast, balanced, best, a time up to 20 minutes or up to 5000 steps.
@@ -604,11 +604,18 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
   fill.ply = splats_of_url(url, /*standard_ply=*/true);
   if (fill.ply.empty()) return Refusal{400, fmt::format("ply must be the URL of splats this server serves, not '{}'", url)};
   if (auto r = parse_refine(req, fill.refine)) return r;
+  fill.inpainter = options.inpainter;
   if (req.has_file("inpainter")) {
-    try {
-      fill.inpainter = parse_inpainter(req.get_file_value("inpainter").content);
-    } catch (const Error& e) {
-      return Refusal{400, std::string("inpainter: ") + e.what()};
+    const std::string name = req.get_file_value("inpainter").content;
+    if (name == "lama") {
+      if (!options.inpainter.learned) return Refusal{400, "inpainter: lama needs serve --inpainter FILE (big-lama's best.ckpt)"};
+      fill.inpainter = options.inpainter;
+    } else {
+      try {
+        fill.inpainter = parse_inpainter(name);
+      } catch (const Error& e) {
+        return Refusal{400, std::string("inpainter: ") + e.what()};
+      }
     }
   }
   const bool reference = uploaded(req, "reference");
@@ -708,6 +715,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.num_views = options.views;
   input.view_cache = &views;
   input.geometry = options.geometry;
+  input.inpainter = options.inpainter;
   if (edit.mode == EditMode::Insert) input.geometry = input.geometry.for_insertion();
   OneMask request;
   request.view = view.name;
@@ -726,8 +734,8 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   std::future<Image> inpainted;
   if (!edit.reference && edit.kind == "edit")
     inpainted = std::async(std::launch::async, [this, &view, &edit, &stages, options = input] {
-      return stages.time(fmt::format("inpaint reference ({})", inpainter_name(options.inpainter)),
-                         [&] { return classical_reference(*scene, view.name, edit.region, options); }, true);
+      return stages.time(fmt::format("inpaint reference ({})", options.inpainter.name()),
+                         [&] { return painted_reference(*scene, view.name, edit.region, options); }, true);
     });
   const SceneMasks masks = masks_from_one(
       *scene, request, [this]() -> const Predictor& { return *predictor; }, input, &stages);
@@ -763,7 +771,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.reference_image = edit.reference;
   if (inpainted.valid()) {
     input.reference_image = stages.time("inpaint reference (waited)", [&] { return inpainted.get(); });
-    input.reference_image_source = inpainter_name(input.inpainter);
+    input.reference_image_source = input.inpainter.name();
   }
   stage("running the network", 0.3);
   const Prediction p = predictor->predict(*scene, input);

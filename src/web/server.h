@@ -76,6 +76,9 @@ struct ServeOptions {
   // The page's clicks prompt this network (SAM, MobileSAM) when given: a photo's or the splats'
   // outline at once, shift-click a point on the object, alt-click a point that is not.
   std::shared_ptr<const Segmenter> segmenter;
+  // What paints the reference's region when the page sends no reference (Run) and Fill's by
+  // default: a classical method, or LaMa (serve --inpainter FILE; the page may then ask for "lama").
+  Inpainter inpainter;
 };
 
 class WebServer {

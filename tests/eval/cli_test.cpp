@@ -82,5 +82,33 @@ TEST(EvalCli, PerfectGaussians) {
       << read_file_text(dir / "log.txt");
 }
 
+// The reference painted by LaMa (the small fixture of tests/inpaint in place of big-lama's
+// weights) through the whole command a user runs; metrics.json names the file and its SHA-256.
+TEST(EvalCli, ReferencePaintedByLama) {
+  II_REQUIRE_CLI(exe);
+  const fs::path dir = test::temp_dir("eval-cli-lama");
+  test::write_scene(dir / "scene");
+  const fs::path lama = fs::absolute("tests/inpaint/fixture/lama-small/models/best.ckpt");
+  ASSERT_EQ(run(fmt::format("'{}' eval --scene '{}' --inpainter '{}' --height {} --device cpu --out '{}'", exe.string(),
+                            (dir / "scene").string(), lama.string(), test::kSceneHeight, (dir / "out").string()),
+                dir / "log.txt"),
+            0)
+      << read_file_text(dir / "log.txt");
+  const json m = json::parse(read_file_text(dir / "out" / "metrics.json"));
+  const json& inpainter = m["prediction"]["inpainter"];
+  EXPECT_EQ(inpainter["name"], "lama") << m["prediction"];
+  EXPECT_EQ(inpainter["network"], "LaMa FFC-ResNet (ngf 8, 2 blocks)");
+  EXPECT_EQ(inpainter["sha256"].get<std::string>().size(), 64u);
+  EXPECT_EQ(m["prediction"]["reference"], "lama");
+  // A file that is not LaMa's: refused before any work, naming it.
+  ASSERT_NE(run(fmt::format("'{}' eval --scene '{}' --inpainter '{}' --height {} --device cpu --out '{}'", exe.string(),
+                            (dir / "scene").string(), (dir / "scene" / "truth.ply").string(), test::kSceneHeight,
+                            (dir / "out2").string()),
+                dir / "log2.txt"),
+            0);
+  EXPECT_NE(read_file_text(dir / "log2.txt").find((dir / "scene" / "truth.ply").string()), std::string::npos)
+      << read_file_text(dir / "log2.txt");
+}
+
 }  // namespace
 }  // namespace ii

@@ -10,6 +10,8 @@
 #include <nlohmann/json.hpp>
 
 #include "inpaint/lama.h"
+#include "inpaint/lama_inpainter.h"
+#include "io/file_hash.h"
 #include "io/pth.h"
 #include "tensor/tensor_file.h"
 #include "test_support.h"
@@ -83,6 +85,44 @@ TEST(LamaFiles, LightningsClassesAreOpaqueNeverLoaded) {
   EXPECT_TRUE(tensors.count("state_dict.discriminator.model0.0.ffc.convl2l.weight"));
   const std::string extras = extras_to_json(read_pth(kCheckpoint, options));
   EXPECT_NE(extras.find("<omegaconf.dictconfig.DictConfig object>"), std::string::npos) << extras;
+}
+
+// As the reference's inpainter: the region painted in a crop around it (brought down to at most
+// 512 pixels when larger), the rest of the photo unchanged, bit for bit.
+TEST(LamaInpainter, PaintsTheRegionInACropAndLeavesTheRest) {
+  const Inpainter inpainter = inpainter_from_name(kCheckpoint.string());
+  ASSERT_TRUE(inpainter.learned);
+  EXPECT_EQ(inpainter.name(), "lama");
+  EXPECT_EQ(inpainter.describe()["sha256"], sha256_of_file(kCheckpoint));
+  for (const int width : {300, 1400}) {  // a crop at its size, and one brought down to 512
+    Image photo(width, 900, 3), mask(width, 900, 1);
+    for (int y = 0; y < photo.height; ++y)
+      for (int x = 0; x < photo.width; ++x)
+        for (int c = 0; c < 3; ++c) photo.at(y, x, c) = 0.5f + 0.4f * std::sin(0.05f * x + 0.07f * y + c);
+    const int x0 = width / 4, x1 = width * 3 / 4;
+    for (int y = 300; y < 700; ++y)
+      for (int x = x0; x < x1; ++x) mask.at(y, x) = 1;
+    const Image painted = inpainter.paint(photo, mask);
+    int changed = 0, outside_changed = 0;
+    for (int y = 0; y < photo.height; ++y)
+      for (int x = 0; x < photo.width; ++x)
+        for (int c = 0; c < 3; ++c) {
+          const bool differs = painted.at(y, x, c) != photo.at(y, x, c);
+          (mask.at(y, x) > 0.5f ? changed : outside_changed) += differs;
+        }
+    EXPECT_EQ(outside_changed, 0) << width;
+    EXPECT_GT(changed, (x1 - x0) * 400) << width;  // most of the region's values repainted
+  }
+  EXPECT_EQ(test::error_message([] { inpainter_from_name("big-lama.ckpt"); }),
+            "inpainter 'big-lama.ckpt': neither telea, ns, patch nor a LaMa file (big-lama/models/best.ckpt)");
+  EXPECT_TRUE(inpainter_from_name("ns") == ClassicalInpainter::NavierStokes);
+}
+
+TEST(FileHash, Sha256AsSha256sumPrintsIt) {
+  const std::filesystem::path file = test::temp_dir("sha256") / "abc.txt";
+  test::write_bytes(file, "abc");
+  EXPECT_EQ(sha256_of_file(file), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  EXPECT_NE(test::error_message([] { sha256_of_file("no/such/file"); }).find("no/such/file"), std::string::npos);
 }
 
 }  // namespace

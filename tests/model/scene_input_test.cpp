@@ -48,7 +48,7 @@ TEST(SceneInput, CachedViewsAndAReferenceMadeAheadGiveTheSameInput) {
   InputOptions cached = opts;
   cached.view_cache = &cache;
   const Image region = *load_view_mask(*scene.find("IMG_2720"));
-  cached.reference_image = classical_reference(scene, "IMG_2720", region, cached);
+  cached.reference_image = painted_reference(scene, "IMG_2720", region, cached);
   cached.reference_image_source = "telea";
   for (int run = 0; run < 2; ++run) {  // the second from the cache alone
     const SceneInput again = prepare_scene_input(scene, cached);

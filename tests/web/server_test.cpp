@@ -693,7 +693,9 @@ TEST(Serve, FillOnSplatsAlone) {
                         "most 4 times its pixels)",
                         vw, vh));
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}, {"inpainter", "lama", "", ""}})),
-            "inpainter: unknown 2D inpainter 'lama' (telea, ns or patch)");
+            "inpainter: lama needs serve --inpainter FILE (big-lama's best.ckpt)");
+  EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}, {"inpainter", "sd", "", ""}})),
+            "inpainter: unknown 2D inpainter 'sd' (telea, ns or patch)");
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""},
                            {"reference", test::file_bytes(o.out / "magenta.png"), "r.png", ""}})),
             "reference: only with a painted region (camera and mask); a box's reference view is the fill's choice");

@@ -1,0 +1,42 @@
+#pragma once
+// LaMa as the reference's 2D inpainter (data/inpaint2d.h's LearnedInpainter): the region painted
+// in a crop around it, at most `work_side` pixels on a side (LaMa was trained on 256-pixel crops
+// and its Fourier units see the whole crop: a large photo with a small object costs little, and
+// a large region is painted at a size the network knows), then put back at the photo's size,
+// inside the region only.
+#include <filesystem>
+#include <memory>
+
+#include "data/inpaint2d.h"
+#include "inpaint/lama.h"
+
+namespace ii {
+
+struct LamaCrop {
+  // Around the region's box: this fraction of its larger side on each side (the context LaMa
+  // paints from), at least `min_margin` pixels.
+  double margin = 0.5;
+  int min_margin = 32;
+  int work_side = 512;  // the crop brought down to at most this many pixels on its larger side
+};
+
+class LamaInpainter : public LearnedInpainter {
+ public:
+  LamaInpainter(Lama lama, LamaCrop crop = {});
+  Image paint(const Image& rgb, const Image& mask) const override;
+  std::string name() const override { return "lama"; }
+  nlohmann::json describe() const override;  // name, network, file, sha256
+
+ private:
+  Lama lama_;
+  LamaCrop crop_;
+  std::string sha256_;
+};
+
+// The file as the reference's inpainter: `name` "telea", "ns" or "patch" is that classical
+// method; anything else is a LaMa file (an Error naming it when it is none).
+Inpainter inpainter_from_name(const std::string& name);
+// The --inpainter of a command: `flag` when given, else $INSTAINPAINT_INPAINTER, else `fallback`.
+Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback);
+
+}  // namespace ii
