@@ -20,7 +20,7 @@ namespace {
 
 struct InpaintArgs {
   std::string inpainter, image, mask, out = "inpainted.png";
-  bool json = false;
+  bool json = false, whole_photo = false;
   int repeat = 1;
   RuntimeOptions runtime;
 };
@@ -28,7 +28,11 @@ struct InpaintArgs {
 void run(const InpaintArgs& args) {
   apply_runtime_options(args.runtime);
   StageTimes stages;
-  const Inpainter inpainter = stages.time("read inpainter", [&] { return inpainter_from_flag(args.inpainter, "telea"); });
+  LamaOptions crop;
+  crop.whole_photo = args.whole_photo;
+  crop.precision = args.runtime.precision;
+  const Inpainter inpainter =
+      stages.time("read inpainter", [&] { return inpainter_from_flag(args.inpainter, "telea", crop); });
   const Image photo = stages.time("read photo", [&] { return read_image_rgb(args.image); });
   const Image mask = stages.time("read mask", [&] { return read_mask(args.mask); });
   if (mask.width != photo.width || mask.height != photo.height)
@@ -63,6 +67,9 @@ void add_inpaint_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", args->out, "The painted photo (PNG)")->capture_default_str();
   cmd->add_option("--repeat", args->repeat, "Paint this many times (timings: the mean)")->check(CLI::Range(1, 100));
+  cmd->add_flag("--whole-photo", args->whole_photo,
+                "LaMa: paint with the whole photo at its size as the input, as the reference's bin/predict.py does "
+                "(default: a crop around the region, at most 512 pixels on a side)");
   cmd->add_flag("--json", args->json, "Print JSON instead of text");
   add_runtime_options(cmd, args->runtime);
   cmd->footer(

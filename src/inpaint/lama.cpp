@@ -13,68 +13,90 @@ namespace ii {
 
 namespace lama {
 
+// Pads the last two dimensions by `p` on each side by reflection (the edge not repeated), as
+// torch's reflection_pad2d, for any type (LibTorch 1.13 has it for float only, not bf16: there by
+// gathering rows and columns).
+torch::Tensor reflect_pad(const torch::Tensor& x, int64_t p) {
+  if (x.scalar_type() == torch::kFloat) return at::reflection_pad2d(x, {p, p, p, p});
+  auto indices = [&](int64_t n) {
+    std::vector<int64_t> idx;
+    for (int64_t k = -p; k < n + p; ++k) idx.push_back(k < 0 ? -k : k >= n ? 2 * (n - 1) - k : k);
+    return torch::tensor(idx, torch::kLong);
+  };
+  return x.index_select(2, indices(x.size(2))).index_select(3, indices(x.size(3)));
+}
+
 // A convolution; `reflect` pads by reflection before it (FFC's padding_mode), else by zeros.
+// Batch norms after it are folded into its weights and bias at load.
 struct Conv {
   torch::Tensor weight, bias;  // bias undefined when the layer has none
   int64_t stride = 1, padding = 0;
   bool reflect = true;
   torch::Tensor operator()(const torch::Tensor& x) const {
-    if (reflect && padding > 0) {
-      return torch::conv2d(at::reflection_pad2d(x, {padding, padding, padding, padding}), weight, bias, stride);
-    }
+    if (reflect && padding > 0)
+      return torch::conv2d(reflect_pad(x, padding), weight, bias, stride);
     return torch::conv2d(x, weight, bias, stride, padding);
+  }
+  // y = scale * conv(x) + shift, per output channel; `with_shift` false: the shift goes elsewhere.
+  void fold(const torch::Tensor& scale, const torch::Tensor& shift, bool with_shift) {
+    weight = weight * scale.view({-1, 1, 1, 1});
+    if (bias.defined()) bias = bias * scale;
+    if (with_shift) bias = bias.defined() ? bias + shift : shift.clone();
+  }
+  void to(torch::ScalarType type) {
+    weight = weight.to(type);
+    if (bias.defined()) bias = bias.to(type);
   }
 };
 
-// A batch norm in inference: its statistics and affine terms as one scale and shift.
+// A batch norm in inference as one scale and shift per channel (folded into what precedes it).
 struct Norm {
-  torch::Tensor scale, shift;  // (1, C, 1, 1)
-  torch::Tensor operator()(const torch::Tensor& x) const { return torch::addcmul(shift, x, scale); }
+  torch::Tensor scale, shift;  // (C)
 };
 
 // SpectralTransform: a 1x1 convolution, the Fourier unit (a 1x1 convolution over the real and
-// imaginary parts of the channels' 2D spectra), and a 1x1 convolution of the sum.
+// imaginary parts of the channels' 2D spectra), and a 1x1 convolution of the sum. The transforms
+// run in float whatever the convolutions' type (no bf16 FFT).
 struct Spectral {
-  Conv reduce, spectrum, expand;
-  Norm reduce_norm, spectrum_norm;
+  Conv reduce, spectrum, expand;  // reduce and spectrum: their norms folded in
   torch::Tensor operator()(const torch::Tensor& x) const {
-    const torch::Tensor reduced = torch::relu(reduce_norm(reduce(x)));
+    const torch::Tensor reduced = torch::relu(reduce(x));
     return expand(reduced + fourier(reduced));
   }
   torch::Tensor fourier(const torch::Tensor& x) const {
     const int64_t b = x.size(0), c = x.size(1), h = x.size(2), w = x.size(3);
     // (b, c, h, w/2+1) complex -> (b, c, 2, h, w/2+1) real -> (b, 2c, h, w/2+1): channel k's real
     // part, then its imaginary part.
-    const torch::Tensor spectrum_of_x = at::fft_rfftn(x, c10::nullopt, std::vector<int64_t>{-2, -1}, "ortho");
+    const torch::Tensor spectrum_of_x =
+        at::fft_rfftn(x.to(torch::kFloat), c10::nullopt, std::vector<int64_t>{-2, -1}, "ortho");
     torch::Tensor s = torch::view_as_real(spectrum_of_x).permute({0, 1, 4, 2, 3}).reshape({b, 2 * c, h, -1});
-    s = torch::relu(spectrum_norm(spectrum(s)));
-    s = s.view({b, -1, 2, h, s.size(3)}).permute({0, 1, 3, 4, 2}).contiguous();
-    return at::fft_irfftn(torch::view_as_complex(s), std::vector<int64_t>{h, w}, std::vector<int64_t>{-2, -1}, "ortho");
+    s = torch::relu(spectrum(s.to(x.scalar_type())));
+    s = s.to(torch::kFloat).view({b, -1, 2, h, s.size(3)}).permute({0, 1, 3, 4, 2}).contiguous();
+    return at::fft_irfftn(torch::view_as_complex(s), std::vector<int64_t>{h, w}, std::vector<int64_t>{-2, -1}, "ortho")
+        .to(x.scalar_type());
   }
 };
 
-// FFC_BN_ACT: local and global channels, four paths between them, a norm and a ReLU on each side.
-// A missing path (no global channels in or out) is left undefined.
+// FFC_BN_ACT: local and global channels, four paths between them, a norm (folded into the paths)
+// and a ReLU on each side. A missing path (no global channels in or out) is left undefined.
 struct Ffc {
   std::optional<Conv> l2l, l2g, g2l;
   std::optional<Spectral> g2g;
-  std::optional<Norm> norm_l, norm_g;
   // (local, global) -> (local, global); an undefined tensor is an empty side.
   std::pair<torch::Tensor, torch::Tensor> operator()(const torch::Tensor& l, const torch::Tensor& g) const {
     torch::Tensor out_l, out_g;
     if (l2l) out_l = (*l2l)(l);
-    if (g2l && g.defined()) out_l = out_l.defined() ? out_l + (*g2l)(g) : (*g2l)(g);
+    if (g2l && g.defined()) out_l = out_l.defined() ? out_l.add_((*g2l)(g)) : (*g2l)(g);
     if (l2g) out_g = (*l2g)(l);
-    if (g2g && g.defined()) out_g = out_g.defined() ? out_g + (*g2g)(g) : (*g2g)(g);
-    if (out_l.defined()) out_l = torch::relu((*norm_l)(out_l));
-    if (out_g.defined()) out_g = torch::relu((*norm_g)(out_g));
+    if (g2g && g.defined()) out_g = out_g.defined() ? out_g.add_((*g2g)(g)) : (*g2g)(g);
+    if (out_l.defined()) out_l.relu_();
+    if (out_g.defined()) out_g.relu_();
     return {out_l, out_g};
   }
 };
 
 struct Up {
-  torch::Tensor weight, bias;  // ConvTranspose2d (in, out, 3, 3), stride 2
-  Norm norm;
+  torch::Tensor weight, bias;  // ConvTranspose2d (in, out, 3, 3), stride 2; its norm folded in
 };
 
 struct Generator {
@@ -84,6 +106,7 @@ struct Generator {
   std::vector<Up> up;
   Conv out;                                    // after a reflection pad of 3: 7x7, to RGB
   int64_t ngf = 0;
+  bool bf16 = false;                           // convolutions in bf16 (the transforms in float)
 };
 
 }  // namespace lama
@@ -91,14 +114,14 @@ struct Generator {
 namespace {
 
 using lama::Conv;
-using lama::Ffc;
 using lama::Norm;
+using lama::Ffc;
 
 Norm read_norm(TensorTaker& t, const std::string& key, int64_t channels) {
   const torch::Tensor gamma = t.take(key + ".weight", {channels}), beta = t.take(key + ".bias", {channels});
   const torch::Tensor mean = t.take(key + ".running_mean", {channels}), var = t.take(key + ".running_var", {channels});
   const torch::Tensor scale = gamma / torch::sqrt(var + 1e-5);
-  return Norm{scale.view({1, -1, 1, 1}), (beta - mean * scale).view({1, -1, 1, 1})};
+  return Norm{scale, beta - mean * scale};
 }
 
 Conv read_conv(TensorTaker& t, const std::string& key, int64_t out, int64_t in, int64_t k, int64_t stride,
@@ -129,14 +152,25 @@ Ffc read_ffc(TensorTaker& t, const std::string& key, std::pair<int64_t, int64_t>
     lama::Spectral s;
     const int64_t half = out_g / 2;
     s.reduce = read_conv(t, f + "convg2g.conv1.0", half, in_g, 1, 1, 0);
-    s.reduce_norm = read_norm(t, f + "convg2g.conv1.1", half);
+    const Norm reduce_norm = read_norm(t, f + "convg2g.conv1.1", half);
+    s.reduce.fold(reduce_norm.scale, reduce_norm.shift, true);
     s.spectrum = read_conv(t, f + "convg2g.fu.conv_layer", 2 * half, 2 * half, 1, 1, 0);
-    s.spectrum_norm = read_norm(t, f + "convg2g.fu.bn", 2 * half);
+    const Norm spectrum_norm = read_norm(t, f + "convg2g.fu.bn", 2 * half);
+    s.spectrum.fold(spectrum_norm.scale, spectrum_norm.shift, true);
     s.expand = read_conv(t, f + "convg2g.conv2", out_g, half, 1, 1, 0);
     ffc.g2g = s;
   }
-  if (out_l > 0) ffc.norm_l = read_norm(t, key + ".bn_l", out_l);
-  if (out_g > 0) ffc.norm_g = read_norm(t, key + ".bn_g", out_g);
+  // Each side's norm: its scale into every path that ends there, its shift into the first one.
+  if (out_l > 0) {
+    const Norm n = read_norm(t, key + ".bn_l", out_l);
+    if (ffc.l2l) ffc.l2l->fold(n.scale, n.shift, true);
+    if (ffc.g2l) ffc.g2l->fold(n.scale, n.shift, !ffc.l2l);
+  }
+  if (out_g > 0) {
+    const Norm n = read_norm(t, key + ".bn_g", out_g);
+    if (ffc.l2g) ffc.l2g->fold(n.scale, n.shift, true);
+    if (ffc.g2g) ffc.g2g->expand.fold(n.scale, n.shift, !ffc.l2g);
+  }
   return ffc;
 }
 
@@ -176,7 +210,9 @@ lama::Generator read_generator(TensorTaker& t, const std::string& p) {
     up.weight = t.take(key + ".weight", {channels, channels / 2, 3, 3});
     up.bias = t.take(key + ".bias", {channels / 2});
     channels /= 2;
-    up.norm = read_norm(t, p + std::to_string(i + 1), channels);
+    const Norm n = read_norm(t, p + std::to_string(i + 1), channels);
+    up.weight = up.weight * n.scale.view({1, -1, 1, 1});  // (in, out, k, k): per output channel
+    up.bias = up.bias * n.scale + n.shift;
     g.up.push_back(up);
   }
   ++i;  // ReflectionPad2d(3)
@@ -213,14 +249,32 @@ torch::Tensor pad_symmetric(const torch::Tensor& x, int64_t height, int64_t widt
   return x.index_select(2, indices(x.size(2), height)).index_select(3, indices(x.size(3), width));
 }
 
+// The convolutions' weights in bf16 (products on oneDNN's bf16 kernels); the transforms and the
+// transposed convolutions stay float.
+void to_bf16(lama::Generator& g) {
+  auto ffc = [](Ffc& f) {
+    for (std::optional<Conv>* c : {&f.l2l, &f.l2g, &f.g2l})
+      if (*c) (*c)->to(torch::kBFloat16);
+    if (f.g2g)
+      for (Conv* c : {&f.g2g->reduce, &f.g2g->spectrum, &f.g2g->expand}) c->to(torch::kBFloat16);
+  };
+  ffc(g.init);
+  for (Ffc& d : g.down) ffc(d);
+  for (auto& [a, b] : g.blocks) ffc(a), ffc(b);
+  g.out.to(torch::kBFloat16);
+  g.bf16 = true;
+}
+
 }  // namespace
 
-Lama Lama::load(const std::filesystem::path& file) {
+Lama Lama::load(const std::filesystem::path& file, bool bf16) {
   std::error_code ec;
   if (!std::filesystem::exists(file, ec)) fail("{}: no such LaMa file", file.string());
   TensorTaker t(generator_tensors(file), file, "big-lama's generator", "LaMa generator's layer");
   Lama out;
-  out.generator_ = std::make_shared<const lama::Generator>(read_generator(t, "model."));
+  lama::Generator g = read_generator(t, "model.");
+  if (bf16) to_bf16(g);
+  out.generator_ = std::make_shared<const lama::Generator>(std::move(g));
   t.check_all_used({"num_batches_tracked"});
   out.file_ = file;
   return out;
@@ -230,12 +284,15 @@ std::string Lama::description() const {
   return fmt::format("LaMa FFC-ResNet (ngf {}, {} blocks)", generator_->ngf, generator_->blocks.size());
 }
 
+bool Lama::bf16() const { return generator_->bf16; }
+
 torch::Tensor Lama::generate(const torch::Tensor& input) const {
   torch::NoGradGuard no_grad;
   const OneBlasThread blas;  // LibTorch calls OpenBLAS inside its own threads (common/parallel.h)
   const lama::Generator& g = *generator_;
-  auto pad3 = [](const torch::Tensor& x) { return at::reflection_pad2d(x, {3, 3, 3, 3}); };
-  auto [l, gl] = g.init(pad3(input), torch::Tensor());
+  auto pad3 = [](const torch::Tensor& x) { return lama::reflect_pad(x, 3); };
+  const torch::ScalarType type = g.bf16 ? torch::kBFloat16 : torch::kFloat;
+  auto [l, gl] = g.init(pad3(input.to(type)), torch::Tensor());
   for (const Ffc& d : g.down) std::tie(l, gl) = d(l, gl);
   for (const auto& [a, b] : g.blocks) {
     auto [l1, g1] = a(l, gl);
@@ -244,9 +301,11 @@ torch::Tensor Lama::generate(const torch::Tensor& input) const {
     gl = gl + g2;
   }
   torch::Tensor x = torch::cat({l, gl}, 1);
-  for (const lama::Up& u : g.up)
-    x = torch::relu(u.norm(torch::conv_transpose2d(x, u.weight, u.bias, 2, 1, 1)));
-  return torch::sigmoid(g.out(pad3(x)));
+  // The transposed convolutions in float: LibTorch 1.13's bf16 one takes its weight for a plain
+  // convolution's.
+  for (const lama::Up& u : g.up) x = torch::conv_transpose2d(x.to(torch::kFloat), u.weight, u.bias, 2, 1, 1).relu_();
+  x = x.to(type);
+  return torch::sigmoid(g.out(pad3(x)).to(torch::kFloat));
 }
 
 Image Lama::inpaint(const Image& photo, const Image& mask) const {

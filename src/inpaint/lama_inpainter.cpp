@@ -6,6 +6,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "common/cpu_features.h"
 #include "common/error.h"
 #include "data/opencv_image.h"
 #include "io/file_hash.h"
@@ -36,16 +37,18 @@ Image as_image(const cv::Mat& mat) {
 
 }  // namespace
 
-LamaInpainter::LamaInpainter(Lama lama, LamaCrop crop)
+LamaInpainter::LamaInpainter(Lama lama, LamaOptions crop)
     : lama_(std::move(lama)), crop_(crop), sha256_(sha256_of_file(lama_.file())) {}
 
 nlohmann::json LamaInpainter::describe() const {
-  return {{"name", name()}, {"network", lama_.description()}, {"file", lama_.file().string()}, {"sha256", sha256_}};
+  return {{"name", name()}, {"network", lama_.description()}, {"precision", lama_.bf16() ? "bf16" : "fp32"},
+          {"file", lama_.file().string()}, {"sha256", sha256_}};
 }
 
 Image LamaInpainter::paint(const Image& rgb, const Image& mask) const {
   const cv::Rect box = region_box(mask);
   if (box.empty()) return rgb;
+  if (crop_.whole_photo) return lama_.inpaint(rgb, mask);
   const int margin = std::max(crop_.min_margin, static_cast<int>(std::lround(crop_.margin * std::max(box.width, box.height))));
   const cv::Rect crop = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) &
                         cv::Rect(0, 0, rgb.width, rgb.height);
@@ -72,18 +75,21 @@ Image LamaInpainter::paint(const Image& rgb, const Image& mask) const {
   return out;
 }
 
-Inpainter inpainter_from_name(const std::string& name) {
+Inpainter inpainter_from_name(const std::string& name, const LamaOptions& crop) {
   if (name == "telea" || name == "ns" || name == "patch") return parse_inpainter(name);
   std::error_code ec;
   if (!std::filesystem::exists(name, ec))
     fail("inpainter '{}': neither telea, ns, patch nor a LaMa file (big-lama/models/best.ckpt)", name);
-  return Inpainter(std::make_shared<const LamaInpainter>(Lama::load(name)));
+  if (crop.precision != "auto" && crop.precision != "fp32" && crop.precision != "bf16")
+    fail("LaMa's precision '{}': auto, fp32 or bf16", crop.precision);
+  const bool bf16 = crop.precision == "bf16" || (crop.precision == "auto" && cpu_features().native_bf16());
+  return Inpainter(std::make_shared<const LamaInpainter>(Lama::load(name, bf16), crop));
 }
 
-Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback) {
-  if (!flag.empty()) return inpainter_from_name(flag);
-  if (const char* env = std::getenv("INSTAINPAINT_INPAINTER"); env && *env) return inpainter_from_name(env);
-  return inpainter_from_name(fallback);
+Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback, const LamaOptions& crop) {
+  if (!flag.empty()) return inpainter_from_name(flag, crop);
+  if (const char* env = std::getenv("INSTAINPAINT_INPAINTER"); env && *env) return inpainter_from_name(env, crop);
+  return inpainter_from_name(fallback, crop);
 }
 
 }  // namespace ii

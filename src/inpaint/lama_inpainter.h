@@ -6,37 +6,42 @@
 // inside the region only.
 #include <filesystem>
 #include <memory>
+#include <string>
 
 #include "data/inpaint2d.h"
 #include "inpaint/lama.h"
 
 namespace ii {
 
-struct LamaCrop {
+struct LamaOptions {
   // Around the region's box: this fraction of its larger side on each side (the context LaMa
   // paints from), at least `min_margin` pixels.
   double margin = 0.5;
   int min_margin = 32;
   int work_side = 512;  // the crop brought down to at most this many pixels on its larger side
+  // The whole photo at its size instead (as the reference's bin/predict.py paints).
+  bool whole_photo = false;
+  // auto (bf16 on CPUs with native bf16: AVX512-BF16, AMX), fp32 or bf16.
+  std::string precision = "auto";
 };
 
 class LamaInpainter : public LearnedInpainter {
  public:
-  LamaInpainter(Lama lama, LamaCrop crop = {});
+  LamaInpainter(Lama lama, LamaOptions crop = {});
   Image paint(const Image& rgb, const Image& mask) const override;
   std::string name() const override { return "lama"; }
   nlohmann::json describe() const override;  // name, network, file, sha256
 
  private:
   Lama lama_;
-  LamaCrop crop_;
+  LamaOptions crop_;
   std::string sha256_;
 };
 
 // The file as the reference's inpainter: `name` "telea", "ns" or "patch" is that classical
 // method; anything else is a LaMa file (an Error naming it when it is none).
-Inpainter inpainter_from_name(const std::string& name);
+Inpainter inpainter_from_name(const std::string& name, const LamaOptions& crop = {});
 // The --inpainter of a command: `flag` when given, else $INSTAINPAINT_INPAINTER, else `fallback`.
-Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback);
+Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback, const LamaOptions& crop = {});
 
 }  // namespace ii

@@ -57,6 +57,22 @@ TEST(LamaParity, BigLamasLayoutEqualsTheReferenceAtTwoSizes) {
   }
 }
 
+// bf16 convolutions (the default on CPUs with native bf16) stay close to the reference's pixels.
+TEST(LamaParity, Bf16StaysCloseToTheReference) {
+  const Lama lama = Lama::load(kCheckpoint, /*bf16=*/true);
+  EXPECT_TRUE(lama.bf16());
+  const TensorMap reference = read_tensor_file(kFixture / "reference.safetensors");
+  for (const std::string n : {"0", "1"}) {
+    const Image painted = lama.inpaint(image_of(reference.at("image_" + n), 1.f / 255),
+                                       image_of(reference.at("mask_" + n), 1.f / 255));
+    const Image expected = image_of(reference.at("inpainted_" + n), 1.f);
+    float worst = 0;
+    for (size_t i = 0; i < painted.pixels.size(); ++i)
+      worst = std::max(worst, std::isnan(painted.pixels[i]) ? 1e9f : std::abs(painted.pixels[i] - expected.pixels[i]));
+    EXPECT_LE(worst, 0.002f) << n;  // 1.5e-4 here (2026-12-06)
+  }
+}
+
 TEST(LamaFiles, ErrorsNameTheFileAndTheKey) {
   EXPECT_EQ(test::error_message([] { Lama::load("no/such/best.ckpt"); }), "no/such/best.ckpt: no such LaMa file");
   const std::filesystem::path sam = "tests/segment/fixture/mobile_sam_small.pt";
