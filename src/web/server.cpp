@@ -513,6 +513,7 @@ json WebServer::State::info() const {
           {"segmenter", options.segmenter ? json{{"network", options.segmenter->description()},
                                                  {"file", options.segmenter->file().filename().string()}}
                                           : json()},
+          {"inpainter", options.inpainter.describe()},
           {"working_height", options.height}};
 }
 
@@ -702,7 +703,8 @@ json WebServer::State::run_fill(const JobRequest& fill, const fs::path& dir, int
   stage("writing the splats", 0.95);
   json result = write_cloud_of(std::make_shared<const SplatCloud>(std::move(r.splats)), dir, id, stages, behind);
   result["fill"] = {{"removed", r.removed}, {"added", r.added}, {"cameras", report["cameras"]["how"]},
-                    {"reference", report["cameras"]["reference"]}, {"report", fmt::format("/api/jobs/{}/fill.json", id)}};
+                    {"reference", report["cameras"]["reference"]}, {"inpainter", r.inpainter},
+                    {"report", fmt::format("/api/jobs/{}/fill.json", id)}};
   return result;
 }
 

@@ -11,6 +11,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include "inpaint/lama_inpainter.h"
 #include "camera/trajectory.h"
 #include "io/image.h"
 #include "io/ply.h"
@@ -701,6 +702,48 @@ TEST(Serve, FillOnSplatsAlone) {
             "reference: only with a painted region (camera and mask); a box's reference view is the fill's choice");
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"camera", "{", "", ""},
                            {"mask", mask, "m.png", ""}})).rfind("camera: ", 0), 0u);
+}
+
+// serve --inpainter with a LaMa file (the small fixture of tests/inpaint): /api/info names it, and
+// a Fill without a reference has its hole painted by it, which the job's answer and fill.json say.
+TEST(Serve, FillPaintedByTheServersLama) {
+  synth::SynthOptions so;
+  so.views = 4;
+  so.test_views = 1;
+  so.width = 48;
+  so.height = 40;
+  so.object = synth::ObjectSource::procedural;
+  const fs::path dir = test::temp_dir("serve-lama") / "room";
+  synth::SynthWriteOptions wo;
+  wo.save_gaussians = true;
+  wo.write_depth = false;
+  synth::write_synth_scene(synth::generate_scene(so, 7), dir, wo);
+  ServeOptions o;
+  o.plys = {dir / "scene.ply"};
+  o.height = 40;
+  o.views = 2;
+  o.out = test::temp_dir("serve-lama-out");
+  o.inpainter = inpainter_from_name("tests/inpaint/fixture/lama-small/models/best.ckpt");
+  RunningServer s(o);
+  const json info = json::parse(s.client->Get("/api/info")->body);
+  EXPECT_EQ(info["inpainter"]["name"], "lama");
+  EXPECT_EQ(info["inpainter"]["network"], "LaMa FFC-ResNet (ngf 8, 2 blocks)");
+  const json bounds = json::parse(test::file_bytes(dir / "synth.json"))["object_bounds"];
+  const double r = 2.2 * bounds["radius"].get<double>();
+  const std::string box = fmt::format("{},{},{},{},{},{}", bounds["centre"][0].get<double>(),
+                                      bounds["centre"][1].get<double>(), bounds["centre"][2].get<double>(), r, r, r);
+  for (const std::string asked : {"", "lama"}) {  // the server's by default, and by name
+    httplib::MultipartFormDataItems form{{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}};
+    if (!asked.empty()) form.push_back({"inpainter", asked, "", ""});
+    auto posted = s.client->Post("/api/fill", form);
+    ASSERT_EQ(posted->status, 202) << posted->body;
+    const json job = s.finished_job();
+    ASSERT_EQ(job["state"], "done") << job;
+    EXPECT_EQ(job["result"]["fill"]["inpainter"], "lama");
+    const json report = json::parse(s.client->Get(job["result"]["fill"]["report"].get<std::string>())->body);
+    EXPECT_EQ(report["inpainter"], "lama");
+    EXPECT_EQ(report["inpainter_file"]["sha256"].get<std::string>().size(), 64u);
+  }
 }
 
 TEST(Serve, WithoutASceneItOnlyShows) {

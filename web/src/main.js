@@ -836,8 +836,9 @@ async function runFill() {
   const seconds = (performance.now() - clicked) / 1000;
   const f = job.result.fill;
   api.lastFill = { ...job, clientSeconds: seconds };
-  $("fill-result").innerHTML = `${f.removed} splats removed, ${f.added} added; ${seconds.toFixed(2)} s ` +
-    `(<a href="${f.report}" target="_blank">fill.json</a>)`;
+  const painter = f.inpainter === "given" ? "your reference" : f.inpainter === "lama" ? api.info.inpainter.network : f.inpainter;
+  $("fill-result").innerHTML = `${f.removed} splats removed, ${f.added} added, the hole painted by ${painter}; ` +
+    `${seconds.toFixed(2)} s (<a href="${f.report}" target="_blank">fill.json</a>)`;
   status(`job ${job.id} done: filled (${f.cameras})`);
   showStages(job, { job: performance.now() - clicked, splats: 0, masks: 0 });
 }
@@ -903,6 +904,14 @@ async function start() {
   if (reconstruction?.result?.splats) listPlys([first]);  // not "none given": the scene's own
   $("fill-panel").hidden = !info.filling || !first;
   $("photo-box").hidden = !info.segmenter;  // a box prompts the segmenter only
+  if (info.inpainter?.name === "lama") {  // serve --inpainter: LaMa paints Run's reference and Fill's hole
+    $("reference-default").textContent = `(none: ${info.inpainter.network})`;
+    const lama = document.createElement("option");
+    lama.value = "lama";
+    lama.textContent = `${info.inpainter.network} (learned)`;
+    $("fill-inpainter").prepend(lama);
+    $("fill-inpainter").value = "lama";
+  }
   const reference = views.findIndex((v) => v.name === reconstruction?.result?.reference_view);
   if (reference >= 0 && !exact) selectView(reference);
   $("hud").textContent = first ? first.name : "no splats: serve --ply FILE, or run an edit";
