@@ -219,7 +219,7 @@ class Gaussians:
         hole (all_views=True: of every chosen view's hole, not the reference's alone).
         inpainter= without reference=, the 2D inpainter of the reference's hole: "telea", "ns",
         "patch" (patches copied inward: texture continues, no smear) or a LaMa file; default
-        $INSTAINPAINT_INPAINTER, else "telea".
+        $INSTAINPAINT_INPAINTER, else "ns".
         predictor: default the built-in model on the best device.
         """
         given: Dict[str, Camera] = {}
@@ -273,9 +273,9 @@ class Predictor:
         context: view names, reference first (default: `views` views chosen around the reference).
         reference: the 2D-inpainted reference photo, a file or an H x W x 3 array (default: the
         reference view painted by `inpainter`).
-        inpainter: without reference=, what paints the reference view's region: "telea", "ns",
+        inpainter: without reference=, what paints the reference view's region: "ns", "telea",
         "patch", or a LaMa file (big-lama/models/best.ckpt: a learned inpainter, far better than the
-        classical ones); default $INSTAINPAINT_INPAINTER, else "telea".
+        classical ones); default $INSTAINPAINT_INPAINTER, else "ns".
         height: the working height in pixels (a multiple of the patch size after scaling).
         masks: object masks by view name (H x W arrays at the photos' size), instead of the scene's.
         keep_object: reconstruct the scene as captured (no masks, the reference's own photo).

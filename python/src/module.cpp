@@ -424,7 +424,7 @@ NB_MODULE(_core, m) {
            const std::string& placement, const std::string& inpainter, const Predictor& predictor) {
           FillOptions o;
           o.placement = parse_fill_placement(placement);
-          o.inpainter = inpainter_from_flag(inpainter, "telea");
+          o.inpainter = inpainter_from_flag(inpainter, "ns");
           o.scene_name = "the Gaussians";
           if (box) {
             std::string text;
@@ -530,7 +530,7 @@ NB_MODULE(_core, m) {
               const std::string& inpainter) {
              auto input = std::make_shared<SceneInputOptions>(
                  input_options(context, views, reference, reference_view, height, keep_object, masks));
-             input->inpainter = inpainter_from_flag(inpainter, "telea");
+             input->inpainter = inpainter_from_flag(inpainter, "ns");
              for (const auto& [name, text] : geometry) set_geometry_setting(input->geometry, name, text);
              PyGaussians g;
              {

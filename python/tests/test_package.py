@@ -417,7 +417,7 @@ def test_fill_removes_a_box_and_fills_it_keeping_every_other_splat(tmp_path, sta
     assert np.median(np.linalg.norm(new - centre, axis=1)) < np.median(spread)  # where the box was
     assert report["cameras"]["how"].startswith("given")
     assert report["placement"] == "surface"
-    assert report["inpainter"] == "telea"
+    assert report["inpainter"] == "ns"
     patched = scene.fill(box=[*centre, *size], scene=statue, views=2, height=HEIGHT, inpainter="patch",
                          predictor=predictor)
     assert patched.fill_report["inpainter"] == "patch"

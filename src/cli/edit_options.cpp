@@ -68,7 +68,7 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
   cmd->add_option("--reference-view", args.reference_view,
                   "The reference view when the context is chosen automatically (default: the --view of a one-mask "
                   "edit, else the view nearest the middle of the capture)");
-  cmd->add_option("--inpainter,--reference-inpainter", args.inpainter, kInpainterHelp + std::string("telea"));
+  cmd->add_option("--inpainter,--reference-inpainter", args.inpainter, kInpainterHelp + std::string("ns"));
   add_geometry_options(cmd, args.geometry);
 }
 
@@ -109,7 +109,7 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
 
 void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
-  options.inpainter = inpainter_from_flag(args.inpainter, "telea");
+  options.inpainter = inpainter_from_flag(args.inpainter, "ns");
   options.geometry = args.geometry;
   if (args.mode == "insert") options.geometry = options.geometry.for_insertion();
 }

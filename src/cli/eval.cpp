@@ -60,7 +60,7 @@ void run(const EvalArgs& a) {
   o.context = a.context;
   o.reference_view = a.edit.reference_view;
   o.geometry = a.edit.geometry;
-  o.inpainter = inpainter_from_flag(a.edit.inpainter, "telea");
+  o.inpainter = inpainter_from_flag(a.edit.inpainter, "ns");
   if (a.keep_object && (!a.reference.empty() || !a.edit.view.empty()))
     fail("--keep-object evaluates a reconstruction: drop --reference, --view and --mask");
   o.keep_object = a.keep_object;
@@ -153,7 +153,7 @@ void add_eval_command(CLI::App& app) {
                 "The --gaussians file is in the pose-normalised frame (infer --normalized, and infer before "
                 "it wrote the scene's frame)");
   cmd->add_option("--reference", a->reference,
-                  "The reference view with the object painted out by a 2D inpainter (default: OpenCV Telea)")
+                  "The reference view with the object painted out by a 2D inpainter (default: painted by --inpainter)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--context", a->context,
                   "Context views by name, reference first (default: automatic). An object-free test view as the "

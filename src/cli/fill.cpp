@@ -138,7 +138,7 @@ void run(const FillArgs& a) {
   o.camera_options.reference = a.reference_view;  // empty: the stroke's --view (fill_splats), else the best
   if (!a.up.empty()) o.camera_options.up = parse_up(a.up);
   o.placement = parse_fill_placement(a.placement);
-  o.inpainter = inpainter_from_flag(a.inpainter, "telea");
+  o.inpainter = inpainter_from_flag(a.inpainter, "ns");
   o.reference_only = !a.all_views;
   o.fill = !a.delete_only;
   if (!a.box.empty()) o.box = parse_box(a.box);
@@ -231,7 +231,7 @@ void add_fill_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--reference-view", a->reference_view, "The camera to take as the reference (default: --view's, "
                                                           "else the one that sees most of the region)");
-  cmd->add_option("--inpainter", a->inpainter, kInpainterHelp + std::string("telea"));
+  cmd->add_option("--inpainter", a->inpainter, kInpainterHelp + std::string("ns"));
   cmd->add_option("--views", a->views, "Views the network reads")->capture_default_str();
   cmd->add_option("--height", a->height, "Working height of the views (a multiple of 8)")->capture_default_str();
   cmd->add_option("--placement", a->placement,

@@ -163,7 +163,7 @@ void add_infer_command(CLI::App& app) {
   add_scene_options(cmd, args->scene_dir, args->scene);
   cmd->add_option("--reference", args->reference,
                   "The reference view's photo with the object painted out by a 2D inpainter, at "
-                  "the photo's size or the working size (default: OpenCV Telea inpainting)")
+                  "the photo's size or the working size (default: painted by --inpainter)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--checkpoint", args->checkpoint,
                   "Model weights: official .pth or safetensors (default: the small model built into instainpaint, "

@@ -35,7 +35,7 @@ void run(const InpaintArgs& args) {
   crop.whole_photo = args.whole_photo;
   crop.precision = args.runtime.precision;
   const Inpainter inpainter =
-      stages.time("read inpainter", [&] { return inpainter_from_flag(args.inpainter, "telea", crop); });
+      stages.time("read inpainter", [&] { return inpainter_from_flag(args.inpainter, "ns", crop); });
   const Image photo = stages.time("read photo", [&] { return read_image_rgb(args.image); });
   Image mask = stages.time("read mask", [&] { return read_mask(args.mask); });
   if (mask.width != photo.width || mask.height != photo.height) {
@@ -69,7 +69,7 @@ void run(const InpaintArgs& args) {
 void add_inpaint_command(CLI::App& app) {
   auto args = std::make_shared<InpaintArgs>();
   auto* cmd = app.add_subcommand("inpaint", "Paint a photo's region with LaMa (or a classical 2D inpainter)");
-  cmd->add_option("--inpainter", args->inpainter, kInpainterHelp + std::string("telea"));
+  cmd->add_option("--inpainter", args->inpainter, kInpainterHelp + std::string("ns"));
   cmd->add_option("--image", args->image, "The photo")->required()->check(CLI::ExistingFile);
   cmd->add_option("--mask", args->mask, "The region (white = paint it), at the photo's size")
       ->required()

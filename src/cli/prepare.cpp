@@ -114,7 +114,7 @@ void add_prepare_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
   cmd->add_option("--reference", args->reference,
-                  "2D-inpainted image of the reference view (default: OpenCV Telea inpainting)")
+                  "2D-inpainted image of the reference view (default: painted by --inpainter)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--height", args->height, "Working height in pixels")->capture_default_str()->check(CLI::Range(8, 4096));
   add_reference_options(cmd, args->edit);

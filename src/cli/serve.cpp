@@ -68,7 +68,7 @@ void run(const ServeArgs& a) {
     predictor.emplace(a.checkpoint, runtime.device, runtime.precision);
     spdlog::info("model {} on {}", predictor->model_name(), runtime.device.str());
   }
-  o.inpainter = inpainter_from_flag(a.inpainter, "telea");
+  o.inpainter = inpainter_from_flag(a.inpainter, "ns");
   if (o.inpainter.learned) spdlog::info("inpainter {}", o.inpainter.describe()["network"].get<std::string>());
   if (const auto path = segmenter_path(a.segmenter)) {
     o.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
@@ -116,7 +116,7 @@ void add_serve_command(CLI::App& app) {
                   "$INSTAINPAINT_SEGMENTER): the page's clicks draw its outline at once (shift-click: another point "
                   "on the object, alt-click: a point that is not)");
   cmd->add_option("--inpainter", args->inpainter,
-                  kInpainterHelp + std::string("telea. With a LaMa file, the page's Run and Fill paint with it"));
+                  kInpainterHelp + std::string("ns. With a LaMa file, the page's Run and Fill paint with it"));
   cmd->add_option("--height", args->height, "Working height of edits in pixels")
       ->capture_default_str()
       ->check(CLI::Range(8, 4096));

@@ -245,7 +245,7 @@ TEST(MasksCli, InferAndPrepareTakeOneMask) {
   EXPECT_EQ(run["context"][0], "IMG_2710");  // the marked view is the reference
   EXPECT_EQ(run["edit"]["depth_source"], "network");
   EXPECT_EQ(run["edit"]["mode"], "remove");
-  EXPECT_EQ(run["reference"], "telea");
+  EXPECT_EQ(run["reference"], "ns");
 
   ASSERT_EQ(test::run_command(exe.string() + " prepare" + one_mask + " --reference-inpainter ns --out '" +
                                   (tmp / "prepare").string() + "'",

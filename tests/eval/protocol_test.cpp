@@ -282,7 +282,7 @@ TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
   EXPECT_EQ(m["prediction"]["source"], "network");
   EXPECT_EQ(m["prediction"]["checkpoint"], checkpoint.string());
   EXPECT_EQ(m["prediction"]["context"], json::array({"03", "02", "04", "05"}));
-  EXPECT_EQ(m["prediction"]["reference"], "telea");
+  EXPECT_EQ(m["prediction"]["reference"], "ns");
   // One Gaussian a pixel, then those past the frames (an eighth of the height past each edge, then
   // sparser to a quarter) but those another view sees through, then those behind depth edges,
   // then the reference's region covered, a splat a pixel of it.
@@ -305,7 +305,7 @@ TEST_F(Protocol, NetworkPredictionFromACheckpoint) {
   EXPECT_EQ(std::vector<std::string>(names.begin(), names.begin() + 18),
             std::vector<std::string>({"read scene", "load model: read checkpoint", "load model: network from checkpoint",
                                       "load model: weights to cpu", "prepare context views",
-                                      "inpaint reference (telea)", "network input", "upload", "network",
+                                      "inpaint reference (ns)", "network input", "upload", "network",
                                       "the scene's points", "align depth to the scene's points",
                                       "the measured depth (the photos (stereo))", "the measured surface",
                                       "the region on the surface around it",

@@ -25,7 +25,7 @@ TEST(SceneInput, StatueBuildsOfficialInputs) {
   const InputOptions opts = statue_context(128);
   const SceneInput si = prepare_scene_input(scene, opts);
   ASSERT_EQ(si.input.images.sizes(), (std::vector<int64_t>{4, 4, 128, 168}));
-  EXPECT_EQ(si.reference_source, "telea");
+  EXPECT_EQ(si.reference_source, "ns");
   // Reference: mask channel zero; others: grey (0.0) wherever the mask is set.
   EXPECT_EQ(si.input.images[0][3].abs().sum().item<float>(), 0.f);
   const auto mask = si.input.images[1][3];
@@ -49,10 +49,10 @@ TEST(SceneInput, CachedViewsAndAReferenceMadeAheadGiveTheSameInput) {
   cached.view_cache = &cache;
   const Image region = *load_view_mask(*scene.find("IMG_2720"));
   cached.reference_image = painted_reference(scene, "IMG_2720", region, cached);
-  cached.reference_image_source = "telea";
+  cached.reference_image_source = "ns";
   for (int run = 0; run < 2; ++run) {  // the second from the cache alone
     const SceneInput again = prepare_scene_input(scene, cached);
-    EXPECT_EQ(again.reference_source, "telea");
+    EXPECT_EQ(again.reference_source, "ns");
     const std::vector<torch::Tensor> got = {again.input.images, again.input.plucker, again.input.rays_o,
                                             again.input.rays_d_un},
                                      want = {fresh.input.images, fresh.input.plucker, fresh.input.rays_o,

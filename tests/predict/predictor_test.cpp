@@ -52,7 +52,7 @@ TEST(Predictor, GivesWhatTheStepsItReplacesGive) {
                             {"kernels", float_kernels ? cpu_isa_name(*float_kernels) : "none"}}));
   const Prediction p = predictor.predict(scene, two_views());
   ASSERT_EQ(p.maps().xyz.sizes(), (std::vector<int64_t>{1, 2, 3, 64, 80}));
-  EXPECT_EQ(p.input.reference_source, "telea");
+  EXPECT_EQ(p.input.reference_source, "ns");
 
   const SceneInput si = prepare_scene_input(scene, two_views());
   const Network net = network_from_checkpoint(default_checkpoint(), "default");

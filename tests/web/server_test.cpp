@@ -393,7 +393,7 @@ TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
   ASSERT_EQ(job["state"], "done") << job;
   EXPECT_EQ(job["kind"], "edit");
   EXPECT_EQ(job["result"]["refine"]["steps"], 2);
-  EXPECT_EQ(job["result"]["reference"], "telea");
+  EXPECT_EQ(job["result"]["reference"], "ns");
   // The page loads the compressed PLY, written before the answer.
   EXPECT_EQ(job["result"]["splats"], fmt::format("/api/jobs/{}/gaussians.compressed.ply", id));
   const auto page = s.client->Get(job["result"]["splats"].get<std::string>());
@@ -422,7 +422,7 @@ TEST(Serve, EditFromOneMaskWritesAndServesTheGaussians) {
     ASSERT_TRUE(stages.count(name)) << name << " in " << job["stages"];
     EXPECT_FALSE(stages[name].contains("behind")) << name;
   }
-  for (const char* name : {"inpaint reference (telea)", "write mask PNGs", "write gaussians.compressed.ply",
+  for (const char* name : {"inpaint reference (ns)", "write mask PNGs", "write gaussians.compressed.ply",
                            "write gaussians.ply", "write gaussians.spz"}) {
     ASSERT_TRUE(stages.count(name)) << name << " in " << job["stages"];
     EXPECT_EQ(stages[name]["behind"], true) << name;

@@ -47,7 +47,7 @@ try {
     `the box's splats were removed and the hole filled (${JSON.stringify(fill.result.fill)})`);
   h.check(await page.evaluate(() => window.instainpaint.loadedUrl) === fill.result.splats, "the filled splats are on screen");
   const report = await page.evaluate(async (url) => (await fetch(url)).json(), fill.result.fill.report);
-  h.check(report.inpainter === "telea", `without a reference the page fills with Telea by default (${report.inpainter})`);
+  h.check(report.inpainter === "ns", `without a reference the page fills with Navier-Stokes by default (${report.inpainter})`);
   const downloads = await page.evaluate(() => [...document.querySelectorAll("#downloads a")].map((a) => a.getAttribute("href")));
   h.check(downloads.some((d) => d.endsWith(".spz?download=1")) && downloads.some((d) => d.endsWith(".sog?download=1")),
     `downloads offer PLY, SPZ and SOG (${downloads})`);
