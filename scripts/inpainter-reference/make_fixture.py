@@ -5,6 +5,8 @@ big-lama's published checkpoint is laid out, and the reference code's answers.
                                 "discriminator.…"}, "callbacks": {ModelCheckpoint: {...}}, ...},
                                 zip format (torch.save), as big-lama/models/best.ckpt
   lama-small/config.yaml        the generator's part of big-lama's config.yaml, this size
+  big-lama.pt                   the same generator traced to TorchScript (torch.jit.trace, then
+                                save), as lama-cleaner's and IOPaint's big-lama.pt is
   reference.safetensors         per case K: image_K (H, W, 3) uint8, mask_K (H, W) uint8,
                                 inpainted_K (H, W, 3) float32 (bin/predict.py before rounding)
   cases.json                    the cases' sizes and the generator's
@@ -97,6 +99,8 @@ def main():
     out = pathlib.Path(args.out)
     (out / "lama-small" / "models").mkdir(parents=True, exist_ok=True)
     torch.save(lightning_checkpoint(generator), out / "lama-small" / "models" / "best.ckpt")
+    with torch.no_grad():
+        torch.jit.trace(generator, torch.rand(1, 4, 64, 64)).save(str(out / "big-lama.pt"))
     (out / "lama-small" / "config.yaml").write_text(
         "generator:\n  kind: ffc_resnet\n  input_nc: 4\n  output_nc: 3\n"
         f"  ngf: {NGF}\n  n_downsampling: 3\n  n_blocks: {BLOCKS}\n  add_out_act: sigmoid\n")

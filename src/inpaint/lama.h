@@ -1,7 +1,9 @@
 #pragma once
 // LaMa (github.com/advimman/lama, Suvorov et al. 2022): its FFC-ResNet generator, read from the
 // checkpoint its authors publish (big-lama/models/best.ckpt, PyTorch Lightning's file: the
-// generator's weights are taken, the rest is left) and run on LibTorch. The architecture is read
+// generator's weights are taken, the rest is left), or lama-cleaner's and IOPaint's big-lama.pt
+// (the generator traced to TorchScript: its modules' attributes read, its code never run), and
+// run on LibTorch. The architecture is read
 // from the weights' shapes (the width, the downsamplings, the residual blocks, the share of the
 // channels that go through the Fourier units); the output activation is big-lama's sigmoid.
 // The file is read by the project's restricted pickle reader: nothing in it is executed.

@@ -93,7 +93,6 @@ std::string key_text(const PickleValue& k) {
     case Kind::Float: return fmt::format("{}", k.real);
     case Kind::Bytes: return fmt::format("<{} bytes>", k.text.size());
     case Kind::Global: return "<" + k.text + ">";
-    case Kind::Object: return "<" + k.text + " object>";
     default: return fmt::format("<{}>", k.kind_name());
   }
 }
@@ -533,9 +532,9 @@ class Unpickler {
     const auto it = allowed_callables().find(callable.text);
     if (it == allowed_callables().end()) {
       if (!options_.opaque_objects) fail("refusing to call '{}'", callable.text);
-      PickleValue object = scalar(Kind::Object);  // never called: what it would have made, unknown
-      object.text = callable.text;
-      return object;
+      // Never called: the instance becomes a dict of the attributes a BUILD gives it (a
+      // TorchScript module's parameters and submodules), named by its class.
+      return make_dict(callable.text);
     }
     switch (it->second) {
       case Builtin::OrderedDict:
@@ -563,7 +562,12 @@ class Unpickler {
 
   void build(PickleValue state) {
     PickleValue& target = top("BUILD");
-    if (target.kind == Kind::Dict && target.text == "argparse.Namespace") {
+    const bool opaque_instance = options_.opaque_objects && target.kind == Kind::Dict && !target.text.empty() &&
+                                 !allowed_callables().count(target.text);
+    if (opaque_instance && state.kind != Kind::Dict &&
+        !(state.kind == Kind::Tuple && state.items->size() == 2))
+      return;  // a state that is not attributes (a custom __setstate__'s): dropped
+    if (opaque_instance || (target.kind == Kind::Dict && target.text == "argparse.Namespace")) {
       // The object's attribute dict (or a (dict, slots) pair) becomes the dict itself.
       std::vector<PickleValue*> parts;
       if (state.kind == Kind::Tuple && state.items->size() == 2) {
@@ -573,7 +577,10 @@ class Unpickler {
       }
       for (PickleValue* p : parts) {
         if (p->kind == Kind::None) continue;
-        if (p->kind != Kind::Dict) fail("argparse.Namespace state is a {}, not a dict", p->kind_name());
+        if (p->kind != Kind::Dict) {
+          if (opaque_instance) continue;
+          fail("argparse.Namespace state is a {}, not a dict", p->kind_name());
+        }
         for (const auto& [k, v] : *p->entries) target.entries->emplace_back(k, v);
       }
       return;
@@ -581,7 +588,6 @@ class Unpickler {
     // An OrderedDict's state is its instance attributes: for a state dict, `_metadata`
     // (module versions), which says nothing about the tensors.
     if (target.kind == Kind::Dict && target.text == "collections.OrderedDict") return;
-    if (target.kind == Kind::Object) return;  // an opaque object's state is dropped with it
     fail("BUILD on a {} is not supported", target.kind_name());
   }
 
@@ -670,7 +676,6 @@ std::optional<nlohmann::ordered_json> extra_json(const PickleValue& v, size_t de
     case Kind::String: return json(v.text);
     case Kind::Bytes: return json(fmt::format("<{} bytes>", v.text.size()));
     case Kind::Global: return json("<" + v.text + ">");
-    case Kind::Object: return json("<" + v.text + " object>");
     case Kind::Tensor: case Kind::Storage: return std::nullopt;
     case Kind::List: case Kind::Tuple: {
       json a = json::array();
@@ -809,7 +814,6 @@ const char* PickleValue::kind_name() const {
     case Kind::Tensor: return "tensor";
     case Kind::Global: return "global";
     case Kind::Storage: return "storage";
-    case Kind::Object: return "object";
   }
   return "value";
 }

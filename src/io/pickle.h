@@ -38,15 +38,15 @@ size_t pth_dtype_size(const std::string& dtype);
 std::string pth_storage_dtype(const std::string& storage_class);
 
 struct PickleValue {
-  enum class Kind { None, Bool, Int, BigInt, Float, String, Bytes, List, Tuple, Dict, Tensor, Global, Storage, Object };
+  enum class Kind { None, Bool, Int, BigInt, Float, String, Bytes, List, Tuple, Dict, Tensor, Global, Storage };
   Kind kind = Kind::None;
   bool boolean = false;
   int64_t integer = 0;
   double real = 0;  // Float; BigInt's approximate value
   // String (UTF-8 as stored), Bytes, Global ("module.name"), BigInt (little-endian two's
   // complement bytes, as pickled), Dict (its class: "" for a dict, "collections.OrderedDict",
-  // "argparse.Namespace"), Storage (dtype), Object (its class: an instance of a class outside the
-  // allow-list, read with PickleOptions::opaque_objects; nothing of it is kept).
+  // "argparse.Namespace", or with PickleOptions::opaque_objects any other class whose instance it
+  // stands for), Storage (dtype).
   std::string text;
   std::shared_ptr<std::vector<PickleValue>> items;                            // List, Tuple
   std::shared_ptr<std::vector<std::pair<PickleValue, PickleValue>>> entries;  // Dict, in order
@@ -63,9 +63,11 @@ using PersistentLoad = std::function<PickleValue(const PickleValue& pid)>;
 
 struct PickleOptions {
   // A global outside the allow-list (a class, a function) is an opaque value instead of an
-  // Error, and an instance made from one an opaque Object: still never imported nor called, its
-  // arguments and state dropped. For checkpoints that keep training objects beside their
-  // tensors (PyTorch Lightning's: its callbacks' classes as keys, their states).
+  // Error, and an instance made from one a dict of the attributes its BUILD gives it (its
+  // arguments dropped; a state that is not attributes dropped): still never imported nor called.
+  // For checkpoints that keep training objects beside their tensors (PyTorch Lightning's: its
+  // callbacks' classes as keys, their states) and TorchScript archives (modules as objects whose
+  // attributes hold their parameters and submodules).
   bool opaque_objects = false;
 };
 
