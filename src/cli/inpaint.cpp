@@ -34,6 +34,7 @@ void run(const InpaintArgs& args) {
   LamaOptions crop;
   crop.whole_photo = args.whole_photo;
   crop.precision = args.runtime.precision;
+  crop.device = args.runtime.device;
   const Inpainter inpainter =
       stages.time("read inpainter", [&] { return inpainter_from_flag(args.inpainter, "ns", crop); });
   const Image photo = stages.time("read photo", [&] { return read_image_rgb(args.image); });

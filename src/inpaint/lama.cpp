@@ -21,7 +21,7 @@ torch::Tensor reflect_pad(const torch::Tensor& x, int64_t p) {
   auto indices = [&](int64_t n) {
     std::vector<int64_t> idx;
     for (int64_t k = -p; k < n + p; ++k) idx.push_back(k < 0 ? -k : k >= n ? 2 * (n - 1) - k : k);
-    return torch::tensor(idx, torch::kLong);
+    return torch::tensor(idx, torch::kLong).to(x.device());
   };
   return x.index_select(2, indices(x.size(2))).index_select(3, indices(x.size(3)));
 }
@@ -107,6 +107,7 @@ struct Generator {
   Conv out;                                    // after a reflection pad of 3: 7x7, to RGB
   int64_t ngf = 0;
   bool bf16 = false;                           // convolutions in bf16 (the transforms in float)
+  torch::Device device = torch::kCPU;          // where its weights are and it runs
 };
 
 }  // namespace lama
@@ -238,13 +239,13 @@ TensorMap generator_tensors(const std::filesystem::path& file) {
 // np.pad(mode="symmetric") on the bottom and right to (height, width): the edge row repeated,
 // then the rows before it.
 torch::Tensor pad_symmetric(const torch::Tensor& x, int64_t height, int64_t width) {
-  auto indices = [](int64_t n, int64_t to) {
+  auto indices = [&x](int64_t n, int64_t to) {
     std::vector<int64_t> idx(static_cast<size_t>(to));
     for (int64_t k = 0; k < to; ++k) {
       const int64_t t = k % (2 * n);
       idx[static_cast<size_t>(k)] = t < n ? t : 2 * n - 1 - t;
     }
-    return torch::tensor(idx, torch::kLong);
+    return torch::tensor(idx, torch::kLong).to(x.device());
   };
   return x.index_select(2, indices(x.size(2), height)).index_select(3, indices(x.size(3), width));
 }
@@ -265,15 +266,36 @@ void to_bf16(lama::Generator& g) {
   g.bf16 = true;
 }
 
+// Every weight on `device` (a GPU: LibTorch's CUDA kernels and cuFFT).
+void to_device(lama::Generator& g, torch::Device device) {
+  auto conv = [&](Conv& c) {
+    c.weight = c.weight.to(device);
+    if (c.bias.defined()) c.bias = c.bias.to(device);
+  };
+  auto ffc = [&](Ffc& f) {
+    for (std::optional<Conv>* c : {&f.l2l, &f.l2g, &f.g2l})
+      if (*c) conv(**c);
+    if (f.g2g)
+      for (Conv* c : {&f.g2g->reduce, &f.g2g->spectrum, &f.g2g->expand}) conv(*c);
+  };
+  ffc(g.init);
+  for (Ffc& d : g.down) ffc(d);
+  for (auto& [a, b] : g.blocks) ffc(a), ffc(b);
+  for (lama::Up& u : g.up) u.weight = u.weight.to(device), u.bias = u.bias.to(device);
+  conv(g.out);
+  g.device = device;
+}
+
 }  // namespace
 
-Lama Lama::load(const std::filesystem::path& file, bool bf16) {
+Lama Lama::load(const std::filesystem::path& file, bool bf16, torch::Device device) {
   std::error_code ec;
   if (!std::filesystem::exists(file, ec)) fail("{}: no such LaMa file", file.string());
   TensorTaker t(generator_tensors(file), file, "big-lama's generator", "LaMa generator's layer");
   Lama out;
   lama::Generator g = read_generator(t, "model.");
   if (bf16) to_bf16(g);
+  if (!device.is_cpu()) to_device(g, device);
   out.generator_ = std::make_shared<const lama::Generator>(std::move(g));
   t.check_all_used({"num_batches_tracked"});
   out.file_ = file;
@@ -313,10 +335,14 @@ Image Lama::inpaint(const Image& photo, const Image& mask) const {
   if (mask.width != photo.width || mask.height != photo.height)
     fail("LaMa: the mask is {}x{} but the photo {}x{}", mask.width, mask.height, photo.width, photo.height);
   const int64_t H = photo.height, W = photo.width;
+  const torch::Device device = generator_->device;
   const torch::Tensor rgb = torch::from_blob(const_cast<float*>(photo.pixels.data()), {1, H, W, 3}, torch::kFloat)
+                                .to(device)
                                 .permute({0, 3, 1, 2});
-  const torch::Tensor region =
-      torch::from_blob(const_cast<float*>(mask.pixels.data()), {1, 1, H, W}, torch::kFloat).gt(0.5).to(torch::kFloat);
+  const torch::Tensor region = torch::from_blob(const_cast<float*>(mask.pixels.data()), {1, 1, H, W}, torch::kFloat)
+                                   .to(device)
+                                   .gt(0.5)
+                                   .to(torch::kFloat);
   const int64_t h8 = (H + 7) / 8 * 8, w8 = (W + 7) / 8 * 8;
   const torch::Tensor padded = pad_symmetric(rgb, h8, w8), padded_region = pad_symmetric(region, h8, w8);
   const torch::Tensor painted = generate(torch::cat({padded * (1 - padded_region), padded_region}, 1));
@@ -324,6 +350,7 @@ Image Lama::inpaint(const Image& photo, const Image& mask) const {
                                     .slice(2, 0, H)
                                     .slice(3, 0, W)
                                     .permute({0, 2, 3, 1})
+                                    .to(torch::kCPU)
                                     .contiguous();
   Image out(photo.width, photo.height, 3);
   std::copy(blended.data_ptr<float>(), blended.data_ptr<float>() + blended.numel(), out.pixels.begin());

@@ -34,7 +34,8 @@ class Lama {
   // shape, a truncated file, a layout this reader does not run (LaMa's local Fourier units).
   // `bf16`: the convolutions in bf16 (the Fourier transforms stay float): on a CPU with native
   // bf16 (AVX512-BF16, AMX) faster, and within 0.002 of float's pixels on the fixture.
-  static Lama load(const std::filesystem::path& file, bool bf16 = false);
+  // `device`: where it runs (the photo goes there and back).
+  static Lama load(const std::filesystem::path& file, bool bf16 = false, torch::Device device = torch::kCPU);
   bool bf16() const;
 
   // The photo with the region painted by the generator; the photo outside the region as it was.

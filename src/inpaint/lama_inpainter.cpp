@@ -82,8 +82,11 @@ Inpainter inpainter_from_name(const std::string& name, const LamaOptions& crop) 
     fail("inpainter '{}': neither telea, ns, patch nor a LaMa file (big-lama/models/best.ckpt)", name);
   if (crop.precision != "auto" && crop.precision != "fp32" && crop.precision != "bf16")
     fail("LaMa's precision '{}': auto, fp32 or bf16", crop.precision);
-  const bool bf16 = crop.precision == "bf16" || (crop.precision == "auto" && cpu_features().native_bf16());
-  return Inpainter(std::make_shared<const LamaInpainter>(Lama::load(name, bf16), crop));
+  // On a GPU when LibTorch sees one, as the commands' --device auto (bf16 there); else the CPU.
+  const bool gpu = crop.device == "auto" ? torch::cuda::is_available() : crop.device != "cpu";
+  const torch::Device device = gpu ? torch::Device(crop.device == "auto" ? "cuda" : crop.device) : torch::kCPU;
+  const bool bf16 = crop.precision == "bf16" || (crop.precision == "auto" && (gpu || cpu_features().native_bf16()));
+  return Inpainter(std::make_shared<const LamaInpainter>(Lama::load(name, bf16, device), crop));
 }
 
 Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback, const LamaOptions& crop) {

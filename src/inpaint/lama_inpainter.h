@@ -21,8 +21,10 @@ struct LamaOptions {
   int work_side = 512;  // the crop brought down to at most this many pixels on its larger side
   // The whole photo at its size instead (as the reference's bin/predict.py paints).
   bool whole_photo = false;
-  // auto (bf16 on CPUs with native bf16: AVX512-BF16, AMX), fp32 or bf16.
+  // auto (bf16 on a GPU and on CPUs with native bf16: AVX512-BF16, AMX), fp32 or bf16.
   std::string precision = "auto";
+  // auto (a GPU when LibTorch sees one), cpu, cuda, cuda:N.
+  std::string device = "auto";
 };
 
 class LamaInpainter : public LearnedInpainter {
