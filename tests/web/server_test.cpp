@@ -544,7 +544,8 @@ TEST(Serve, OrbitVideoAndEvaluationReportOfAServedPly) {
 
 // Splats alone (serve --splats FILE): a box removes the object and fills the hole; the result
 // can be filled again with a stroke on a camera; bad regions are refused with the reason.
-TEST(Serve, FillOnSplatsAlone) {
+// A small synthetic room with its splats (scene.ply) and the object's bounds, made once.
+const fs::path& fill_room() {
   static const fs::path dir = [] {
     synth::SynthOptions so;
     so.views = 4;
@@ -559,6 +560,11 @@ TEST(Serve, FillOnSplatsAlone) {
     synth::write_synth_scene(synth::generate_scene(so, 7), d, wo);
     return d;
   }();
+  return dir;
+}
+
+TEST(Serve, FillOnSplatsAlone) {
+  const fs::path& dir = fill_room();
   ServeOptions o;
   o.plys = {dir / "scene.ply"};
   o.height = 40;
@@ -707,17 +713,7 @@ TEST(Serve, FillOnSplatsAlone) {
 // serve --inpainter with a LaMa file (the small fixture of tests/inpaint): /api/info names it, and
 // a Fill without a reference has its hole painted by it, which the job's answer and fill.json say.
 TEST(Serve, FillPaintedByTheServersLama) {
-  synth::SynthOptions so;
-  so.views = 4;
-  so.test_views = 1;
-  so.width = 48;
-  so.height = 40;
-  so.object = synth::ObjectSource::procedural;
-  const fs::path dir = test::temp_dir("serve-lama") / "room";
-  synth::SynthWriteOptions wo;
-  wo.save_gaussians = true;
-  wo.write_depth = false;
-  synth::write_synth_scene(synth::generate_scene(so, 7), dir, wo);
+  const fs::path& dir = fill_room();
   ServeOptions o;
   o.plys = {dir / "scene.ply"};
   o.height = 40;
