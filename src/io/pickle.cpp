@@ -435,8 +435,8 @@ class Unpickler {
       if (name.rfind("torch.", 0) == 0 && name.size() > 7 && name.compare(name.size() - 7, 7, "Storage") == 0)
         fail_file(r_.file(), "refusing to load: unsupported tensor storage type '{}'", name);
       if (!options_.opaque_objects)
-        fail_file(r_.file(), "refusing to load: the pickle references '{}', which is not a tensor, container or plain value",
-                name);
+        fail_file(r_.file(),
+                  "refusing to load: the pickle references '{}', which is not a tensor, container or plain value", name);
     }
     PickleValue v = scalar(Kind::Global);
     v.text = name;
@@ -581,7 +581,8 @@ class Unpickler {
           if (opaque_instance) continue;
           fail("argparse.Namespace state is a {}, not a dict", p->kind_name());
         }
-        for (const auto& [k, v] : *p->entries) target.entries->emplace_back(k, v);
+        const Entries attributes = *p->entries;  // a copy: the state may be the object itself
+        for (const auto& [k, v] : attributes) target.entries->emplace_back(k, v);
       }
       return;
     }

@@ -234,6 +234,8 @@ const bool pickle = register_target({
           "\x80\x04\x95\x0c\x00\x00\x00\x00\x00\x00\x00}\x94\x8c\x01k\x94\x8c\x01v\x94s."s,  // protocol 4 frame
           // {Cls: 1, "o": Obj() with state}: a class as a key, an instance built (Lightning's callbacks)
           "\x80\x02}q\x00(cmod\nCls\nK\x01X\x01\x00\x00\x00ocmod\nObj\n)\x81}X\x01\x00\x00\x00" "aK\x02sbu."s,
+          // an instance whose BUILD state is itself
+          "\x80\x02" "cmod\nC\n)\x81q\x00}X\x01\x00\x00\x00" "aK\x01sbh\x00" "b."s,
       };
     },
     [](const uint8_t* data, size_t size) {
