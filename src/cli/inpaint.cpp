@@ -31,12 +31,12 @@ struct InpaintArgs {
 void run(const InpaintArgs& args) {
   apply_runtime_options(args.runtime);
   StageTimes stages;
-  LamaOptions crop;
-  crop.whole_photo = args.whole_photo;
-  crop.precision = args.runtime.precision;
-  crop.device = args.runtime.device;
+  LamaOptions lama;
+  lama.whole_photo = args.whole_photo;
+  lama.precision = args.runtime.precision;
+  lama.device = args.runtime.device;
   const Inpainter inpainter =
-      stages.time("read inpainter", [&] { return inpainter_from_flag(args.inpainter, "ns", crop); });
+      stages.time("read inpainter", [&] { return inpainter_from_flag(args.inpainter, "ns", lama); });
   const Image photo = stages.time("read photo", [&] { return read_image_rgb(args.image); });
   Image mask = stages.time("read mask", [&] { return read_mask(args.mask); });
   if (mask.width != photo.width || mask.height != photo.height) {

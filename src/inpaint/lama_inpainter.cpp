@@ -37,8 +37,8 @@ Image as_image(const cv::Mat& mat) {
 
 }  // namespace
 
-LamaInpainter::LamaInpainter(Lama lama, LamaOptions crop)
-    : lama_(std::move(lama)), crop_(crop), sha256_(sha256_of_file(lama_.file())) {}
+LamaInpainter::LamaInpainter(Lama lama, LamaOptions options)
+    : lama_(std::move(lama)), options_(options), sha256_(sha256_of_file(lama_.file())) {}
 
 nlohmann::json LamaInpainter::describe() const {
   return {{"name", name()}, {"network", lama_.description()}, {"precision", lama_.bf16() ? "bf16" : "fp32"},
@@ -48,12 +48,12 @@ nlohmann::json LamaInpainter::describe() const {
 Image LamaInpainter::paint(const Image& rgb, const Image& mask) const {
   const cv::Rect box = region_box(mask);
   if (box.empty()) return rgb;
-  if (crop_.whole_photo) return lama_.inpaint(rgb, mask);
-  const int margin = std::max(crop_.min_margin, static_cast<int>(std::lround(crop_.margin * std::max(box.width, box.height))));
+  if (options_.whole_photo) return lama_.inpaint(rgb, mask);
+  const int margin = std::max(options_.min_margin, static_cast<int>(std::lround(options_.margin * std::max(box.width, box.height))));
   const cv::Rect crop = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) &
                         cv::Rect(0, 0, rgb.width, rgb.height);
   cv::Mat photo = as_float_mat(rgb)(crop).clone(), region = as_float_mat(mask)(crop).clone();
-  const double scale = std::min(1.0, static_cast<double>(crop_.work_side) / std::max(crop.width, crop.height));
+  const double scale = std::min(1.0, static_cast<double>(options_.work_side) / std::max(crop.width, crop.height));
   if (scale < 1) {
     const cv::Size size(std::max(8, static_cast<int>(std::lround(crop.width * scale))),
                         std::max(8, static_cast<int>(std::lround(crop.height * scale))));
@@ -75,24 +75,24 @@ Image LamaInpainter::paint(const Image& rgb, const Image& mask) const {
   return out;
 }
 
-Inpainter inpainter_from_name(const std::string& name, const LamaOptions& crop) {
+Inpainter inpainter_from_name(const std::string& name, const LamaOptions& options) {
   if (name == "telea" || name == "ns" || name == "patch") return parse_inpainter(name);
   std::error_code ec;
   if (!std::filesystem::exists(name, ec))
     fail("inpainter '{}': neither telea, ns, patch nor a LaMa file (big-lama/models/best.ckpt)", name);
-  if (crop.precision != "auto" && crop.precision != "fp32" && crop.precision != "bf16")
-    fail("LaMa's precision '{}': auto, fp32 or bf16", crop.precision);
+  if (options.precision != "auto" && options.precision != "fp32" && options.precision != "bf16")
+    fail("LaMa's precision '{}': auto, fp32 or bf16", options.precision);
   // On a GPU when LibTorch sees one, as the commands' --device auto (bf16 there); else the CPU.
-  const bool gpu = crop.device == "auto" ? torch::cuda::is_available() : crop.device != "cpu";
-  const torch::Device device = gpu ? torch::Device(crop.device == "auto" ? "cuda" : crop.device) : torch::kCPU;
-  const bool bf16 = crop.precision == "bf16" || (crop.precision == "auto" && (gpu || cpu_features().native_bf16()));
-  return Inpainter(std::make_shared<const LamaInpainter>(Lama::load(name, bf16, device), crop));
+  const bool gpu = options.device == "auto" ? torch::cuda::is_available() : options.device != "cpu";
+  const torch::Device device = gpu ? torch::Device(options.device == "auto" ? "cuda" : options.device) : torch::kCPU;
+  const bool bf16 = options.precision == "bf16" || (options.precision == "auto" && (gpu || cpu_features().native_bf16()));
+  return Inpainter(std::make_shared<const LamaInpainter>(Lama::load(name, bf16, device), options));
 }
 
-Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback, const LamaOptions& crop) {
-  if (!flag.empty()) return inpainter_from_name(flag, crop);
-  if (const char* env = std::getenv("INSTAINPAINT_INPAINTER"); env && *env) return inpainter_from_name(env, crop);
-  return inpainter_from_name(fallback, crop);
+Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback, const LamaOptions& options) {
+  if (!flag.empty()) return inpainter_from_name(flag, options);
+  if (const char* env = std::getenv("INSTAINPAINT_INPAINTER"); env && *env) return inpainter_from_name(env, options);
+  return inpainter_from_name(fallback, options);
 }
 
 }  // namespace ii

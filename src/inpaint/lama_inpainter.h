@@ -29,21 +29,21 @@ struct LamaOptions {
 
 class LamaInpainter : public LearnedInpainter {
  public:
-  LamaInpainter(Lama lama, LamaOptions crop = {});
+  LamaInpainter(Lama lama, LamaOptions options = {});
   Image paint(const Image& rgb, const Image& mask) const override;
   std::string name() const override { return "lama"; }
   nlohmann::json describe() const override;  // name, network, file, sha256
 
  private:
   Lama lama_;
-  LamaOptions crop_;
+  LamaOptions options_;
   std::string sha256_;
 };
 
 // The file as the reference's inpainter: `name` "telea", "ns" or "patch" is that classical
 // method; anything else is a LaMa file (an Error naming it when it is none).
-Inpainter inpainter_from_name(const std::string& name, const LamaOptions& crop = {});
+Inpainter inpainter_from_name(const std::string& name, const LamaOptions& options = {});
 // The --inpainter of a command: `flag` when given, else $INSTAINPAINT_INPAINTER, else `fallback`.
-Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback, const LamaOptions& crop = {});
+Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback, const LamaOptions& options = {});
 
 }  // namespace ii
