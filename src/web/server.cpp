@@ -221,6 +221,13 @@ struct JobRequest {
   Inpainter inpainter;  // fill without a reference: the server's (serve --inpainter), else the one asked for
 };
 
+// The inpainter as the page sees it: its file by name only (the server's folders stay its own).
+json served_inpainter(const Inpainter& inpainter) {
+  json out = inpainter.describe();
+  if (out.contains("file")) out["file"] = fs::path(out["file"].get<std::string>()).filename().string();
+  return out;
+}
+
 // The form's `refine`: fast, balanced, best, a time up to 20 minutes or up to 5000 steps.
 std::optional<Refusal> parse_refine(const httplib::Request& req, RefineOptions& refine) {
   if (!req.has_file("refine")) return std::nullopt;
@@ -513,7 +520,7 @@ json WebServer::State::info() const {
           {"segmenter", options.segmenter ? json{{"network", options.segmenter->description()},
                                                  {"file", options.segmenter->file().filename().string()}}
                                           : json()},
-          {"inpainter", options.inpainter.describe()},
+          {"inpainter", served_inpainter(options.inpainter)},
           {"working_height", options.height}};
 }
 

@@ -1,0 +1,35 @@
+// serve --inpainter with a LaMa file (the small fixture of tests/inpaint in place of big-lama's
+// weights), in headless Chromium on the statue: the page names it as Run's reference when none is
+// given, offers it first for Fill (selected), and a Fill of a box says the hole was painted by it.
+import { join, resolve } from "node:path";
+import * as h from "./harness.mjs";
+
+h.skipUnlessReady();
+const statue = h.sharedScene("statue");
+const dir = h.scratch("inpainter");
+const server = await h.serve(["--scene", statue, "--height", "128", "--views", "2", "--inpainter",
+  resolve("tests/inpaint/fixture/lama-small/models/best.ckpt"), "--out", join(dir, "serve")]);
+const browser = await h.browser();
+try {
+  const page = await browser.newPage({ viewport: { width: 1200, height: 800 } });
+  const errors = h.collectErrors(page);
+  await page.goto(server.url);
+  await page.evaluate(() => window.instainpaint.ready);
+  const network = "LaMa FFC-ResNet (ngf 8, 2 blocks)";
+  const info = await page.evaluate(() => window.instainpaint.info.inpainter);
+  h.check(info.name === "lama" && info.network === network && info.sha256.length === 64 && info.file === "best.ckpt",
+    `the page knows the server's inpainter, its file by name only (${JSON.stringify(info)})`);
+  await page.locator(`#strip figure[data-index="0"]`).click();
+  const reference = await page.evaluate(() => document.getElementById("reference-default").textContent);
+  h.check(reference === `(none: ${network})`, `Run's reference without one is LaMa's (${reference})`);
+  const choice = await page.evaluate(() => {
+    const select = document.getElementById("fill-inpainter");
+    return { value: select.value, first: select.options[0].value, all: [...select.options].map((o) => o.value) };
+  });
+  h.check(choice.value === "lama" && choice.first === "lama" && choice.all.includes("ns"),
+    `Fill offers LaMa first, selected (${JSON.stringify(choice)})`);
+  h.check(errors.length === 0, `no console errors ${JSON.stringify(errors)}`);
+} finally {
+  await browser.close();
+  server.stop();
+}
