@@ -472,8 +472,12 @@ function drawMaskInRed(ctx, bitmap, alpha) {
   ctx.drawImage(bitmap, 0, 0, width, height);
   const pixels = ctx.getImageData(0, 0, width, height);
   const d = pixels.data;  // byte by byte: an array a pixel made this seconds for a scene's views
+  // White is the region; a mask of 0 and 1 (SPIn-NeRF's labels) too, as the commands read it.
+  let brightest = 0;
+  for (let k = 0; k < d.length; k += 4) brightest = Math.max(brightest, d[k]);
+  const threshold = brightest > 1 ? 127 : 0;
   for (let k = 0; k < d.length; k += 4) {
-    const on = d[k] > 127;
+    const on = d[k] > threshold;
     d[k] = on ? 255 : 0;
     d[k + 1] = d[k + 2] = 0;
     d[k + 3] = on ? alpha : 0;
@@ -575,7 +579,11 @@ async function runJob(path) {
   // the new splats (the edit's figure ends here), then drawing the masks over the views.
   const parts = { job: jobSeen - clicked, splats: splatsDrawn - jobSeen, masks: performance.now() - splatsDrawn };
   api.lastRun = { ...job, clientSeconds: seconds, parts };
-  status(`job ${job.id} done: ${job.result.splats ? `${job.result.gaussians} Gaussians, ` : "masks, "}${seconds.toFixed(2)} s from the click`);
+  // Which inpainter painted the reference, when the page sent none.
+  const painter = { lama: api.info.inpainter?.network, ns: "OpenCV Navier-Stokes", telea: "OpenCV Telea",
+    patch: "patches" }[job.result.reference];
+  status(`job ${job.id} done: ${job.result.splats ? `${job.result.gaussians} Gaussians, ` : "masks, "}` +
+    `${painter ? `the reference painted by ${painter}, ` : ""}${seconds.toFixed(2)} s from the click`);
   showStages(job, parts);
 }
 

@@ -1,6 +1,7 @@
 // serve --inpainter with a LaMa file (the small fixture of tests/inpaint in place of big-lama's
 // weights), in headless Chromium on the statue: the page names it as Run's reference when none is
-// given, offers it first for Fill (selected), and a Fill of a box says the hole was painted by it.
+// given and offers it first for Fill (selected); a Run without a reference is painted by it and
+// the page says so.
 import { join, resolve } from "node:path";
 import * as h from "./harness.mjs";
 
@@ -28,6 +29,17 @@ try {
   });
   h.check(choice.value === "lama" && choice.first === "lama" && choice.all.includes("ns"),
     `Fill offers LaMa first, selected (${JSON.stringify(choice)})`);
+  // Run with the view's mask and no reference: LaMa paints it, and the page says so.
+  const index = await page.evaluate(() => window.instainpaint.info.scene.views.findIndex((v) => v.name === "IMG_2707"));
+  await page.locator(`#strip figure[data-index="${index}"]`).click();
+  await page.locator("#mask-file").setInputFiles(join(statue, "images_2", "label", "IMG_2707.png"));
+  await page.waitForTimeout(500);  // the file is drawn onto the editor
+  await page.locator("#run").click();
+  await page.waitForFunction(() => window.instainpaint.lastRun, null, { timeout: 300000 });
+  const run = await page.evaluate(() => window.instainpaint.lastRun);
+  const said = await page.evaluate(() => document.getElementById("status").textContent);
+  h.check(run.state === "done" && run.result.reference === "lama" && said.includes(`the reference painted by ${network}`),
+    `Run without a reference is painted by LaMa and says so (${run.result?.reference}: ${said})`);
   h.check(errors.length === 0, `no console errors ${JSON.stringify(errors)}`);
 } finally {
   await browser.close();
