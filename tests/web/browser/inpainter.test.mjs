@@ -33,7 +33,12 @@ try {
   const index = await page.evaluate(() => window.instainpaint.info.scene.views.findIndex((v) => v.name === "IMG_2707"));
   await page.locator(`#strip figure[data-index="${index}"]`).click();
   await page.locator("#mask-file").setInputFiles(join(statue, "images_2", "label", "IMG_2707.png"));
-  await page.waitForTimeout(500);  // the file is drawn onto the editor
+  await page.waitForFunction(() => {  // the file drawn onto the editor (decoded asynchronously)
+    const c = document.getElementById("paint-canvas");
+    const d = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+    for (let k = 3; k < d.length; k += 4) if (d[k] > 0) return true;
+    return false;
+  }, null, { timeout: 60000 });
   await page.locator("#run").click();
   await page.waitForFunction(() => window.instainpaint.lastRun, null, { timeout: 300000 });
   const run = await page.evaluate(() => window.instainpaint.lastRun);
