@@ -16,14 +16,24 @@ namespace lama {
 // Pads the last two dimensions by `p` on each side by reflection (the edge not repeated), as
 // torch's reflection_pad2d, for any type (LibTorch 1.13 has it for float only, not bf16: there by
 // gathering rows and columns).
-torch::Tensor reflect_pad(const torch::Tensor& x, int64_t p) {
-  if (x.scalar_type() == torch::kFloat) return at::reflection_pad2d(x, {p, p, p, p});
-  auto indices = [&](int64_t n) {
+// x's rows and columns (the last two dimensions) at out-of-range positions, `source(k, n)` the row
+// or column that position k of a side of n takes: a pad of any kind, for any type.
+template <typename Source>
+torch::Tensor gather_rows_and_columns(const torch::Tensor& x, int64_t from_row, int64_t to_row, int64_t from_column,
+                                      int64_t to_column, Source source) {
+  auto indices = [&](int64_t from, int64_t to, int64_t n) {
     std::vector<int64_t> idx;
-    for (int64_t k = -p; k < n + p; ++k) idx.push_back(k < 0 ? -k : k >= n ? 2 * (n - 1) - k : k);
+    for (int64_t k = from; k < to; ++k) idx.push_back(source(k, n));
     return torch::tensor(idx, torch::kLong).to(x.device());
   };
-  return x.index_select(2, indices(x.size(2))).index_select(3, indices(x.size(3)));
+  return x.index_select(2, indices(from_row, to_row, x.size(2)))
+      .index_select(3, indices(from_column, to_column, x.size(3)));
+}
+
+torch::Tensor reflect_pad(const torch::Tensor& x, int64_t p) {
+  if (x.scalar_type() == torch::kFloat) return at::reflection_pad2d(x, {p, p, p, p});
+  return gather_rows_and_columns(x, -p, x.size(2) + p, -p, x.size(3) + p,
+                                 [](int64_t k, int64_t n) { return k < 0 ? -k : k >= n ? 2 * (n - 1) - k : k; });
 }
 
 // A convolution; `reflect` pads by reflection before it (FFC's padding_mode), else by zeros.
@@ -43,9 +53,11 @@ struct Conv {
     if (bias.defined()) bias = bias * scale;
     if (with_shift) bias = bias.defined() ? bias + shift : shift.clone();
   }
-  void to(torch::ScalarType type) {
-    weight = weight.to(type);
-    if (bias.defined()) bias = bias.to(type);
+  // Its weight and bias through `f` (to another type, to another device).
+  template <typename F>
+  void map(F f) {
+    weight = f(weight);
+    if (bias.defined()) bias = f(bias);
   }
 };
 
@@ -239,50 +251,38 @@ TensorMap generator_tensors(const std::filesystem::path& file) {
 // np.pad(mode="symmetric") on the bottom and right to (height, width): the edge row repeated,
 // then the rows before it.
 torch::Tensor pad_symmetric(const torch::Tensor& x, int64_t height, int64_t width) {
-  auto indices = [&x](int64_t n, int64_t to) {
-    std::vector<int64_t> idx(static_cast<size_t>(to));
-    for (int64_t k = 0; k < to; ++k) {
-      const int64_t t = k % (2 * n);
-      idx[static_cast<size_t>(k)] = t < n ? t : 2 * n - 1 - t;
-    }
-    return torch::tensor(idx, torch::kLong).to(x.device());
+  return lama::gather_rows_and_columns(x, 0, height, 0, width, [](int64_t k, int64_t n) {
+    const int64_t t = k % (2 * n);
+    return t < n ? t : 2 * n - 1 - t;
+  });
+}
+
+// fn(conv) for every convolution of the generator (not the transposed ones).
+template <typename Fn>
+void for_each_conv(lama::Generator& g, Fn fn) {
+  auto ffc = [&](Ffc& f) {
+    for (std::optional<Conv>* c : {&f.l2l, &f.l2g, &f.g2l})
+      if (*c) fn(**c);
+    if (f.g2g)
+      for (Conv* c : {&f.g2g->reduce, &f.g2g->spectrum, &f.g2g->expand}) fn(*c);
   };
-  return x.index_select(2, indices(x.size(2), height)).index_select(3, indices(x.size(3), width));
+  ffc(g.init);
+  for (Ffc& d : g.down) ffc(d);
+  for (auto& [a, b] : g.blocks) ffc(a), ffc(b);
+  fn(g.out);
 }
 
 // The convolutions' weights in bf16 (products on oneDNN's bf16 kernels); the transforms and the
 // transposed convolutions stay float.
 void to_bf16(lama::Generator& g) {
-  auto ffc = [](Ffc& f) {
-    for (std::optional<Conv>* c : {&f.l2l, &f.l2g, &f.g2l})
-      if (*c) (*c)->to(torch::kBFloat16);
-    if (f.g2g)
-      for (Conv* c : {&f.g2g->reduce, &f.g2g->spectrum, &f.g2g->expand}) c->to(torch::kBFloat16);
-  };
-  ffc(g.init);
-  for (Ffc& d : g.down) ffc(d);
-  for (auto& [a, b] : g.blocks) ffc(a), ffc(b);
-  g.out.to(torch::kBFloat16);
+  for_each_conv(g, [](Conv& c) { c.map([](const torch::Tensor& t) { return t.to(torch::kBFloat16); }); });
   g.bf16 = true;
 }
 
 // Every weight on `device` (a GPU: LibTorch's CUDA kernels and cuFFT).
 void to_device(lama::Generator& g, torch::Device device) {
-  auto conv = [&](Conv& c) {
-    c.weight = c.weight.to(device);
-    if (c.bias.defined()) c.bias = c.bias.to(device);
-  };
-  auto ffc = [&](Ffc& f) {
-    for (std::optional<Conv>* c : {&f.l2l, &f.l2g, &f.g2l})
-      if (*c) conv(**c);
-    if (f.g2g)
-      for (Conv* c : {&f.g2g->reduce, &f.g2g->spectrum, &f.g2g->expand}) conv(*c);
-  };
-  ffc(g.init);
-  for (Ffc& d : g.down) ffc(d);
-  for (auto& [a, b] : g.blocks) ffc(a), ffc(b);
+  for_each_conv(g, [&](Conv& c) { c.map([&](const torch::Tensor& t) { return t.to(device); }); });
   for (lama::Up& u : g.up) u.weight = u.weight.to(device), u.bias = u.bias.to(device);
-  conv(g.out);
   g.device = device;
 }
 
