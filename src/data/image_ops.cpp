@@ -30,6 +30,10 @@ Image resize_nearest(const Image& image, int width, int height) {
   return resize_with(image, width, height, cv::INTER_NEAREST);
 }
 
+Image resize_cubic(const Image& image, int width, int height) {
+  return resize_with(image, width, height, cv::INTER_CUBIC);
+}
+
 Image crop(const Image& image, int x0, int y0, int width, int height) {
   if (x0 < 0 || y0 < 0 || width <= 0 || height <= 0 || x0 + width > image.width ||
       y0 + height > image.height)

@@ -11,6 +11,8 @@ namespace ii {
 Image resize_area(const Image& image, int width, int height);
 // Nearest-neighbour resize (OpenCV INTER_NEAREST), for masks.
 Image resize_nearest(const Image& image, int width, int height);
+// Bicubic resize (OpenCV INTER_CUBIC), for a picture painted small brought back up.
+Image resize_cubic(const Image& image, int width, int height);
 // Sub-image with top-left (x0, y0).
 Image crop(const Image& image, int x0, int y0, int width, int height);
 

@@ -8,7 +8,7 @@
 
 #include "common/cpu_features.h"
 #include "common/error.h"
-#include "data/opencv_image.h"
+#include "data/image_ops.h"
 #include "io/file_hash.h"
 
 namespace ii {
@@ -22,17 +22,6 @@ cv::Rect region_box(const Image& mask) {
     for (int x = 0; x < mask.width; ++x)
       if (mask.at(y, x) > 0.5f) x0 = std::min(x0, x), y0 = std::min(y0, y), x1 = std::max(x1, x), y1 = std::max(y1, y);
   return x1 < 0 ? cv::Rect() : cv::Rect(x0, y0, x1 - x0 + 1, y1 - y0 + 1);
-}
-
-cv::Mat as_float_mat(const Image& image) {
-  return cv::Mat(image.height, image.width, CV_32FC(image.channels), const_cast<float*>(image.pixels.data())).clone();
-}
-
-Image as_image(const cv::Mat& mat) {
-  Image out(mat.cols, mat.rows, mat.channels());
-  const cv::Mat c = mat.isContinuous() ? mat : mat.clone();
-  std::copy(c.ptr<float>(), c.ptr<float>() + out.pixels.size(), out.pixels.begin());
-  return out;
 }
 
 }  // namespace
@@ -49,28 +38,27 @@ Image LamaInpainter::paint(const Image& rgb, const Image& mask) const {
   const cv::Rect box = region_box(mask);
   if (box.empty()) return rgb;
   if (options_.whole_photo) return lama_.inpaint(rgb, mask);
-  const int margin = std::max(options_.min_margin, static_cast<int>(std::lround(options_.margin * std::max(box.width, box.height))));
-  const cv::Rect crop = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) &
-                        cv::Rect(0, 0, rgb.width, rgb.height);
-  cv::Mat photo = as_float_mat(rgb)(crop).clone(), region = as_float_mat(mask)(crop).clone();
-  const double scale = std::min(1.0, static_cast<double>(options_.work_side) / std::max(crop.width, crop.height));
+  const int margin =
+      std::max(options_.min_margin, static_cast<int>(std::lround(options_.margin * std::max(box.width, box.height))));
+  const cv::Rect at = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) &
+                      cv::Rect(0, 0, rgb.width, rgb.height);
+  Image photo = crop(rgb, at.x, at.y, at.width, at.height), region = crop(mask, at.x, at.y, at.width, at.height);
+  const double scale = std::min(1.0, static_cast<double>(options_.work_side) / std::max(at.width, at.height));
   if (scale < 1) {
-    const cv::Size size(std::max(8, static_cast<int>(std::lround(crop.width * scale))),
-                        std::max(8, static_cast<int>(std::lround(crop.height * scale))));
-    cv::resize(photo, photo, size, 0, 0, cv::INTER_AREA);
-    cv::resize(region, region, size, 0, 0, cv::INTER_AREA);
-    region = region > 0.f;  // any of the region in a small pixel: painted
-    region.convertTo(region, CV_32F, 1.0 / 255);
+    const int w = std::max(8, static_cast<int>(std::lround(at.width * scale)));
+    const int h = std::max(8, static_cast<int>(std::lround(at.height * scale)));
+    photo = resize_area(photo, w, h);
+    region = resize_area(region, w, h);
+    for (float& v : region.pixels) v = v > 0.f ? 1.f : 0.f;  // any of the region in a small pixel: painted
   }
-  cv::Mat painted = as_float_mat(lama_.inpaint(as_image(photo), as_image(region)));
-  if (scale < 1) cv::resize(painted, painted, crop.size(), 0, 0, cv::INTER_CUBIC);
+  Image painted = lama_.inpaint(photo, region);
+  if (scale < 1) painted = resize_cubic(painted, at.width, at.height);
   // Back into the photo inside the region only: the rest keeps its own pixels.
   Image out = rgb;
-  for (int y = 0; y < crop.height; ++y)
-    for (int x = 0; x < crop.width; ++x) {
-      if (mask.at(crop.y + y, crop.x + x) <= 0.5f) continue;
-      const cv::Vec3f& p = painted.at<cv::Vec3f>(y, x);
-      for (int c = 0; c < 3; ++c) out.at(crop.y + y, crop.x + x, c) = std::clamp(p[c], 0.f, 1.f);
+  for (int y = 0; y < at.height; ++y)
+    for (int x = 0; x < at.width; ++x) {
+      if (mask.at(at.y + y, at.x + x) <= 0.5f) continue;
+      for (int c = 0; c < 3; ++c) out.at(at.y + y, at.x + x, c) = std::clamp(painted.at(y, x, c), 0.f, 1.f);
     }
   return out;
 }
