@@ -1,6 +1,5 @@
 // `instainpaint inpaint`: one photo's region painted by a 2D inpainter (LaMa, or a classical one).
 #include <fmt/core.h>
-#include <spdlog/spdlog.h>
 
 #include <memory>
 #include <string>
@@ -12,7 +11,6 @@
 #include "cli/runtime.h"
 #include "common/error.h"
 #include "common/stage_times.h"
-#include "data/image_ops.h"
 #include "data/scene.h"
 #include "inpaint/lama_inpainter.h"
 #include "io/image.h"
@@ -38,15 +36,10 @@ void run(const InpaintArgs& args) {
   const Inpainter inpainter =
       stages.time("read inpainter", [&] { return inpainter_from_flag(args.inpainter, "ns", lama); });
   const Image photo = stages.time("read photo", [&] { return read_image_rgb(args.image); });
-  Image mask = stages.time("read mask", [&] { return read_mask(args.mask); });
-  if (mask.width != photo.width || mask.height != photo.height) {
-    // As the scene readers do: a mask a few pixels off (SPIn-NeRF's 1008x576 of 1008x567 photos).
-    if (!mask_near_size(mask, photo.width, photo.height))
-      fail("{}: the mask is {}x{} but the photo {}x{}", args.mask, mask.width, mask.height, photo.width, photo.height);
-    spdlog::warn("{}: mask is {}x{}, the photo {}x{}: resized nearest-neighbour", args.mask, mask.width, mask.height,
-                 photo.width, photo.height);
-    mask = resize_nearest(mask, photo.width, photo.height);
-  }
+  // As the scene readers take it: a mask a few pixels off (SPIn-NeRF's 1008x576 of 1008x567 photos) resized.
+  const Image mask = stages.time("read mask", [&] {
+    return mask_at_image_size(read_mask(args.mask), photo.width, photo.height, args.mask);
+  });
   Image painted;
   for (int i = 0; i < args.repeat; ++i) painted = stages.time("paint", [&] { return inpainter.paint(photo, mask); });
   stages.time("write", [&] { write_png(args.out, painted); });

@@ -157,6 +157,15 @@ bool mask_near_size(const Image& mask, int width, int height) {
   return std::abs(mask.width - width) <= tolerance && std::abs(mask.height - height) <= tolerance;
 }
 
+Image mask_at_image_size(Image mask, int width, int height, const fs::path& source) {
+  if (mask.width == width && mask.height == height) return mask;
+  if (!mask_near_size(mask, width, height))
+    fail_file(source, "mask is {}x{} but its image is {}x{}", mask.width, mask.height, width, height);
+  spdlog::warn("{}: mask is {}x{}, image is {}x{}: resized nearest-neighbour", source.string(), mask.width,
+               mask.height, width, height);
+  return resize_nearest(mask, width, height);
+}
+
 std::optional<Image> load_view_mask(const View& view) {
   Image mask;
   fs::path source;
@@ -174,14 +183,7 @@ std::optional<Image> load_view_mask(const View& view) {
     return std::nullopt;
   }
 
-  if (mask.width != view.camera.K.width || mask.height != view.camera.K.height) {
-    if (!mask_near_size(mask, view.camera.K.width, view.camera.K.height))
-      fail_file(source, "mask is {}x{} but its image is {}x{}", mask.width, mask.height, view.camera.K.width,
-                view.camera.K.height);
-    spdlog::warn("{}: mask is {}x{}, image is {}x{}: resized nearest-neighbour", source.string(), mask.width,
-                 mask.height, view.camera.K.width, view.camera.K.height);
-    mask = resize_nearest(mask, view.camera.K.width, view.camera.K.height);
-  }
+  mask = mask_at_image_size(std::move(mask), view.camera.K.width, view.camera.K.height, source);
   if (view.distortion.any()) mask = undistort_mask(mask, view.camera.K, view.distortion);
   return mask;
 }

@@ -72,6 +72,9 @@ std::optional<Image> load_view_mask(const View& view);
 // Whether a mask a few pixels off an image's size (as annotation tools export them: SPIn-NeRF's
 // 1008x576 masks of 1008x567 photos) may be resized to it: within 4 pixels or 2 % of its side.
 bool mask_near_size(const Image& mask, int width, int height);
+// `mask` (read from `source`) at its image's size: as it is, resized nearest-neighbour with a
+// warning when near it, else an Error naming `source` and both sizes.
+Image mask_at_image_size(Image mask, int width, int height, const std::filesystem::path& source);
 
 // Attaches masks from a folder: for each view, "<stem>.*" or "<image file name>.png".
 // Views without a matching file keep no mask. Returns the number matched.
