@@ -56,6 +56,16 @@ void write_bytes(const fs::path& path, const std::string& bytes) {
   std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
 }
 
+std::vector<fs::path> truncated_copies(const fs::path& file, const fs::path& dir) {
+  const std::string bytes = file_bytes(file);
+  std::vector<fs::path> out;
+  for (const size_t keep : {size_t{0}, size_t{100}, bytes.size() / 2, bytes.size() - 30}) {
+    out.push_back(dir / ("cut" + std::to_string(keep) + file.extension().string()));
+    write_bytes(out.back(), bytes.substr(0, keep));
+  }
+  return out;
+}
+
 fs::path temp_dir(const std::string& tag) {
   static TempRoot root;
   static int counter = 0;

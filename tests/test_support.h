@@ -27,6 +27,10 @@ std::filesystem::path temp_dir(const std::string& tag);
 // Whole-file bytes as a string, and writing a string as a file (for hand-made bad input).
 std::string file_bytes(const std::filesystem::path& path);
 void write_bytes(const std::filesystem::path& path, const std::string& bytes);
+// Copies of `file` cut short (nothing, 100 bytes, half, all but 30 bytes), in `dir`, each with
+// the extension of `file`: what a model reader must refuse naming the copy.
+std::vector<std::filesystem::path> truncated_copies(const std::filesystem::path& file,
+                                                    const std::filesystem::path& dir);
 // The raw bytes of a vector of plain values.
 template <typename T>
 std::string raw(const std::vector<T>& v) {

@@ -90,11 +90,7 @@ TEST(LamaFiles, ErrorsNameTheFileAndTheKey) {
   EXPECT_EQ(test::error_message([&] { Lama::load(sam); }),
             sam.string() + ": no LaMa generator in it (model.1.ffc.convl2l.weight is missing; big-lama/models/best.ckpt "
                            "has it)");
-  const std::filesystem::path dir = test::temp_dir("lama-files");
-  const std::string bytes = test::file_bytes(kCheckpoint);
-  for (const size_t keep : {size_t{0}, size_t{100}, bytes.size() / 2, bytes.size() - 30}) {
-    const std::filesystem::path cut = dir / ("cut" + std::to_string(keep) + ".ckpt");
-    test::write_bytes(cut, bytes.substr(0, keep));
+  for (const std::filesystem::path& cut : test::truncated_copies(kCheckpoint, test::temp_dir("lama-files"))) {
     const std::string message = test::error_message([&] { Lama::load(cut); });
     EXPECT_NE(message.find(cut.string()), std::string::npos) << message;
   }

@@ -159,11 +159,7 @@ TEST(SegmenterFiles, AnotherNetworksCheckpointIsRefused) {
 }
 
 TEST(SegmenterFiles, ATruncatedFileIsAnErrorNamingIt) {
-  const std::filesystem::path dir = test::temp_dir("segmenter-truncated");
-  const std::string bytes = test::file_bytes(kMobile);
-  for (const size_t keep : {size_t{0}, size_t{100}, bytes.size() / 2, bytes.size() - 30}) {
-    const std::filesystem::path cut = dir / ("cut" + std::to_string(keep) + ".pt");
-    test::write_bytes(cut, bytes.substr(0, keep));
+  for (const std::filesystem::path& cut : test::truncated_copies(kMobile, test::temp_dir("segmenter-truncated"))) {
     const std::string message = test::error_message([&] { Segmenter::load(cut); });
     EXPECT_NE(message.find(cut.string()), std::string::npos) << message;
   }

@@ -563,6 +563,14 @@ const fs::path& fill_room() {
   return dir;
 }
 
+// The form's box around fill_room's object: its centre, 2.2 times its radius on each side.
+std::string fill_room_box() {
+  const json bounds = json::parse(test::file_bytes(fill_room() / "synth.json"))["object_bounds"];
+  const double r = 2.2 * bounds["radius"].get<double>();
+  return fmt::format("{},{},{},{},{},{}", bounds["centre"][0].get<double>(), bounds["centre"][1].get<double>(),
+                     bounds["centre"][2].get<double>(), r, r, r);
+}
+
 TEST(Serve, FillOnSplatsAlone) {
   const fs::path& dir = fill_room();
   ServeOptions o;
@@ -572,10 +580,7 @@ TEST(Serve, FillOnSplatsAlone) {
   o.out = test::temp_dir("serve-fill-out");
   RunningServer s(o);
   EXPECT_TRUE(json::parse(s.client->Get("/api/info")->body)["filling"]);
-  const json bounds = json::parse(test::file_bytes(dir / "synth.json"))["object_bounds"];
-  const double r = 2.2 * bounds["radius"].get<double>();
-  const std::string box = fmt::format("{},{},{},{},{},{}", bounds["centre"][0].get<double>(), bounds["centre"][1].get<double>(),
-                                      bounds["centre"][2].get<double>(), r, r, r);
+  const std::string box = fill_room_box();
   auto r1 = s.client->Post("/api/fill", httplib::MultipartFormDataItems{{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}});
   ASSERT_EQ(r1->status, 202) << r1->body;
   json job = s.finished_job();
@@ -724,10 +729,7 @@ TEST(Serve, FillPaintedByTheServersLama) {
   const json info = json::parse(s.client->Get("/api/info")->body);
   EXPECT_EQ(info["inpainter"]["name"], "lama");
   EXPECT_EQ(info["inpainter"]["network"], "LaMa FFC-ResNet (ngf 8, 2 blocks)");
-  const json bounds = json::parse(test::file_bytes(dir / "synth.json"))["object_bounds"];
-  const double r = 2.2 * bounds["radius"].get<double>();
-  const std::string box = fmt::format("{},{},{},{},{},{}", bounds["centre"][0].get<double>(),
-                                      bounds["centre"][1].get<double>(), bounds["centre"][2].get<double>(), r, r, r);
+  const std::string box = fill_room_box();
   for (const std::string asked : {"", "lama"}) {  // the server's by default, and by name
     httplib::MultipartFormDataItems form{{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}};
     if (!asked.empty()) form.push_back({"inpainter", asked, "", ""});
