@@ -332,17 +332,19 @@ function selectView(i) {
   viewBox = null;
 }
 
+// Where a pointer event falls on `canvas`, in the canvas's own pixels.
+function canvasPixel(canvas, event) {
+  const r = canvas.getBoundingClientRect();
+  return [((event.clientX - r.left) * canvas.width) / r.width, ((event.clientY - r.top) * canvas.height) / r.height];
+}
+
 // A brush on `canvas`: red strokes of radius radiusOf() canvas pixels, or erasing while
 // erasingNow(); returns the canvas's context.
 function attachBrush(canvas, erasingNow, radiusOf, enabled = () => true) {
   const ctx = canvas.getContext("2d");
   let last = null;
-  const point = (event) => {
-    const r = canvas.getBoundingClientRect();
-    return [((event.clientX - r.left) * canvas.width) / r.width, ((event.clientY - r.top) * canvas.height) / r.height];
-  };
   const stroke = (event) => {
-    const [x, y] = point(event);
+    const [x, y] = canvasPixel(canvas, event);
     const radius = radiusOf();
     ctx.globalCompositeOperation = erasingNow() ? "destination-out" : "source-over";
     ctx.strokeStyle = ctx.fillStyle = "#ff0000";
@@ -402,8 +404,7 @@ function nextClicks(e, x, y, clicks, notClicks) {
 // and Preview use it).
 paintCanvas.addEventListener("pointerdown", async (e) => {
   if (!picking || selected < 0) return;
-  const r = paintCanvas.getBoundingClientRect();
-  const x = ((e.clientX - r.left) * paintCanvas.width) / r.width, y = ((e.clientY - r.top) * paintCanvas.height) / r.height;
+  const [x, y] = canvasPixel(paintCanvas, e);
   const [clicks, notClicks] = nextClicks(e, x, y, viewClicks, viewNotClicks);
   const box = e.shiftKey || e.altKey ? viewBox : null;  // a plain click starts again
   const selection = await requestSelection({ view: String(selected), ...(box ? { box: boxText(box) } : {}) }, clicks,
@@ -425,18 +426,14 @@ paintCanvas.addEventListener("pointerdown", async (e) => {
 // the button is released; a later shift-click adds points to it.
 const boxText = (b) => b.map((v) => +v.toFixed(2)).join(",");
 let boxStart = null;
-function canvasPoint(e) {
-  const r = paintCanvas.getBoundingClientRect();
-  return [((e.clientX - r.left) * paintCanvas.width) / r.width, ((e.clientY - r.top) * paintCanvas.height) / r.height];
-}
 function draggedBox(e) {
-  const [x, y] = canvasPoint(e);
+  const [x, y] = canvasPixel(paintCanvas, e);
   return [Math.min(boxStart[0], x), Math.min(boxStart[1], y), Math.max(boxStart[0], x), Math.max(boxStart[1], y)];
 }
 paintCanvas.addEventListener("pointerdown", (e) => {
   if (!boxing || selected < 0) return;
   paintCanvas.setPointerCapture(e.pointerId);
-  boxStart = canvasPoint(e);
+  boxStart = canvasPixel(paintCanvas, e);
 });
 paintCanvas.addEventListener("pointermove", (e) => {
   if (!boxing || !boxStart) return;
@@ -634,9 +631,7 @@ function paintingCanvas() {
     fillPaint = attachBrush(fillCanvas, () => false, () => Math.max(4, fillCanvas.width / 40), () => fillMode === "paint");
     fillCanvas.addEventListener("pointerdown", (e) => {
       if (fillMode !== "click") return;
-      const r = fillCanvas.getBoundingClientRect();
-      selectAt(((e.clientX - r.left) * fillCanvas.width) / r.width, ((e.clientY - r.top) * fillCanvas.height) / r.height,
-        e);
+      selectAt(...canvasPixel(fillCanvas, e), e);
     });
   }
   return fillCanvas;
