@@ -29,7 +29,8 @@ if(CMAKE_SCRIPT_MODE_FILE)
     set(name ${PREFIX}${suite})
     string(APPEND content "add_test([=[${name}]=] [==[${EXE}]==] [=[--gtest_filter=${suite}.*]=])\n"
       "set_tests_properties([=[${name}]=] PROPERTIES WORKING_DIRECTORY [==[${WORKDIR}]==] "
-      "SKIP_REGULAR_EXPRESSION [=[\\[  SKIPPED \\] ${count_${suite}} tests?, listed below]=])\n")
+      "SKIP_REGULAR_EXPRESSION [=[\\[  SKIPPED \\] ${count_${suite}} tests?, listed below]=] "
+      "ENVIRONMENT [=[${ENVIRONMENT}]=])\n")
   endforeach()
   file(WRITE ${OUT}.tmp "${content}")
   file(RENAME ${OUT}.tmp ${OUT})
@@ -42,6 +43,7 @@ function(ii_add_test_suites target prefix workdir)
   set(include_file ${CMAKE_CURRENT_BINARY_DIR}/${target}_suites_include.cmake)
   add_custom_command(TARGET ${target} POST_BUILD
     COMMAND ${CMAKE_COMMAND} -DEXE=$<TARGET_FILE:${target}> -DPREFIX=${prefix} -DWORKDIR=${workdir}
+            "-DENVIRONMENT=${II_TEST_ENVIRONMENT}"
             -DOUT=${listing} -P ${II_GTEST_SUITES_SCRIPT}
     BYPRODUCTS ${listing} VERBATIM)
   file(WRITE ${include_file} "if(EXISTS [==[${listing}]==])\n  include([==[${listing}]==])\nelse()\n"

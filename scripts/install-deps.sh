@@ -12,6 +12,7 @@ PACKAGES=(
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   libstb-dev libzip-dev zlib1g-dev libzstd-dev libwebp-dev libeigen3-dev
   libssl-dev                    # SHA-256 of model files (run.json)
+  libcurl4-openssl-dev          # instainpaint models get (HTTPS downloads)
   libopencv-imgproc-dev libopencv-features2d-dev libopencv-calib3d-dev libopencv-photo-dev
   cimg-dev                      # the patch inpainter (fill's built-in reference): one header
   libgtest-dev libgmock-dev libbenchmark-dev

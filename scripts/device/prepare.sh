@@ -30,6 +30,7 @@ PACKAGES=(
   libwebp-dev libwebp7 libwebpmux3 libwebpdemux2 libzstd-dev libzstd1  # SPZ (zstd) and SOG (webp)
   pkgconf pkgconf-bin libpkgconf3  # the build finds cpp-httplib through pkg-config,
   libssl-dev zlib1g-dev libbrotli-dev  # whose .pc file requires theirs
+  libcurl4-openssl-dev libcurl4 libnghttp2-14 librtmp1 libssh2-1 libpsl5 libldap-2.5-0 libsasl2-2 libsasl2-modules-db libgssapi-krb5-2 libkrb5-3 libk5crypto3 libkrb5support0 libkeyutils1 libcom-err2 libidn2-0 libunistring2  # models get (libcurl and what it loads)
   # what Debian's OpenCV 4.6 loads
   libtbb12 libopenblas0-pthread libgfortran5 libquadmath0 libglx0 libglvnd0
   libx11-6 libxcb1 libxau6 libxdmcp6 libbsd0 libmd0

@@ -27,6 +27,7 @@ void add_serve_command(CLI::App& app);
 void add_fill_command(CLI::App& app);
 void add_segment_command(CLI::App& app);
 void add_inpaint_command(CLI::App& app);
+void add_models_command(CLI::App& app);
 
 // An optional file option's value: none when it was left empty.
 inline std::optional<std::filesystem::path> optional_path(const std::string& s) {

@@ -24,8 +24,7 @@ void add_edit_options(CLI::App* cmd, EditArgs& args) {
   auto* not_click = cmd->add_option("--not-click", args.not_clicks,
                                     "X,Y: a point of that view that is not the object (with --segmenter); repeatable");
   cmd->add_option("--segmenter", args.segmenter,
-                  "SAM or MobileSAM checkpoint as published (mobile_sam.pt, sam_vit_b_01ec64.pth, ...; default "
-                  "$INSTAINPAINT_SEGMENTER): the clicked view's mask from the network (one click: the best-scored of "
+                  kSegmenterHelp + ". With one, the clicked view's mask from the network (one click: the best-scored of "
                   "its three masks), then lifted to every view and carved; without it, the object is grown by "
                   "colour over the reconstruction");
   mask->needs(view);

@@ -14,7 +14,17 @@ namespace ii::cli {
 
 // --inpainter's help; the caller appends the default's name.
 inline const std::string kInpainterHelp =
-    "The 2D inpainter that paints the reference's region when no --reference is given: telea, ns (OpenCV's diffusion: smooth), patch (patches of the photo copied inward), or a LaMa file (big-lama/models/best.ckpt from github.com/advimman/lama: a learned inpainter, far better); default $INSTAINPAINT_INPAINTER, else ";
+    "The 2D inpainter that paints the reference's region when no --reference is given: telea, ns (OpenCV's diffusion: smooth), patch (patches of the photo copied inward), big-lama (the cache's LaMa: instainpaint models get big-lama; a learned inpainter, far better) or a LaMa file (big-lama.pt, big-lama/models/best.ckpt); default $INSTAINPAINT_INPAINTER, else auto: the cache's LaMa when it is there, else ";
+// --checkpoint's help: what it takes and the default.
+inline const std::string kCheckpointHelp =
+    "The network's weights: auto (the default: InstaInpaint's released checkpoint when the cache holds it, "
+    "instainpaint models get instainpaint; else the small model built in, models/MODEL_CARD.md), default (the "
+    "built-in model), instainpaint (the cache's), or an official .pth or safetensors file";
+// --segmenter's help: what it takes and the default.
+inline const std::string kSegmenterHelp =
+    "The segmentation network: auto (the default, else $INSTAINPAINT_SEGMENTER: the cache's MobileSAM or SAM, "
+    "instainpaint models get mobile-sam; without one, none), none (no network), a catalogue name (mobile-sam, "
+    "sam-vit-b, sam-vit-l, sam-vit-h) or a SAM / MobileSAM file as published (mobile_sam.pt, sam_vit_b_01ec64.pth)";
 
 struct EditArgs {
   std::string view, mask;

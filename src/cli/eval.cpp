@@ -143,8 +143,7 @@ void add_eval_command(CLI::App& app) {
       ->check(CLI::IsMember({"model", "telea", "mean-fill", "floor", "sticker"}))
       ->capture_default_str();
   cmd->add_option("--checkpoint", a->checkpoint,
-                  "Model weights: official .pth or safetensors (default: the embedded default model)")
-      ->check(CLI::ExistingFile);
+                  kCheckpointHelp);
   cmd->add_option("--gaussians", a->gaussians,
                   "Splat file (PLY, compressed PLY, SPZ, SOG) to evaluate instead of running a model, in the scene's "
                   "frame (its cameras': as `infer` and `fill` write it, and 3DGS trainers)")

@@ -218,8 +218,7 @@ void add_fill_command(CLI::App& app) {
       ->excludes(mask);
   cmd->add_option("--not-click", a->not_clicks, "With --click and --segmenter: X,Y on something that is not the object");
   cmd->add_option("--segmenter", a->segmenter,
-                  "SAM or MobileSAM checkpoint as published (mobile_sam.pt, sam_vit_b_01ec64.pth, ...; default "
-                  "$INSTAINPAINT_SEGMENTER) for --click");
+                  kSegmenterHelp + " (for --click)");
   region->require_option(1);
   cmd->add_option("--scene", a->scene_dir, "The capture the splats were trained from (any format we read): its cameras");
   cmd->add_option("--scene-format", a->scene.format, "auto, llff, nerfstudio or colmap")->capture_default_str();
@@ -243,7 +242,7 @@ void add_fill_command(CLI::App& app) {
   cmd->add_flag("--all-views", a->all_views, "--placement network: new splats from every chosen view's hole (default: "
                                              "the reference's, where the inpainted picture is)");
   cmd->add_flag("--delete-only", a->delete_only, "Remove the region and add nothing (to compare with the fill)");
-  cmd->add_option("--checkpoint", a->checkpoint, "--placement network: the model (.pth or safetensors; default: the built-in model)");
+  cmd->add_option("--checkpoint", a->checkpoint, "--placement network: " + kCheckpointHelp);
   add_refine_options(cmd, a->refine);
   add_runtime_options(cmd, a->runtime);
   cmd->footer(

@@ -166,9 +166,7 @@ void add_infer_command(CLI::App& app) {
                   "the photo's size or the working size (default: painted by --inpainter)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--checkpoint", args->checkpoint,
-                  "Model weights: official .pth or safetensors (default: the small model built into instainpaint, "
-                  "see models/MODEL_CARD.md; the released InstaInpaint checkpoint is far better)")
-      ->check(CLI::ExistingFile);
+                  kCheckpointHelp);
   cmd->add_option("--context", args->context, "Context views by name, reference first (default: automatic)")
       ->delimiter(',');
   cmd->add_option("--views", args->views, "Number of context views when chosen automatically")

@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
   ii::cli::add_fill_command(app);
   ii::cli::add_segment_command(app);
   ii::cli::add_inpaint_command(app);
+  ii::cli::add_models_command(app);
   ii::cli::add_convert_command(app);
   ii::cli::add_render_command(app);
   ii::cli::add_synth_command(app);

@@ -112,8 +112,7 @@ void add_masks_command(CLI::App& app) {
   add_edit_options(cmd, args->edit);
   cmd->get_option("--view")->required();
   cmd->add_option("--checkpoint", args->checkpoint,
-                  "Model whose reconstruction gives the depth when no --depth and no COLMAP points exist "
-                  "(default: the built-in model)")
+                  "The model whose reconstruction gives the depth when no --depth and no COLMAP points exist. " + kCheckpointHelp)
       ->check(CLI::ExistingFile);
   cmd->add_option("--views", args->views, "Context views of that reconstruction")
       ->capture_default_str()

@@ -120,8 +120,7 @@ void add_prepare_command(CLI::App& app) {
   add_reference_options(cmd, args->edit);
   add_edit_options(cmd, args->edit);
   cmd->add_option("--checkpoint", args->checkpoint,
-                  "With --view/--mask and no other depth: the model that reconstructs the marked view's depth "
-                  "(default: the built-in model)")
+                  "With --view/--mask and no other depth: the model that reconstructs the marked view's depth. " + kCheckpointHelp)
       ->check(CLI::ExistingFile);
   add_runtime_options(cmd, args->runtime);
   cmd->add_option("--out", args->out, "Output folder")->capture_default_str();

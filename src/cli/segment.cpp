@@ -7,10 +7,12 @@
 
 #include "camera/click.h"
 #include "cli/commands.h"
+#include "cli/edit_options.h"
 #include "cli/runtime.h"
 #include "common/error.h"
 #include "common/files.h"
 #include "common/stage_times.h"
+#include "models/cache.h"
 #include "segment/segmenter.h"
 
 namespace ii::cli {
@@ -43,7 +45,9 @@ void run(const SegmentArgs& args) {
   apply_runtime_options(args.runtime);
   const SegmenterPrecision precision = parse_segmenter_precision(args.runtime.precision);
   const auto path = segmenter_path(args.segmenter);
-  if (!path) fail("--segmenter: name a SAM or MobileSAM file (or set INSTAINPAINT_SEGMENTER)");
+  if (!path)
+    fail("--segmenter: no segmentation network in the cache; bring one with: instainpaint models get mobile-sam "
+         "(or name a SAM or MobileSAM file)");
   StageTimes stages;
   const Segmenter segmenter = stages.time("read segmenter", [&] { return Segmenter::load(*path, precision); });
   const Image photo = stages.time("read photo", [&] { return read_image_rgb(args.image); });
@@ -79,10 +83,10 @@ void run(const SegmentArgs& args) {
   for (float v : mask.pixels) pixels += v > 0.5f;
   nlohmann::json scores = nlohmann::json::array();
   for (int k = 0; k < static_cast<int>(s.scores.size(0)); ++k) scores.push_back(s.scores[k].item<double>());
-  const nlohmann::json summary = {{"segmenter", segmenter.description()}, {"file", path->string()},
-                                  {"precision", segmenter.bf16() ? "bf16" : "fp32"},
-                                  {"mask", args.out}, {"chosen", best}, {"scores", scores},
-                                  {"pixels", pixels}, {"stages", stages.to_json()}};
+  nlohmann::json summary = model_file_description(*path);  // file, sha256, "from": the cache or a path
+  summary.update({{"segmenter", segmenter.description()}, {"precision", segmenter.bf16() ? "bf16" : "fp32"},
+                  {"mask", args.out}, {"chosen", best}, {"scores", scores},
+                  {"pixels", pixels}, {"stages", stages.to_json()}});
   if (args.json) {
     fmt::print("{}\n", summary.dump(2));
     return;
@@ -100,8 +104,7 @@ void add_segment_command(CLI::App& app) {
   auto args = std::make_shared<SegmentArgs>();
   auto* cmd = app.add_subcommand("segment", "Segment one photo with SAM or MobileSAM from clicks or a box");
   cmd->add_option("--segmenter", args->segmenter,
-                  "SAM or MobileSAM checkpoint as published (mobile_sam.pt, sam_vit_b_01ec64.pth, ...); default "
-                  "$INSTAINPAINT_SEGMENTER");
+                  kSegmenterHelp);
   cmd->add_option("--image", args->image, "The photo")->required()->check(CLI::ExistingFile);
   cmd->add_option("--click", args->clicks, "X,Y on the object (pixels, x right, y down); repeat to add");
   cmd->add_option("--not", args->not_clicks, "X,Y on something that is not the object; repeatable");

@@ -112,8 +112,7 @@ void add_serve_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--port", args->port, "Port (0 = any free one)")->capture_default_str()->check(CLI::Range(0, 65535));
   cmd->add_option("--segmenter", args->segmenter,
-                  "SAM or MobileSAM checkpoint as published (mobile_sam.pt, sam_vit_b_01ec64.pth, ...; default "
-                  "$INSTAINPAINT_SEGMENTER): the page's clicks draw its outline at once (shift-click: another point "
+                  kSegmenterHelp + ". With one, the page's clicks draw its outline at once (shift-click: another point "
                   "on the object, alt-click: a point that is not)");
   cmd->add_option("--inpainter", args->inpainter,
                   kInpainterHelp + std::string("ns. With a LaMa file, the page's Run and Fill paint with it"));
@@ -125,8 +124,7 @@ void add_serve_command(CLI::App& app) {
                   "The token every request must carry (default: a random one, printed in the address to open)");
   cmd->add_flag("--no-token", args->no_token, "Serve without a token (not recommended: websites can then drive it)")
       ->excludes("--token");
-  cmd->add_option("--checkpoint", args->checkpoint, "Model weights (default: the model built into instainpaint)")
-      ->check(CLI::ExistingFile);
+  cmd->add_option("--checkpoint", args->checkpoint, kCheckpointHelp + ". On a CPU, auto keeps the built-in model for the page's instant Run and offers the cache's released checkpoint as a slower one");
   add_geometry_options(cmd, args->geometry);
   add_runtime_options(cmd, args->runtime);
   cmd->footer(

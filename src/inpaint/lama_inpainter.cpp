@@ -9,7 +9,7 @@
 #include "common/cpu_features.h"
 #include "common/error.h"
 #include "data/image_ops.h"
-#include "io/file_hash.h"
+#include "models/cache.h"
 
 namespace ii {
 
@@ -27,11 +27,12 @@ cv::Rect region_box(const Image& mask) {
 }  // namespace
 
 LamaInpainter::LamaInpainter(Lama lama, LamaOptions options)
-    : lama_(std::move(lama)), options_(options), sha256_(sha256_of_file(lama_.file())) {}
+    : lama_(std::move(lama)), options_(options), file_(model_file_description(lama_.file())) {}
 
 nlohmann::json LamaInpainter::describe() const {
-  return {{"name", name()}, {"network", lama_.description()}, {"precision", lama_.bf16() ? "bf16" : "fp32"},
-          {"file", lama_.file().string()}, {"sha256", sha256_}};
+  nlohmann::json d = {{"name", name()}, {"network", lama_.description()}, {"precision", lama_.bf16() ? "bf16" : "fp32"}};
+  d.update(file_);  // file, sha256, and "from": "the cache" or "a path"
+  return d;
 }
 
 Image LamaInpainter::paint(const Image& rgb, const Image& mask) const {
@@ -78,9 +79,14 @@ Inpainter inpainter_from_name(const std::string& name, const LamaOptions& option
 }
 
 Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback, const LamaOptions& options) {
-  if (!flag.empty()) return inpainter_from_name(flag, options);
-  if (const char* env = std::getenv("INSTAINPAINT_INPAINTER"); env && *env) return inpainter_from_name(env, options);
-  return inpainter_from_name(fallback, options);
+  std::string value = flag;
+  if (const char* env = std::getenv("INSTAINPAINT_INPAINTER"); value.empty() && env) value = env;
+  if (value.empty() || value == "auto") {
+    const ModelChoice cached = choose_model(ModelRole::Inpainter, "auto");
+    return inpainter_from_name(cached.file ? cached.file->string() : fallback, options);
+  }
+  if (in_catalogue(value)) return inpainter_from_name(choose_model(ModelRole::Inpainter, value).file->string(), options);
+  return inpainter_from_name(value, options);
 }
 
 }  // namespace ii

@@ -37,13 +37,15 @@ class LamaInpainter : public LearnedInpainter {
  private:
   Lama lama_;
   LamaOptions options_;
-  std::string sha256_;
+  nlohmann::json file_;  // models/cache.h model_file_description
 };
 
 // The file as the reference's inpainter: `name` "telea", "ns" or "patch" is that classical
 // method; anything else is a LaMa file (an Error naming it when it is none).
 Inpainter inpainter_from_name(const std::string& name, const LamaOptions& options = {});
-// The --inpainter of a command: `flag` when given, else $INSTAINPAINT_INPAINTER, else `fallback`.
+// The --inpainter of a command: `flag` when given, else $INSTAINPAINT_INPAINTER, else "auto": the
+// cache's LaMa when there is one (instainpaint models get big-lama), else `fallback`. A catalogue
+// name ("big-lama") is its cached file.
 Inpainter inpainter_from_flag(const std::string& flag, const std::string& fallback, const LamaOptions& options = {});
 
 }  // namespace ii

@@ -1,6 +1,7 @@
 #include "model/default_model.h"
 
 #include "common/error.h"
+#include "models/cache.h"
 
 // Symbols of the assembler file CMake generates around models/default.safetensors; it defines
 // INSTAINPAINT_DEFAULT_MODEL for this file only (cmake/default_model.cmake). The references
@@ -33,6 +34,12 @@ Checkpoint default_checkpoint() {
 
 Checkpoint checkpoint_or_default(const std::string& path, bool map_weights) {
   return path.empty() ? default_checkpoint() : read_checkpoint(path, false, map_weights);
+}
+
+std::string resolve_checkpoint(const std::string& value) {
+  if (value == "default") return "";
+  const ModelChoice choice = choose_model(ModelRole::Checkpoint, value.empty() ? "auto" : value);
+  return choice.file ? choice.file->string() : "";
 }
 
 }  // namespace ii

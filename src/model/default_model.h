@@ -18,7 +18,13 @@ Checkpoint default_checkpoint();
 // The name the default model goes by in messages and run.json.
 constexpr const char* kDefaultModelName = "<embedded default model>";
 
-// `path` when given, else the default model: what --checkpoint means in every command.
+// `path` when given, else the default model.
 Checkpoint checkpoint_or_default(const std::string& path, bool map_weights = false);
+
+// What --checkpoint names in every command: "" or "auto", InstaInpaint's released checkpoint when
+// the cache holds it verified (instainpaint models get instainpaint), else the default model;
+// "default", the default model; a catalogue name, its cached file; else a file. The default
+// model is "".
+std::string resolve_checkpoint(const std::string& value);
 
 }  // namespace ii

@@ -10,18 +10,20 @@
 #include "model/default_model.h"
 #include "model/device.h"
 #include "model/inference.h"
+#include "models/cache.h"
 
 namespace ii {
 
-Predictor::Predictor(const std::string& checkpoint, const torch::Device& device, Precision precision)
-    : model_name_(checkpoint.empty() ? kDefaultModelName : checkpoint),
+Predictor::Predictor(const std::string& checkpoint_value, const torch::Device& device, Precision precision)
+    : checkpoint_(resolve_checkpoint(checkpoint_value)),
+      model_name_(checkpoint_.empty() ? kDefaultModelName : checkpoint_),
       device_(device),
       precision_(precision),
       network_([&] {
         // A GPU's context is made while the file is read; the weights are read where the file
         // is mapped and copied there once.
         std::future<void> device_ready = start_device(device);
-        Checkpoint ck = checkpoint_or_default(checkpoint, /*map_weights=*/!device.is_cpu());
+        Checkpoint ck = checkpoint_or_default(checkpoint_, /*map_weights=*/!device.is_cpu());
         format_ = ck.format;
         load_stages_.lap("read checkpoint");
         Network network = network_from_checkpoint(std::move(ck), model_name_);
@@ -38,6 +40,10 @@ Predictor::Predictor(const std::string& checkpoint, const torch::Device& device,
 
 nlohmann::json Predictor::describe() const {
   nlohmann::json d = {{"checkpoint", model_name_}, {"format", format_}, {"config", config().to_json()}};
+  // The cache's file with its recorded SHA-256 (another file is named only: hashing a released
+  // checkpoint would cost seconds a run).
+  if (!checkpoint_.empty())
+    if (const auto m = cached_model_of_file(checkpoint_)) d["checkpoint_file"] = {{"sha256", m->sha256}, {"from", "the cache"}, {"catalogue_name", m->name}};
   if (device_.is_cpu())
     d["cpu"] = cpu_kernels::describe_cpu_kernels(precision_ == Precision::BFloat16 ? torch::kBFloat16 : torch::kFloat32);
   return d;

@@ -73,8 +73,9 @@ struct Prediction {
 
 class Predictor {
  public:
-  // Reads `checkpoint` (an official .pth or safetensors; empty = the default model built into
-  // the library) and moves it to `device`. Errors name the file and what does not fit.
+  // Reads `checkpoint` (an official .pth or safetensors; "default" = the default model built into
+  // the library; empty or "auto" = the cache's released checkpoint when there is one, else the
+  // default model: model/default_model.h resolve_checkpoint) and moves it to `device`. Errors name the file and what does not fit.
   Predictor(const std::string& checkpoint, const torch::Device& device, Precision precision);
 
   // Prepares the scene's input as `options` say (context views, reference, masks), checks
@@ -94,6 +95,7 @@ class Predictor {
   const StageTimes& load_stages() const { return load_stages_; }
 
  private:
+  std::string checkpoint_;  // the file read ("" for the default model)
   std::string model_name_, format_;
   torch::Device device_;
   Precision precision_;

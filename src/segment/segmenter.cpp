@@ -7,6 +7,7 @@
 #include "common/cpu_features.h"
 #include "common/error.h"
 #include "common/parallel.h"
+#include "models/cache.h"
 #include "segment/pillow_resize.h"
 #include "segment/sam_model.h"
 
@@ -303,9 +304,10 @@ SegmentBox parse_segment_box(const std::string& text, const std::string& what) {
 }
 
 nlohmann::json ClickedMask::describe(const Segmenter& segmenter) const {
-  return {{"file", segmenter.file().string()}, {"network", segmenter.description()},
-          {"precision", segmenter.bf16() ? "bf16" : "fp32"}, {"chosen", chosen},
-          {"scores", scores}, {"pixels", pixels}};
+  nlohmann::json d = model_file_description(segmenter.file());  // file, sha256, "from": the cache or a path
+  d.update({{"network", segmenter.description()}, {"precision", segmenter.bf16() ? "bf16" : "fp32"},
+            {"chosen", chosen}, {"scores", scores}, {"pixels", pixels}});
+  return d;
 }
 
 SegmenterPrecision parse_segmenter_precision(const std::string& name) {
@@ -316,9 +318,10 @@ SegmenterPrecision parse_segmenter_precision(const std::string& name) {
 }
 
 std::optional<std::filesystem::path> segmenter_path(const std::string& flag_value) {
-  if (!flag_value.empty()) return std::filesystem::path(flag_value);
-  if (const char* env = std::getenv("INSTAINPAINT_SEGMENTER"); env && *env) return std::filesystem::path(env);
-  return std::nullopt;
+  std::string value = flag_value;
+  if (const char* env = std::getenv("INSTAINPAINT_SEGMENTER"); value.empty() && env) value = env;
+  if (value == "none") return std::nullopt;
+  return choose_model(ModelRole::Segmenter, value.empty() ? "auto" : value).file;
 }
 
 }  // namespace ii

@@ -119,7 +119,9 @@ ClickedMask mask_from_prompt(const Segmenter& segmenter, const SegmenterImage& p
 // "X0,Y0,X1,Y1" as a box (an Error naming `what` unless four numbers with X1 > X0 and Y1 > Y0).
 SegmentBox parse_segment_box(const std::string& text, const std::string& what);
 
-// The segmenter named by a command's --segmenter, else $INSTAINPAINT_SEGMENTER, else none.
+// The segmenter named by a command's --segmenter, else $INSTAINPAINT_SEGMENTER, else "auto": the
+// cache's (MobileSAM before the larger SAMs; instainpaint models get mobile-sam), else none.
+// "none": none; a catalogue name: its cached file.
 std::optional<std::filesystem::path> segmenter_path(const std::string& flag_value);
 
 }  // namespace ii

@@ -1,0 +1,214 @@
+#include "models/cache.h"
+
+#include <chrono>
+#include <cstdlib>
+#include <ctime>
+
+#include "common/error.h"
+#include "common/files.h"
+#include "models/download.h"
+
+namespace ii {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+fs::path models_dir() {
+  if (const char* dir = std::getenv("INSTAINPAINT_MODELS_DIR"); dir && *dir) return dir;
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg) return fs::path(xdg) / "instainpaint" / "models";
+  if (const char* home = std::getenv("HOME"); home && *home) return fs::path(home) / ".cache" / "instainpaint" / "models";
+  fail("the models' folder: neither INSTAINPAINT_MODELS_DIR, XDG_CACHE_HOME nor HOME is set");
+}
+
+fs::path cached_file(const ModelEntry& entry) { return models_dir() / entry.file_name; }
+fs::path record_file(const ModelEntry& entry) { return models_dir() / (entry.file_name + ".record.json"); }
+
+namespace {
+
+int64_t modified_ns(const fs::path& file) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(fs::last_write_time(file).time_since_epoch()).count();
+}
+
+std::string utc_now() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return text;
+}
+
+// The record of the entry's file: nullopt when there is none or it cannot be read (the file
+// is then "not checked", which `verify` mends).
+std::optional<json> read_record(const ModelEntry& entry) {
+  std::error_code ec;
+  if (!fs::exists(record_file(entry), ec)) return std::nullopt;
+  try {
+    json j = json::parse(read_file_text(record_file(entry)), nullptr, false);
+    if (!j.is_object() || !j.contains("sha256") || !j["sha256"].is_string() || !j.contains("size") ||
+        !j["size"].is_number_unsigned() || !j.contains("modified_ns") || !j["modified_ns"].is_number_integer())
+      return std::nullopt;
+    return j;
+  } catch (const Error&) {
+    return std::nullopt;
+  }
+}
+
+CachedModel from_record(const ModelEntry& entry, const json& r) {
+  CachedModel m;
+  m.name = entry.name;
+  m.file = cached_file(entry);
+  m.sha256 = r.value("sha256", "");
+  m.md5 = r.value("md5", "");
+  m.size = r.value("size", uintmax_t{0});
+  m.pinned = r.value("pinned", false);
+  m.origin = r.value("origin", "");
+  m.checked_at = r.value("checked_at", "");
+  return m;
+}
+
+CachedModel write_record(const ModelEntry& entry, const FileCheck& check, const std::string& origin) {
+  const fs::path file = cached_file(entry);
+  const json r = {{"name", entry.name},          {"file", entry.file_name},      {"sha256", check.digests.sha256},
+                  {"md5", check.digests.md5},     {"size", check.digests.size},   {"modified_ns", modified_ns(file)},
+                  {"pinned", check.pinned},       {"origin", origin},             {"checked_at", utc_now()}};
+  write_file_atomic(record_file(entry), r.dump(2) + "\n");
+  return from_record(entry, r);
+}
+
+std::string published(const ModelEntry& entry) {
+  std::string out;
+  if (!entry.md5.empty()) out += "MD5 " + entry.md5;
+  if (!entry.sha256.empty()) out += (out.empty() ? "SHA-256 " : " or SHA-256 ") + entry.sha256;
+  return out;
+}
+
+}  // namespace
+
+CacheStatus cache_status(const ModelEntry& entry) {
+  CacheStatus s;
+  const fs::path file = cached_file(entry);
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) return s;
+  s.state = CacheState::Unchecked;
+  const std::optional<json> r = read_record(entry);
+  if (!r) {
+    s.why = "no record of its check (run instainpaint models verify " + entry.name + ")";
+    return s;
+  }
+  const uintmax_t size = fs::file_size(file, ec);
+  if (ec || size != (*r)["size"].get<uintmax_t>() || modified_ns(file) != (*r)["modified_ns"].get<int64_t>()) {
+    s.why = "changed since it was checked (run instainpaint models verify " + entry.name + ")";
+    return s;
+  }
+  s.state = CacheState::Verified;
+  s.model = from_record(entry, *r);
+  return s;
+}
+
+std::optional<CachedModel> cached_model(const ModelEntry& entry) { return cache_status(entry).model; }
+
+std::optional<CachedModel> cached_model_for(ModelRole role) {
+  std::error_code ec;
+  if (!fs::is_directory(models_dir(), ec)) return std::nullopt;
+  for (const ModelEntry& e : model_catalogue())
+    if (e.role == role)
+      if (auto m = cached_model(e)) return m;
+  return std::nullopt;
+}
+
+FileCheck check_file(const ModelEntry& entry, const fs::path& file, const std::string& recorded_sha256) {
+  FileCheck c;
+  c.digests = digests_of_file(file);
+  if (entry.pinned()) {
+    c.pinned = (!entry.md5.empty() && c.digests.md5 == entry.md5) ||
+               (!entry.sha256.empty() && c.digests.sha256 == entry.sha256);
+    if (!c.pinned)
+      fail("{}: {} is not the published file: its MD5 is {} and its SHA-256 {}, but {} publishes {}", entry.name,
+           file.string(), c.digests.md5, c.digests.sha256,
+           entry.checksum_source.empty() ? "the catalogue" : entry.checksum_source, published(entry));
+  } else if (!recorded_sha256.empty() && c.digests.sha256 != recorded_sha256) {
+    fail("{}: {} has changed: its SHA-256 is {}, but {} was recorded when it was first fetched", entry.name,
+         file.string(), c.digests.sha256, recorded_sha256);
+  }
+  return c;
+}
+
+CachedModel install_checked(const ModelEntry& entry, const fs::path& checked, const FileCheck& check,
+                            const std::string& origin) {
+  std::error_code ec;
+  fs::rename(checked, cached_file(entry), ec);
+  if (ec) fail_file(cached_file(entry), "cannot move the checked file into place: {}", ec.message());
+  return write_record(entry, check, origin);
+}
+
+CachedModel verify_cached(const ModelEntry& entry) {
+  const fs::path file = cached_file(entry);
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec))
+    fail("{}: not in the cache ({}); bring it with: {}", entry.name, models_dir().string(), get_command(entry.name));
+  const std::optional<json> r = read_record(entry);
+  const FileCheck check = check_file(entry, file, r ? (*r)["sha256"].get<std::string>() : "");
+  return write_record(entry, check, r ? r->value("origin", "") : "found in the cache");
+}
+
+CachedModel import_model(const ModelEntry& entry, const fs::path& source) {
+  std::error_code ec;
+  if (!fs::is_regular_file(source, ec)) fail_file(source, "no such file");
+  const FileCheck check = check_file(entry, source, "");
+  fs::create_directories(models_dir(), ec);
+  if (ec) fail_file(models_dir(), "cannot create the models' folder: {}", ec.message());
+  const fs::path tmp = models_dir() / (entry.file_name + ".import");
+  fs::copy_file(source, tmp, fs::copy_options::overwrite_existing, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    fail_file(models_dir(), "cannot write {}: {}", tmp.filename().string(), ec.message());
+  }
+  return install_checked(entry, tmp, check, "imported from " + fs::absolute(source).string());
+}
+
+bool remove_cached(const ModelEntry& entry) {
+  bool any = false;
+  std::error_code ec;
+  for (const fs::path& p : {cached_file(entry), record_file(entry), models_dir() / (entry.file_name + ".part")})
+    any = fs::remove(p, ec) || any;
+  return any;
+}
+
+std::optional<CachedModel> cached_model_of_file(const fs::path& file) {
+  std::error_code ec;
+  for (const ModelEntry& e : model_catalogue())
+    if (fs::equivalent(file, cached_file(e), ec)) return cached_model(e);
+  return std::nullopt;
+}
+
+json model_file_description(const fs::path& file) {
+  if (const auto m = cached_model_of_file(file))
+    return {{"file", file.string()}, {"sha256", m->sha256}, {"from", "the cache"}, {"catalogue_name", m->name}};
+  return {{"file", file.string()}, {"sha256", sha256_of_file(file)}, {"from", "a path"}};
+}
+
+ModelChoice choose_model(ModelRole role, const std::string& value) {
+  ModelChoice c;
+  if (value == "auto") {
+    c.cached = cached_model_for(role);
+    if (c.cached) c.file = c.cached->file;
+    return c;
+  }
+  if (in_catalogue(value)) {
+    const ModelEntry& e = catalogue_entry(value);
+    if (e.role != role) fail("{} {}: {} is for {}", role_flag(role), value, value, role_flag(e.role));
+    const CacheStatus s = cache_status(e);
+    if (s.state == CacheState::Absent)
+      fail("{} {}: not in the cache ({}); bring it with: {}", role_flag(role), value, models_dir().string(),
+           get_command(value));
+    if (!s.model) fail("{} {}: the cache's file is {}", role_flag(role), value, s.why);
+    c.cached = s.model;
+    c.file = s.model->file;
+    return c;
+  }
+  c.file = fs::path(value);
+  return c;
+}
+
+}  // namespace ii
