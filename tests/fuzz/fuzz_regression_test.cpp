@@ -21,7 +21,7 @@ TEST(FuzzTargets, EveryParserHasOne) {
   std::set<std::string> names;
   for (const FuzzTarget& t : targets()) names.insert(t.name);
   EXPECT_EQ(names, (std::set<std::string>{"box", "camera_json", "click", "colmap_binary", "colmap_text", "image", "llff",
-                                          "mask_folder", "nerfstudio", "npy", "pickle", "ply", "pth",
+                                          "mask_folder", "model_catalogue", "nerfstudio", "npy", "pickle", "ply", "pth",
                                           "safetensors", "sog", "spz"}));
 }
 
