@@ -64,6 +64,31 @@ def wait_for_job(base, job_id=None):
             time.sleep(0.1)
 
 
+def time_clicks(base, views, count, opened):
+    """Waits until the segmenter has encoded every view behind the page, then clicks the middle of
+    `count` views (their masks' centre where they have one) and prints each answer's time."""
+    while True:
+        info = json.loads(request(base, "/api/info")[1])
+        if not info.get("segmenter"):
+            sys.exit("measure-serve-edit: --clicks needs a segmenter (instainpaint models get mobile-sam)")
+        if info["segmenter"]["views_encoded"] == len(views):
+            break
+        time.sleep(0.2)
+    print(f"every view's photo ({len(views)}) encoded behind the page {time.perf_counter() - opened:.1f} s after it was started")
+    for i in range(count):
+        index = i * len(views) // count
+        v = views[index]
+        body, content_type = multipart({"view": str(index), "clicks": f"{v['width'] // 2},{v['height'] // 2}"})
+        start = time.perf_counter()
+        status, answer = request(base, "/api/select", body, content_type)
+        seconds = time.perf_counter() - start
+        a = json.loads(answer)
+        if status != 200:
+            sys.exit(f"measure-serve-edit: the click was refused ({status}): {a}")
+        print(f"click on view {index}: {1000 * seconds:.0f} ms to the answer (server: encode {a['ms']['encode']:.1f} ms, "
+              f"decode {a['ms']['decode']:.1f} ms), {a['pixels']} pixels")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0], epilog=__doc__.split("Example:")[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -72,6 +97,9 @@ def main():
     parser.add_argument("--view", type=int, help="index of the view to edit (default: the middle one)")
     parser.add_argument("--runs", type=int, default=3, help="edits to time (the first includes warm-up)")
     parser.add_argument("--refine", default="0", help="the page's refine setting (default 0: feed-forward)")
+    parser.add_argument("--clicks", type=int, default=0,
+                        help="with a segmenter (serve's auto: the cache's): wait until every view's photo is encoded "
+                             "behind the page, then time this many clicks, one on each of as many views, before the edits")
     parser.add_argument("--stages", metavar="FILE", help="also write the last run's job JSON (its stages) here")
     parser.add_argument("--pause", type=float, default=2.0,
                         help="seconds between the first job and the first edit, as a person marking the region "
@@ -81,6 +109,7 @@ def main():
     out = tempfile.mkdtemp(prefix="ii-serve-edit-")
     command = [args.bin, "serve", "--scene", args.scene, "--port", "0", "--token", TOKEN, "--out", out,
                *args.serve_args, *extra]
+    opened = time.perf_counter()
     server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         base = None
@@ -94,10 +123,15 @@ def main():
         info = json.loads(request(base, "/api/info")[1])
         model = info.get("model") or {}
         print(f"server {base}, model {model.get('checkpoint')} ({model.get('config', {}).get('preset')})")
+        networks = info.get("networks", {})
+        print("networks: " + ", ".join(f"{k} {v.get('network', v.get('file', v.get('instead')))} ({v.get('from', 'absent')})"
+                                       for k, v in networks.items() if isinstance(v, dict)))
         first = wait_for_job(base)
         print(f"first job ({first.get('kind', first.get('stage'))}): {first.get('state')} in {first.get('seconds', 0):.2f} s")
-        time.sleep(args.pause)
         views = info["scene"]["views"]
+        if args.clicks:
+            time_clicks(base, views, args.clicks, opened)
+        time.sleep(args.pause)
         index = args.view if args.view is not None else len(views) // 2
         status, mask = request(base, f"/api/views/{index}/mask")
         if status != 200:

@@ -8,7 +8,7 @@ the Gaussians render the edited scene from any camera.
     import instainpaint as ii
 
     scene = ii.load_scene("statue", hold_out_every=8)      # LLFF/SPIn-NeRF, nerfstudio, COLMAP
-    predictor = ii.Predictor()                              # the built-in model; or checkpoint="x.pth"
+    predictor = ii.Predictor()                              # "auto": the cache's released checkpoint, else built in
     gaussians = predictor.predict(scene, reference="inpainted.png")
     gaussians = gaussians.refine(scene, preset="fast", progress=print)
     gaussians.save("statue.spz")                            # .ply, .compressed.ply, .spz, .sog
@@ -28,7 +28,7 @@ import json
 import os
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
-from . import _core
+from . import _core, models
 from ._core import Camera, Error, Scene, set_log_level, set_threads
 
 
@@ -182,13 +182,15 @@ class Gaussians:
 
 
     def select(self, camera: Camera, click, *, view: str = "the camera", not_click=None,
-               segmenter: Optional["Segmenter"] = None):
+               segmenter: Union["Segmenter", str, None] = "auto"):
         """The splats of the object under click=(x, y) (pixels of camera's view; a list of points adds
-        more), as `fill --click` selects them: a bool array, one per splat. With segmenter=, the
-        object it outlines in these splats' render from the camera (not_click= points that are not it)."""
+        more), as `fill --click` selects them: a bool array, one per splat. With a segmenter (the
+        default "auto": the cache's, when there is one; None: none), the object it outlines in these
+        splats' render from the camera (not_click= points that are not it)."""
         import numpy as np
+        s = _segmenter_of(segmenter)
         return np.asarray(_core._select_splats(self._g, camera, view, _clicks(click), _clicks(not_click),
-                                               segmenter._s if segmenter else None), dtype=bool)
+                                               s._s if s else None), dtype=bool)
 
     @property
     def fill_report(self) -> Optional[dict]:
@@ -218,8 +220,8 @@ class Gaussians:
         and places the reference's pixels on it; "network" takes the network's Gaussians of the
         hole (all_views=True: of every chosen view's hole, not the reference's alone).
         inpainter= without reference=, the 2D inpainter of the reference's hole: "telea", "ns",
-        "patch" (patches copied inward: texture continues, no smear) or a LaMa file; default
-        $INSTAINPAINT_INPAINTER, else "ns".
+        "patch" (patches copied inward: texture continues, no smear), "big-lama" (the cache's LaMa) or
+        a LaMa file; default $INSTAINPAINT_INPAINTER, else "auto": the cache's LaMa, else "ns".
         predictor: default the built-in model on the best device.
         """
         given: Dict[str, Camera] = {}
@@ -244,8 +246,9 @@ def load_gaussians(path: PathLike) -> Gaussians:
 class Predictor:
     """A model loaded once, predicting as often as needed.
 
-    checkpoint: the released InstaInpaint .pth, a safetensors file, or None for the model built
-    into the library. device: "auto" (a GPU when there is one), "cpu", "cuda", "cuda:N".
+    checkpoint: None or "auto" (the cache's released checkpoint, ii.models.get("instainpaint"),
+    else the model built into the library), "default" (the built-in model), or a file (the
+    released InstaInpaint .pth, a safetensors file). device: "auto" (a GPU when there is one), "cpu", "cuda", "cuda:N".
     precision: "auto" (bf16 on a GPU and on CPUs with native bf16), "fp32" or "bf16".
     """
 
@@ -274,8 +277,8 @@ class Predictor:
         reference: the 2D-inpainted reference photo, a file or an H x W x 3 array (default: the
         reference view painted by `inpainter`).
         inpainter: without reference=, what paints the reference view's region: "ns", "telea",
-        "patch", or a LaMa file (big-lama/models/best.ckpt: a learned inpainter, far better than the
-        classical ones); default $INSTAINPAINT_INPAINTER, else "ns".
+        "patch", "big-lama" (the cache's LaMa: a learned inpainter, far better than the classical
+        ones) or a LaMa file; default $INSTAINPAINT_INPAINTER, else "auto": the cache's LaMa, else "ns".
         height: the working height in pixels (a multiple of the patch size after scaling).
         masks: object masks by view name (H x W arrays at the photos' size), instead of the scene's.
         keep_object: reconstruct the scene as captured (no masks, the reference's own photo).
@@ -338,10 +341,16 @@ def _clicks(click) -> List[Tuple[float, float]]:
 class Segmenter:
     """A promptable segmentation network, SAM or MobileSAM, read from the file its authors publish
     (MobileSAM's mobile_sam.pt; SAM's sam_vit_b_01ec64.pth, sam_vit_l_0b3195.pth, sam_vit_h_4b8939.pth),
-    never executed. precision: "auto" (bf16 where the CPU has native bf16), "fp32" or "bf16"."""
+    never executed. path: "auto" (the cache's, MobileSAM first: ii.models.get("mobile-sam")), a
+    catalogue name ("sam-vit-b") or a file. precision: "auto" (bf16 where the CPU has native bf16),
+    "fp32" or "bf16"."""
 
-    def __init__(self, path: PathLike, *, precision: str = "auto"):
+    def __init__(self, path: PathLike = "auto", *, precision: str = "auto"):
         self._s = _core.Segmenter(os.fspath(path), precision)
+
+    @property
+    def file(self) -> str:
+        return self._s.file
 
     @property
     def description(self) -> str:
@@ -360,12 +369,23 @@ class Segmenter:
         return mask, json.loads(report)
 
 
-def select(scene: Scene, view: str, click, *, not_click=None, segmenter: Optional[Segmenter] = None,
+def _segmenter_of(segmenter: Union[Segmenter, str, None]) -> Optional[Segmenter]:
+    """A segmenter= keyword: a Segmenter, "auto" (the cache's when there is one, else none), None or "none"."""
+    if segmenter is None or segmenter == "none":
+        return None
+    if isinstance(segmenter, Segmenter):
+        return segmenter
+    if segmenter == "auto":
+        return Segmenter() if models.list()["auto"]["segmenter"] else None
+    return Segmenter(segmenter)
+
+
+def select(scene: Scene, view: str, click, *, not_click=None, segmenter: Union[Segmenter, str, None] = "auto",
            predictor: Optional[Predictor] = None, height: int = 512, views: int = 4) -> Tuple[Dict[str, Any], dict]:
     """The object under a click, masked in every view (`instainpaint masks --click`).
 
-    click: (x, y) in pixels of the view's photo as stored, or a list of such points. With segmenter=
-    (a Segmenter), its mask of the clicked view (not_click= points that are not the object) is lifted
+    click: (x, y) in pixels of the view's photo as stored, or a list of such points. With a segmenter
+    (a Segmenter, a catalogue name or file, or the default "auto": the cache's when there is one; None: none), its mask of the clicked view (not_click= points that are not the object) is lifted
     to every view and carved; without, each click's object is grown by colour in the network's
     reconstruction of the scene (predictor: default the built-in model) and each view's mask carved
     to it. Returns ({view name: H x W float32 mask}, a report: how the clicked view's mask was made,
@@ -373,8 +393,9 @@ def select(scene: Scene, view: str, click, *, not_click=None, segmenter: Optiona
     """
     if predictor is None:
         predictor = Predictor()
+    s = _segmenter_of(segmenter)
     masks, report = _core._masks_from_one(scene, view, None, _clicks(click), _clicks(not_click),
-                                          segmenter._s if segmenter else None, predictor._p, height, views)
+                                          s._s if s else None, predictor._p, height, views)
     return masks, json.loads(report)
 
 

@@ -22,6 +22,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "models/download.h"
 #include "inpaint/lama_inpainter.h"
 #include "common/error.h"
 #include "common/files.h"
@@ -220,6 +221,28 @@ NB_MODULE(_core, m) {
     }
     m.attr("_geometry_settings") = settings;
   }
+
+  // ii.models: the catalogue and the cache (instainpaint models).
+  m.def("_models_get",
+        [](const std::string& name, const std::string& mirror, double timeout_s, bool progress) {
+          const ModelEntry& entry = catalogue_entry(name);
+          if (const auto m = cached_model(entry)) return m->file.string();
+          DownloadOptions o;
+          o.mirror = mirror;
+          o.timeout_s = timeout_s;
+          o.progress = progress;
+          nb::gil_scoped_release release;
+          return download_model(entry, o).file.string();
+        },
+        "name"_a, "mirror"_a, "timeout"_a, "progress"_a);
+  m.def("_models_path", [](const std::string& name) { return verified_model_path(name).string(); }, "name"_a);
+  m.def("_models_list", [] { return catalogue_state().dump(); });
+  m.def("_models_import",
+        [](const std::string& file, const std::string& name) {
+          return import_model(catalogue_entry(name), file).file.string();
+        },
+        "file"_a, "name"_a);
+  m.def("_models_remove", [](const std::string& name) { return remove_cached(catalogue_entry(name)); }, "name"_a);
 
   m.def("set_threads",
         [](int threads) {
@@ -493,10 +516,14 @@ NB_MODULE(_core, m) {
       .def("__init__",
            [](PySegmenter* p, const std::string& path, const std::string& precision) {
              nb::gil_scoped_release release;
-             new (p) PySegmenter{std::make_shared<const Segmenter>(Segmenter::load(path, parse_segmenter_precision(precision)))};
+             // "auto", "mobile-sam" (the cache's) or a file, as the commands' --segmenter.
+             const auto file = segmenter_path(path.empty() ? "auto" : path);
+             if (!file) fail("Segmenter: no segmentation network in the cache; bring one with ii.models.get(\"mobile-sam\")");
+             new (p) PySegmenter{std::make_shared<const Segmenter>(Segmenter::load(*file, parse_segmenter_precision(precision)))};
            },
            "path"_a, "precision"_a)
       .def_prop_ro("description", [](const PySegmenter& s) { return s.segmenter->description(); })
+      .def_prop_ro("file", [](const PySegmenter& s) { return s.segmenter->file().string(); })
       .def_prop_ro("precision", [](const PySegmenter& s) { return std::string(s.segmenter->bf16() ? "bf16" : "fp32"); })
       .def("_segment",
            [](const PySegmenter& s, const AnyArray& image, const std::vector<std::pair<double, double>>& clicks,

@@ -6,6 +6,13 @@ import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 
+# The tests run with an empty models' cache of their own: a network a developer fetched
+# (instainpaint models get) must not change what they run. Set before the library reads it.
+os.environ["INSTAINPAINT_MODELS_DIR"] = str(pathlib.Path(__import__("tempfile").mkdtemp(prefix="ii-py-models-")))
+for _name in ("INSTAINPAINT_MODELS_CATALOGUE", "INSTAINPAINT_MODELS_MIRROR", "INSTAINPAINT_SEGMENTER",
+              "INSTAINPAINT_INPAINTER"):
+    os.environ.pop(_name, None)
+
 
 @pytest.fixture(scope="session")
 def shared() -> pathlib.Path:

@@ -437,3 +437,26 @@ def test_fill_removes_a_box_and_fills_it_keeping_every_other_splat(tmp_path, sta
         scene.fill(box=[*centre, *size], scene=statue, placement="nope", predictor=predictor)
     with pytest.raises(ii.Error, match="holds no splat of the Gaussians: its splats lie within"):
         scene.fill(box=[*(centre + 1e6), 1, 1, 1], scene=statue, predictor=predictor)
+
+
+def test_models_name_the_catalogue_and_say_how_to_bring_a_network(tmp_path):
+    import hashlib
+    import instainpaint as ii
+    listed = ii.models.list()
+    assert [n["name"] for n in listed["networks"]] == ["instainpaint", "mobile-sam", "sam-vit-b", "sam-vit-l",
+                                                        "sam-vit-h", "big-lama"]
+    assert listed["folder"] == os.environ["INSTAINPAINT_MODELS_DIR"]
+    assert listed["auto"] == {"checkpoint": None, "segmenter": None, "inpainter": None}
+    with pytest.raises(ii.Error, match="mobile-sam: not in the cache; bring it with: instainpaint models get mobile-sam"):
+        ii.models.path("mobile-sam")
+    with pytest.raises(ii.Error, match=r"ii.models.get\("):
+        ii.Segmenter()
+    # Without a network in the cache, "auto" takes the built-in path.
+    assert ii.Predictor(device="cpu").model == "<embedded default model>"
+    # A file that is not the published one is refused with both checksums, and nothing is kept.
+    fixture = REPO / "tests" / "segment" / "fixture" / "mobile_sam_small.pt"
+    with pytest.raises(ii.Error) as refused:
+        ii.models.import_file(fixture, "mobile-sam")
+    assert hashlib.md5(fixture.read_bytes()).hexdigest() in str(refused.value)
+    assert "f3c0d8cda613564d499310dab6c812cd" in str(refused.value)
+    assert not ii.models.remove("mobile-sam")

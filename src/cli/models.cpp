@@ -23,36 +23,9 @@ std::string size_text(uintmax_t bytes) {
   return bytes >= 1000000000 ? fmt::format("{:.2f} GB", bytes / 1e9) : fmt::format("{:.0f} MB", bytes / 1e6);
 }
 
-std::string state_text(const CacheStatus& s) {
-  switch (s.state) {
-    case CacheState::Absent: return "absent";
-    case CacheState::Unchecked: return "present, not checked";
-    case CacheState::Verified: return s.model->pinned ? "verified" : "present (SHA-256 recorded)";
-  }
-  return "?";
-}
-
-json entry_json(const ModelEntry& e) {
-  const CacheStatus s = cache_status(e);
-  json j = {{"name", e.name},       {"role", role_name(e.role)}, {"purpose", e.purpose}, {"file", e.file_name},
-            {"urls", e.urls},       {"licence", e.licence},     {"size", e.size},       {"pinned", e.pinned()},
-            {"state", state_text(s)}, {"path", cached_file(e).string()}};
-  if (!e.md5.empty()) j["md5"] = e.md5;
-  if (!e.sha256.empty()) j["published_sha256"] = e.sha256;
-  if (s.model) j["sha256"] = s.model->sha256, j["origin"] = s.model->origin, j["checked_at"] = s.model->checked_at;
-  if (!s.why.empty()) j["why"] = s.why;
-  return j;
-}
-
 void list(bool as_json) {
   if (as_json) {
-    json out = {{"folder", models_dir().string()}, {"networks", json::array()}};
-    for (const ModelEntry& e : model_catalogue()) out["networks"].push_back(entry_json(e));
-    for (const ModelRole r : {ModelRole::Checkpoint, ModelRole::Segmenter, ModelRole::Inpainter}) {
-      const auto m = cached_model_for(r);
-      out["auto"][role_name(r)] = m ? json(m->name) : json(nullptr);
-    }
-    fmt::print("{}\n", out.dump(2));
+    fmt::print("{}\n", catalogue_state().dump(2));
     return;
   }
   fmt::print("networks in {}\n\n", models_dir().string());
@@ -60,7 +33,7 @@ void list(bool as_json) {
   for (const ModelEntry& e : model_catalogue()) {
     const CacheStatus s = cache_status(e);
     fmt::print("{:<13} {:<11} {:>8}  {:<11} {:<26} {}\n", e.name, role_flag(e.role), size_text(e.size), e.licence,
-               state_text(s), e.pinned() ? "pinned (" + e.checksum_source + ")" : "not pinned: none is published");
+               cache_state_text(s), e.pinned() ? "pinned (" + e.checksum_source + ")" : "not pinned: none is published");
   }
   fmt::print("\n");
   for (const ModelEntry& e : model_catalogue()) fmt::print("{:<13} {}\n{:<13} from {}\n", e.name, e.purpose, "", e.urls[0]);
@@ -156,14 +129,7 @@ void add_models_command(CLI::App& app) {
   auto path_name = std::make_shared<std::string>();
   auto* path_cmd = cmd->add_subcommand("path", "Print a verified network's file (for scripts)");
   path_cmd->add_option("name", *path_name, "Catalogue name")->required();
-  path_cmd->callback([path_name] {
-    const ModelEntry& e = catalogue_entry(*path_name);
-    const CacheStatus s = cache_status(e);
-    if (!s.model)
-      fail("{}: {}", e.name,
-           s.state == CacheState::Absent ? "not in the cache; bring it with: " + get_command(e.name) : s.why);
-    fmt::print("{}\n", s.model->file.string());
-  });
+  path_cmd->callback([path_name] { fmt::print("{}\n", verified_model_path(*path_name).string()); });
 
   auto import_file = std::make_shared<std::string>();
   auto import_name = std::make_shared<std::string>();

@@ -188,6 +188,44 @@ json model_file_description(const fs::path& file) {
   return {{"file", file.string()}, {"sha256", sha256_of_file(file)}, {"from", "a path"}};
 }
 
+fs::path verified_model_path(const std::string& name) {
+  const ModelEntry& e = catalogue_entry(name);
+  const CacheStatus s = cache_status(e);
+  if (!s.model)
+    fail("{}: {}", e.name, s.state == CacheState::Absent ? "not in the cache; bring it with: " + get_command(e.name) : s.why);
+  return s.model->file;
+}
+
+std::string cache_state_text(const CacheStatus& s) {
+  switch (s.state) {
+    case CacheState::Absent: return "absent";
+    case CacheState::Unchecked: return "present, not checked";
+    case CacheState::Verified: return s.model->pinned ? "verified" : "present (SHA-256 recorded)";
+  }
+  return "?";
+}
+
+json catalogue_state() {
+  json out = {{"folder", models_dir().string()}, {"networks", json::array()}, {"auto", json::object()}};
+  for (const ModelEntry& e : model_catalogue()) {
+    const CacheStatus s = cache_status(e);
+    json j = {{"name", e.name},       {"role", role_name(e.role)}, {"purpose", e.purpose},
+              {"file", e.file_name},  {"urls", e.urls},            {"licence", e.licence},
+              {"size", e.size},       {"pinned", e.pinned()},      {"state", cache_state_text(s)},
+              {"path", cached_file(e).string()}};
+    if (!e.md5.empty()) j["md5"] = e.md5;
+    if (!e.sha256.empty()) j["published_sha256"] = e.sha256;
+    if (s.model) j["sha256"] = s.model->sha256, j["origin"] = s.model->origin, j["checked_at"] = s.model->checked_at;
+    if (!s.why.empty()) j["why"] = s.why;
+    out["networks"].push_back(j);
+  }
+  for (const ModelRole r : {ModelRole::Checkpoint, ModelRole::Segmenter, ModelRole::Inpainter}) {
+    const auto m = cached_model_for(r);
+    out["auto"][role_name(r)] = m ? json(m->name) : json(nullptr);
+  }
+  return out;
+}
+
 ModelChoice choose_model(ModelRole role, const std::string& value) {
   ModelChoice c;
   if (value == "auto") {

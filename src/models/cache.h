@@ -75,6 +75,15 @@ std::optional<CachedModel> cached_model_of_file(const std::filesystem::path& fil
 // {"file", "sha256", "from": "the cache" | "a path"} (and "catalogue_name" for the cache's).
 nlohmann::json model_file_description(const std::filesystem::path& file);
 
+// The verified file of the catalogue's `name`; an Error saying how to bring or mend it.
+std::filesystem::path verified_model_path(const std::string& name);
+
+// "absent", "present, not checked", "verified" or "present (SHA-256 recorded)" (not pinned).
+std::string cache_state_text(const CacheStatus& status);
+// `models list --json` and Python's models.list(): {"folder", "networks": [each entry with its
+// state, path, checksums], "auto": {role: the name auto picks, or null}}.
+nlohmann::json catalogue_state();
+
 // Where a role's flag value leads: "auto" (the cache's file, else the built-in path), a
 // catalogue name (its cached file, else an Error giving the command that brings it), the
 // built-in path's own words, or a file. `builtin_words`: e.g. {"none"} for --segmenter.

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include <spdlog/spdlog.h>
+
 #include "common/error.h"
 #include "common/stopwatch.h"
 #include "edit/scene_masks.h"
@@ -49,11 +51,77 @@ std::shared_ptr<const SplatCloud> PageSelection::splats(const std::filesystem::p
   return splats_;
 }
 
+PageSelection::~PageSelection() {
+  stopping_ = true;
+  if (encoder_.joinable()) encoder_.join();
+}
+
 void PageSelection::set_segmenter(std::shared_ptr<const Segmenter> segmenter) {
   std::lock_guard<std::mutex> lock(mutex_);
   segmenter_ = std::move(segmenter);
   encoded_.reset();
   encoded_key_.clear();
+  view_encodings_.clear();
+}
+
+std::shared_ptr<const SegmenterImage> PageSelection::view_encoding(const View& view, double& encode_ms) {
+  Stopwatch watch;
+  const std::string key = "view " + view.name;
+  std::promise<std::shared_ptr<const SegmenterImage>> made;
+  Encoding pending;  // made or being made by another thread
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto found = view_encodings_.find(key);
+    if (found != view_encodings_.end())
+      pending = found->second;
+    else
+      view_encodings_.emplace(key, made.get_future().share());
+  }
+  if (pending.valid()) {  // the time waited for it: none when it was ready
+    const bool ready = pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+    std::shared_ptr<const SegmenterImage> e = pending.get();
+    encode_ms = ready ? 0 : watch.ms();
+    return e;
+  }
+  try {
+    auto e = std::make_shared<const SegmenterImage>(segmenter_->encode(load_view_image(view)));
+    made.set_value(e);
+    encode_ms = watch.ms();
+    return e;
+  } catch (...) {
+    made.set_exception(std::current_exception());
+    std::lock_guard<std::mutex> lock(mutex_);
+    view_encodings_.erase(key);  // a later click tries again
+    throw;
+  }
+}
+
+void PageSelection::encode_views_behind(std::vector<View> views, std::function<bool()> busy) {
+  if (!segmenter_ || encoder_.joinable()) return;
+  encoder_ = std::thread([this, views = std::move(views), busy = std::move(busy)] {
+    Stopwatch watch;
+    int encoded = 0;
+    for (const View& view : views) {
+      while (!stopping_ && busy()) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      if (stopping_) return;
+      try {
+        double ms = 0;
+        view_encoding(view, ms);
+        ++encoded;
+      } catch (const std::exception& e) {
+        spdlog::warn("segmenter: view {} was not encoded behind the page: {}", view.name, e.what());
+      }
+    }
+    spdlog::info("segmenter: {} views' photos encoded behind the page in {:.1f} s", encoded, watch.ms() / 1000);
+  });
+}
+
+int PageSelection::views_encoded() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  int ready = 0;
+  for (const auto& [key, encoding] : view_encodings_)
+    ready += encoding.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+  return ready;
 }
 
 std::shared_ptr<const SegmenterImage> PageSelection::encoding(const std::string& key, const std::function<Image()>& make,
@@ -133,7 +201,7 @@ std::optional<json> PageSelection::select_on_view(const View& view, const Camera
   if (segmenter_) {
     check_clicks_inside(view.camera, view.name, clicks, not_clicks);
     double encode_ms = 0;
-    const auto encoded = encoding("view " + view.name, [&] { return load_view_image(view); }, encode_ms);
+    const auto encoded = view_encoding(view, encode_ms);
     watch.lap();
     const ClickedMask clicked = mask_from_prompt(*segmenter_, *encoded, clicks, not_clicks, box);
     json answer = selection_answer(clicked.pixels, static_cast<int64_t>(clicked.mask.pixels.size()), clicked.mask);

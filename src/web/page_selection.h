@@ -6,12 +6,16 @@
 // the view as the page draws it. What a click reads is kept between clicks: the splats of the
 // last file (read once), the reconstruction's coloured points (made at the first click on a view).
 // Safe to call from the server's threads side by side.
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <future>
+#include <map>
 #include <string>
 #include <memory>
 #include <mutex>
+#include <thread>
 #include <optional>
 #include <vector>
 
@@ -29,6 +33,11 @@ namespace ii {
 
 class PageSelection {
  public:
+  PageSelection() = default;
+  ~PageSelection();  // stops the encoding behind (after the view it is on)
+  PageSelection(const PageSelection&) = delete;
+  PageSelection& operator=(const PageSelection&) = delete;
+
   // The splats of `ply`, read once per file (read ahead when the page's click tool is chosen: a
   // click answers in well under a second on a million splats, and reading them again would
   // double that).
@@ -38,6 +47,13 @@ class PageSelection {
   // (`not_clicks`); each view's photo (and the page's render of the splats) is encoded at its
   // first click and kept, so a later click runs only the decoder.
   void set_segmenter(std::shared_ptr<const Segmenter> segmenter);
+
+  // With a segmenter: every view's photo encoded behind the page, one after another in the order
+  // given, so that a click on any view runs the decoder alone (a click on a view being encoded
+  // waits for it; none is encoded twice). Between views it waits while `busy()` (a job runs).
+  void encode_views_behind(std::vector<View> views, std::function<bool()> busy);
+  // How many views' photos are encoded so far.
+  int views_encoded() const;
 
   // The objects under `clicks` among the splats of `ply` seen by `camera` (the page's view):
   // {selected, total, pixels, width, height, runs, how, ms: {read, select, draw}}. With a
@@ -65,16 +81,22 @@ class PageSelection {
                                                const std::optional<SegmentBox>& box = std::nullopt);
 
  private:
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::filesystem::path splats_file_;
   std::shared_ptr<const SplatCloud> splats_;
   std::optional<GaussianSet> reconstruction_;
   std::shared_ptr<const ColouredPoints> points_;  // of the reconstruction, made at the first click
   std::shared_ptr<const Segmenter> segmenter_;
-  // The last photo or render the segmenter encoded, and what it was ("view NAME", or the splats
-  // file and the camera on screen).
+  // The last render of the splats the segmenter encoded, and what it was (the file and the camera).
   std::string encoded_key_;
   std::shared_ptr<const SegmenterImage> encoded_;
+  // Each view's photo, encoded or being encoded ("view NAME").
+  using Encoding = std::shared_future<std::shared_ptr<const SegmenterImage>>;
+  std::map<std::string, Encoding> view_encodings_;
+  std::thread encoder_;
+  std::atomic<bool> stopping_{false};
+  // The view's encoding: the one made or being made, else made here.
+  std::shared_ptr<const SegmenterImage> view_encoding(const View& view, double& encode_ms);
   // The encoding of `key` (made by `make` when another was kept); `encode_ms` gets its time (0 when kept).
   std::shared_ptr<const SegmenterImage> encoding(const std::string& key, const std::function<Image()>& make,
                                                  double& encode_ms);

@@ -39,6 +39,9 @@
 #include "io/ply.h"
 #include "io/splat_file.h"
 #include "io/video.h"
+#include "model/default_model.h"
+#include "models/cache.h"
+#include "models/download.h"
 #include "refine/refine.h"
 #include "render/frames.h"
 #include "render/rasterizer.h"
@@ -219,6 +222,7 @@ struct JobRequest {
   std::vector<Click> clicks;  // fill: in place of `region`, clicks on the object on `camera`
   std::vector<Click> not_clicks;  // with a segmenter: points on `camera` that are not the object
   Inpainter inpainter;  // fill without a reference: the server's (serve --inpainter), else the one asked for
+  bool slower_model = false;  // edit: with the released checkpoint offered beside the built-in model
 };
 
 // The inpainter as the page sees it: its file by name only (the server's folders stay its own).
@@ -428,11 +432,18 @@ struct WebServer::State {
   json select_on_view(const httplib::Request& req, const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
                       const std::optional<SegmentBox>& box);
 
+  // The released checkpoint a CPU page offers as a slower, better Run (ServeOptions::slower_checkpoint),
+  // read at its first use.
+  std::mutex slower_mutex;
+  std::unique_ptr<Predictor> slower;
+  const Predictor& slower_predictor();
+
   ~State() { stop_worker(); }
   void worker_loop();
   void stop_worker();
 
   json info() const;
+  json networks() const;
   std::optional<Refusal> parse_edit(const httplib::Request& req, JobRequest& edit, const fs::path& dir) const;
   // The file behind a URL of splats this server serves (a PLY given at start, a job's splats;
   // with standard_ply, that job's standard PLY whichever of its files was named), or empty.
@@ -489,6 +500,29 @@ struct WebServer::State {
   void write_files_behind(int id, BehindSteps steps, std::shared_ptr<StageTimes> stages);
 };
 
+// Which networks the page runs, where each came from, and for each one absent the command that
+// brings it (the page says so).
+json WebServer::State::networks() const {
+  json n = json::object();
+  // The file by name only (the server's folders stay its own), and whether the cache holds it.
+  const auto served_file = [](const fs::path& file) {
+    return json{{"file", file.filename().string()}, {"from", cached_model_of_file(file) ? "the cache" : "a path"}};
+  };
+  if (options.segmenter) n["segmenter"] = served_file(options.segmenter->file()), n["segmenter"]["network"] = options.segmenter->description();
+  else n["segmenter"] = {{"missing", true}, {"get", get_command("mobile-sam")}, {"instead", "colour growth"}};
+  if (options.inpainter.learned) n["inpainter"] = served_inpainter(options.inpainter);
+  else n["inpainter"] = {{"missing", true}, {"get", get_command("big-lama")}, {"instead", options.inpainter.name()}};
+  if (predictor) {
+    const bool builtin = predictor->model_name() == kDefaultModelName;
+    n["model"] = builtin ? json{{"file", predictor->model_name()}, {"from", "built in"}} : served_file(predictor->model_name());
+    if (options.slower_checkpoint)
+      n["released"] = {{"offered", true}, {"seconds_estimate", 11}, {"file", options.slower_checkpoint->filename().string()}};
+    else if (builtin)
+      n["released"] = {{"missing", true}, {"get", get_command("instainpaint")}};
+  }
+  return n;
+}
+
 json WebServer::State::info() const {
   json views = json::array();
   if (scene)
@@ -518,9 +552,11 @@ json WebServer::State::info() const {
           {"filling", predictor != nullptr},
           {"model", predictor ? predictor->describe() : json()},
           {"segmenter", options.segmenter ? json{{"network", options.segmenter->description()},
-                                                 {"file", options.segmenter->file().filename().string()}}
+                                                 {"file", options.segmenter->file().filename().string()},
+                                                 {"views_encoded", selection.views_encoded()}}
                                           : json()},
           {"inpainter", served_inpainter(options.inpainter)},
+          {"networks", networks()},
           {"working_height", options.height}};
 }
 
@@ -585,6 +621,17 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
     edit.mode = parse_edit_mode(mode);
   }
   if (auto r = parse_refine(req, edit.refine)) return r;
+  if (run_network && req.has_file("model")) {
+    const std::string model = req.get_file_value("model").content;
+    if (model == "released") {
+      if (!options.slower_checkpoint)
+        return Refusal{400, "this server offers no second model (the released checkpoint: instainpaint models get "
+                            "instainpaint, then serve again)"};
+      edit.slower_model = true;
+    } else if (model != "default") {
+      return Refusal{400, "model must be default or released"};
+    }
+  }
 
   // Uploaded images: PNG or JPEG, kept in the job's folder under fixed names and decoded now
   // (a broken file is the request's fault, not the job's); errors name the field, not the file.
@@ -719,6 +766,11 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
                                 const std::function<void(const std::string&, double)>& stage, StageTimes& stages,
                                 BehindSteps& behind) {
   const View& view = scene->views[static_cast<size_t>(edit.view)];
+  const Predictor* model = predictor;
+  if (edit.slower_model) {
+    stage("reading the released checkpoint", 0.02);
+    model = &stages.time("read the released checkpoint", [&]() -> const Predictor& { return slower_predictor(); });
+  }
   SceneInputOptions input;
   input.preprocess.height = options.height;
   input.num_views = options.views;
@@ -747,7 +799,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
                          [&] { return painted_reference(*scene, view.name, edit.region, options); }, true);
     });
   const SceneMasks masks = masks_from_one(
-      *scene, request, [this]() -> const Predictor& { return *predictor; }, input, &stages);
+      *scene, request, [model]() -> const Predictor& { return *model; }, input, &stages);
   // The masks' PNGs: for a preview now, for an edit behind its answer (the page draws the
   // splats first; requests for the masks wait until they are written).
   json mask_files = json::object();
@@ -783,7 +835,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
     input.reference_image_source = input.inpainter.name();
   }
   stage("running the network", 0.3);
-  const Prediction p = predictor->predict(*scene, input);
+  const Prediction p = model->predict(*scene, input);
   stages.merge(p.stages);
   GaussianSet gaussians = stages.time("gaussians from the network's maps", [&] { return p.gaussians(); });
   if (refine_requested(edit.refine)) {
@@ -806,8 +858,18 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   stage("writing the Gaussians", 0.95);
   result.update(write_splats_of(gaussians, dir, id, stages, behind));
   result["reference"] = p.input.reference_source;
+  result["model"] = model->model_name();
   behind.insert(behind.begin(), {"masks", [write_masks] { write_masks(true); }});
   return result;
+}
+
+const Predictor& WebServer::State::slower_predictor() {
+  std::lock_guard<std::mutex> lock(slower_mutex);
+  if (!slower) {
+    slower = std::make_unique<Predictor>(options.slower_checkpoint->string(), predictor->device(), predictor->precision());
+    spdlog::info("read the released checkpoint {} for the page's slower Run", options.slower_checkpoint->string());
+  }
+  return *slower;
 }
 
 // `working`: the edits' preprocessing, the same for every edit of this server (its --height).
@@ -1066,6 +1128,13 @@ void open_state(WebServer::State& s) {
     s.normalization = scene_normalization(*s.scene);
   }
   s.selection.set_segmenter(s.options.segmenter);
+  // Every view's photo encoded for the segmenter behind the page, pausing while a job runs: a
+  // click then only decodes.
+  if (s.scene && s.options.segmenter)
+    s.selection.encode_views_behind(s.scene->views, [&s] {
+      std::lock_guard<std::mutex> lock(s.mutex);
+      return s.worker_busy || s.queued.has_value();
+    });
   fs::create_directories(s.options.out / "jobs");
   s.out = fs::canonical(s.options.out);
   for (const auto& e : fs::directory_iterator(s.out / "jobs")) {  // job numbers go on from a previous run

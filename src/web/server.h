@@ -79,6 +79,9 @@ struct ServeOptions {
   // What paints the reference's region when the page sends no reference (Run) and Fill's by
   // default: a classical method, or LaMa (serve --inpainter FILE; the page may then ask for "lama").
   Inpainter inpainter;
+  // On a CPU, with the cache's released checkpoint and the built-in model for Run (serve's
+  // --checkpoint auto): the released one, offered as a slower, better Run (the page's "model").
+  std::optional<std::filesystem::path> slower_checkpoint;
 };
 
 class WebServer {

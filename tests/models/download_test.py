@@ -254,6 +254,46 @@ class ModelsCommand(unittest.TestCase):
                          os.path.join(self.work, "ns.png"), "--json", check=0)
         self.assertEqual(json.loads(p.stdout)["inpainter"]["name"], "ns")
 
+    def test_serve_after_get_runs_the_cache_networks_and_encodes_every_view_behind(self):
+        statue = os.path.join(os.environ.get("INSTAINPAINT_SHARED", os.path.join(ROOT, "..", "shared")), "data", "statue")
+        if not os.path.isfile(os.path.join(statue, "PROVENANCE.md")):
+            self.skipTest(f"shared data missing: {statue}")
+        self.run_cli("models", "get", "mobile-sam", "big-lama", check=0)
+        env = dict(os.environ, INSTAINPAINT_MODELS_DIR=self.cache, INSTAINPAINT_MODELS_CATALOGUE=self.catalogue)
+        for name in ("INSTAINPAINT_SEGMENTER", "INSTAINPAINT_INPAINTER"):
+            env.pop(name, None)
+        server = subprocess.Popen([EXE, "serve", "--scene", statue, "--height", "64", "--port", "0", "--no-token",
+                                   "--out", os.path.join(self.work, "serve")], env=env, stdout=subprocess.PIPE,
+                                  stderr=subprocess.DEVNULL, text=True)
+        try:
+            line = server.stdout.readline()
+            self.assertIn("open http://127.0.0.1:", line)
+            base = line.split("open ")[1].split(" ")[0].rstrip("/")
+            deadline = time.monotonic() + 120
+            while True:
+                info = json.load(urllib.request.urlopen(base + "/api/info", timeout=10))
+                views = len(info["scene"]["views"])
+                if info["segmenter"]["views_encoded"] == views or time.monotonic() > deadline:
+                    break
+                time.sleep(0.2)
+            networks = info["networks"]
+            self.assertEqual((networks["segmenter"]["file"], networks["segmenter"]["from"]), ("mobile_sam.pt", "the cache"))
+            self.assertEqual((networks["inpainter"]["file"], networks["inpainter"]["from"]), ("big-lama.pt", "the cache"))
+            self.assertEqual(networks["released"], {"missing": True, "get": "instainpaint models get instainpaint"})
+            self.assertEqual(info["segmenter"]["views_encoded"], views)  # all of them, behind the page
+            # A click after that only decodes.
+            boundary = "xyz"
+            body = "".join(f'--{boundary}\r\nContent-Disposition: form-data; name="{k}"\r\n\r\n{v}\r\n'
+                           for k, v in (("view", "3"), ("clicks", "100,80"))) + f"--{boundary}--\r\n"
+            request = urllib.request.Request(base + "/api/select", data=body.encode(), method="POST",
+                                             headers={"Content-Type": f"multipart/form-data; boundary={boundary}"})
+            answer = json.load(urllib.request.urlopen(request, timeout=30))
+            self.assertEqual(answer["how"], "segmenter")
+            self.assertLess(answer["ms"]["encode"], 5)
+        finally:
+            server.terminate()
+            server.wait(timeout=30)
+
 
 if __name__ == "__main__":
     EXE = os.path.abspath(sys.argv.pop(1))

@@ -549,9 +549,10 @@ async function waitForJob(id) {
   }
 }
 
-async function runJob(path) {
+async function runJob(path, model = "default") {
   if (selected < 0) return status("pick a view first", true);
   const form = new FormData();
+  if (path === "/api/edit") form.append("model", model);
   form.append("view", api.info.scene.views[selected].name);
   form.append("mask", await maskBlob(), "mask.png");
   form.append("mode", $("mode").value);
@@ -579,7 +580,8 @@ async function runJob(path) {
   // Which inpainter painted the reference, when the page sent none.
   const painter = { lama: api.info.inpainter?.network, ns: "OpenCV Navier-Stokes", telea: "OpenCV Telea",
     patch: "patches" }[job.result.reference];
-  status(`job ${job.id} done: ${job.result.splats ? `${job.result.gaussians} Gaussians, ` : "masks, "}` +
+  const released = job.result.model && api.info.networks?.released?.file && job.result.model.endsWith(api.info.networks.released.file);
+  status(`job ${job.id} done${released ? " (the released checkpoint)" : ""}: ${job.result.splats ? `${job.result.gaussians} Gaussians, ` : "masks, "}` +
     `${painter ? `the reference painted by ${painter}, ` : ""}${seconds.toFixed(2)} s from the click`);
   showStages(job, parts);
 }
@@ -612,6 +614,7 @@ $("video").onclick = () => runExport("video");
 $("eval").onclick = () => runExport("eval");
 $("preview").onclick = () => runJob("/api/masks");
 $("run").onclick = () => runJob("/api/edit");
+$("run-released").onclick = () => runJob("/api/edit", "released");
 
 // ---- remove and fill ------------------------------------------------------------------------
 // The region: a box (three.js transform handles; Spark hides the splats inside at once), a
@@ -866,10 +869,33 @@ async function saveViewAndMask() {
 }
 $("fill-save").onclick = saveViewAndMask;
 
+// Which networks the page runs and, for each one absent, the command that brings it.
+function showNetworks(networks) {
+  if (!networks) return;
+  const from = (n) => (n.from === "the cache" ? " (from the cache)" : n.from === "built in" ? " (built in)" : "");
+  const parts = [];
+  const seg = networks.segmenter;
+  parts.push(seg.missing ? `click: ${seg.instead}` : `click: ${seg.network}${from(seg)}`);
+  const inp = networks.inpainter;
+  parts.push(inp.missing ? `hole: ${{ ns: "OpenCV Navier-Stokes", telea: "OpenCV Telea", patch: "patches" }[inp.instead] ?? inp.instead}`
+    : `hole: ${inp.network}${from(inp)}`);
+  if (networks.model) parts.push(`model: ${networks.model.from === "built in" ? "the built-in model" : networks.model.file}${from(networks.model)}`);
+  const missing = [seg, inp, networks.released].filter((n) => n?.missing).map((n) => n.get.split(" ").pop());
+  let html = `networks: ${parts.join(" · ")}`;
+  if (missing.length)
+    html += `<br>learned networks absent: <code>instainpaint models get ${missing.join(" ")}</code> brings them (then serve again)`;
+  $("networks").innerHTML = html;
+  if (networks.released?.offered) {
+    $("run-released").hidden = false;
+    $("run-released").textContent = `Run with the released checkpoint (about ${networks.released.seconds_estimate} s)`;
+  }
+}
+
 // ---- start -------------------------------------------------------------------------------
 async function start() {
   const info = await (await fetch("/api/info")).json();
   api.info = info;
+  showNetworks(info.networks);
   const views = info.scene?.views ?? [];
   const viewIndex = params.has("view") ? Number(params.get("view")) : -1;
   if (exact && views[viewIndex]) exactView = views[viewIndex];
