@@ -117,17 +117,21 @@ std::optional<CachedModel> cached_model_for(ModelRole role) {
   return std::nullopt;
 }
 
+std::string published_mismatch(const ModelEntry& entry, const FileDigests& digests) {
+  if (!entry.pinned() || (!entry.md5.empty() && digests.md5 == entry.md5) ||
+      (!entry.sha256.empty() && digests.sha256 == entry.sha256))
+    return "";
+  return fmt::format("its MD5 is {} and its SHA-256 {}, but {} publishes {}", digests.md5, digests.sha256,
+                     entry.checksum_source.empty() ? "the catalogue" : entry.checksum_source, published(entry));
+}
+
 FileCheck check_file(const ModelEntry& entry, const fs::path& file, const std::string& recorded_sha256) {
   FileCheck c;
   c.digests = digests_of_file(file);
-  if (entry.pinned()) {
-    c.pinned = (!entry.md5.empty() && c.digests.md5 == entry.md5) ||
-               (!entry.sha256.empty() && c.digests.sha256 == entry.sha256);
-    if (!c.pinned)
-      fail("{}: {} is not the published file: its MD5 is {} and its SHA-256 {}, but {} publishes {}", entry.name,
-           file.string(), c.digests.md5, c.digests.sha256,
-           entry.checksum_source.empty() ? "the catalogue" : entry.checksum_source, published(entry));
-  } else if (!recorded_sha256.empty() && c.digests.sha256 != recorded_sha256) {
+  c.pinned = entry.pinned();
+  if (const std::string why = published_mismatch(entry, c.digests); !why.empty()) {
+    fail("{}: {} is not the published file: {}", entry.name, file.string(), why);
+  } else if (!entry.pinned() && !recorded_sha256.empty() && c.digests.sha256 != recorded_sha256) {
     fail("{}: {} has changed: its SHA-256 is {}, but {} was recorded when it was first fetched", entry.name,
          file.string(), c.digests.sha256, recorded_sha256);
   }

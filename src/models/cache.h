@@ -51,6 +51,10 @@ struct FileCheck {
   bool pinned = false;
 };
 
+// "" when `digests` match a checksum the entry's catalogue publishes (or it publishes none), else
+// what differs: "its MD5 is ... and its SHA-256 ..., but IOPaint (...) publishes MD5 ...".
+std::string published_mismatch(const ModelEntry& entry, const FileDigests& digests);
+
 // Hashes `file` and checks it against the entry's published checksums, or when none is
 // published against `recorded_sha256` (when given). Throws an Error naming the entry, the file,
 // what was expected and both checksums found; leaves the file alone.

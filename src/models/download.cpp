@@ -210,11 +210,11 @@ CachedModel download_model(const ModelEntry& entry, const DownloadOptions& optio
       continue;
     }
     FileCheck check;
-    try {
-      check = check_file(entry, part, "");
-    } catch (const Error& e) {
+    check.digests = digests_of_file(part);
+    check.pinned = entry.pinned();
+    if (const std::string why = published_mismatch(entry, check.digests); !why.empty()) {
       fs::remove(part, ec);  // not the published file: never kept, never resumed
-      failures.push_back(std::string(e.what()) + " (from " + url + "; deleted)");
+      failures.push_back(fmt::format("{}: not the published file: {}; deleted", url, why));
       continue;
     }
     CachedModel m = install_checked(entry, part, check, url);

@@ -24,10 +24,14 @@ step() {
 expect_file() { [ -s "$1" ] || { echo "smoke: $1 was not written"; exit 1; }; }
 
 # Every subcommand answers --help (capture's work is COLMAP's, torch-free and tested in capture/).
-for command in scene-info capture prepare masks infer fill convert render synth bench metrics eval train serve; do
+for command in scene-info capture prepare masks infer fill convert render synth bench metrics eval train serve segment inpaint models; do
   "$exe" "$command" --help > /dev/null || { echo "smoke: '$command --help' failed"; exit 1; }
 done
 
+# The networks' catalogue and an empty cache of the run's own (nothing is downloaded here).
+export INSTAINPAINT_MODELS_DIR="$work/models"
+step models-list "$exe" models list
+step models-list-json "$exe" models list --json
 step synth "$exe" synth --out rooms --scenes 1 --seed 3 --views 6 --test-views 1 --width 64 --height 48 \
   --object procedural --degrade none --threads 1
 scene=rooms/scene_000
