@@ -176,6 +176,8 @@ std::string transfer(const std::string& url, const fs::path& part, const ModelEn
   if (result == CURLE_OK) return closed ? "" : fmt::format("{}: write error", part.string());
   const uintmax_t bytes = size_or_zero(part);
   const std::string got = bytes ? " (" + megabytes(static_cast<double>(bytes)) + " received)" : "";
+  // Nothing left to send after the partial file: it is whole already (the check decides).
+  if (result == CURLE_HTTP_RETURNED_ERROR && code == 416 && t.resumed_from > 0) return "";
   if (result == CURLE_HTTP_RETURNED_ERROR) return fmt::format("{}: HTTP {}", url, code);
   if (result == CURLE_OPERATION_TIMEDOUT || t.stalled)
     return fmt::format("{}: nothing arrived for {} s{}", url, timeout_s, got);

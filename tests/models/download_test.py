@@ -56,6 +56,9 @@ class Files(http.server.BaseHTTPRequestHandler):
         start = 0
         if self.headers.get("Range", "").startswith("bytes="):
             start = int(self.headers["Range"][6:].split("-")[0])
+            if start >= len(data):
+                self.send_error(416)
+                return
             self.send_response(206)
             self.send_header("Content-Range", f"bytes {start}-{len(data) - 1}/{len(data)}")
         else:
@@ -169,6 +172,13 @@ class ModelsCommand(unittest.TestCase):
         self.assertEqual(Files.requests[-1], ("mobile_sam.pt", f"bytes={half}-"))
         self.assertIn("resumed", p.stderr)
         self.assertEqual(md5(os.path.join(self.cache, "mobile_sam.pt")), md5(FIXTURES["mobile_sam.pt"]))
+        self.assertEqual(self.cache_files(), ["mobile_sam.pt", "mobile_sam.pt.record.json"])
+
+    def test_a_partial_file_that_is_whole_already_is_checked_and_kept(self):
+        os.makedirs(self.cache)
+        shutil.copy(FIXTURES["mobile_sam.pt"], os.path.join(self.cache, "mobile_sam.pt.part"))
+        self.run_cli("models", "get", "mobile-sam", check=0)
+        self.assertEqual(Files.requests[-1], ("mobile_sam.pt", f"bytes={os.path.getsize(FIXTURES['mobile_sam.pt'])}-"))
         self.assertEqual(self.cache_files(), ["mobile_sam.pt", "mobile_sam.pt.record.json"])
 
     def test_a_404_is_one_clear_error(self):
