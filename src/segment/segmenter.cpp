@@ -225,7 +225,7 @@ std::pair<torch::Tensor, torch::Tensor> decode_masks(const Model& m, const torch
 
 }  // namespace
 
-Segmentation Segmenter::segment(const SegmenterImage& image, const SegmentPrompt& prompt) const {
+Segmentation Segmenter::segment(const SegmenterImage& image, const SegmentPrompt& prompt, bool best_only) const {
   torch::NoGradGuard no_grad;
   const OneBlasThread blas;
   const Model& m = *model_;
@@ -236,17 +236,24 @@ Segmentation Segmenter::segment(const SegmenterImage& image, const SegmentPrompt
   // The three masks of different extent, or the one mask.
   low = prompt.multimask ? low.slice(1, 1) : low.slice(1, 0, 1);
   iou = prompt.multimask ? iou.slice(1, 1) : iou.slice(1, 0, 1);
+  int first = 0;
+  torch::Tensor chosen = low;
+  if (best_only && low.size(1) > 1) {
+    first = static_cast<int>(iou[0].argmax().item<int64_t>());
+    chosen = low.slice(1, first, first + 1);
+  }
   // Sam.postprocess_masks: to the encoder's size, the padding cut, then to the photo's size.
-  torch::Tensor full = torch::upsample_bilinear2d(low, {m.image_size, m.image_size}, false);
+  torch::Tensor full = torch::upsample_bilinear2d(chosen, {m.image_size, m.image_size}, false);
   full = full.slice(2, 0, image.input_height).slice(3, 0, image.input_width);
   full = torch::upsample_bilinear2d(full, {image.height, image.width}, false);
-  return Segmentation{full[0].contiguous(), iou[0].contiguous(), low[0].contiguous()};
+  return Segmentation{full[0].contiguous(), iou[0].contiguous(), low[0].contiguous(), first};
 }
 
 int Segmentation::best() const { return static_cast<int>(scores.argmax().item<int64_t>()); }
 
 Image Segmentation::mask(int k) const {
-  const torch::Tensor m = (logits[k] > 0).to(torch::kFloat).contiguous();
+  if (k < first || k - first >= logits.size(0)) fail("segmentation: mask {} was not brought to the photo's size", k);
+  const torch::Tensor m = (logits[k - first] > 0).to(torch::kFloat).contiguous();
   Image out(static_cast<int>(m.size(1)), static_cast<int>(m.size(0)), 1);
   std::copy(m.data_ptr<float>(), m.data_ptr<float>() + out.pixels.size(), out.pixels.begin());
   return out;
@@ -279,7 +286,8 @@ ClickedMask mask_from_prompt(const Segmenter& segmenter, const SegmenterImage& e
   for (const Click& c : clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, true});
   for (const Click& c : not_clicks) prompt.points.push_back({c.x - 0.5, c.y - 0.5, false});
   prompt.multimask = clicks.size() == 1 && not_clicks.empty() && !box;  // one point is ambiguous: three masks
-  const Segmentation s = times.time("segmenter: decode the clicks", [&] { return segmenter.segment(encoded, prompt); });
+  const Segmentation s =
+      times.time("segmenter: decode the clicks", [&] { return segmenter.segment(encoded, prompt, /*best_only=*/true); });
   ClickedMask out;
   out.chosen = s.best();
   out.mask = s.mask(out.chosen);

@@ -47,11 +47,14 @@ struct SegmentPrompt {
 };
 
 struct Segmentation {
-  torch::Tensor logits;   // (K, H, W) at the photo's size; > 0 is the object
+  torch::Tensor logits;   // (K, H, W) at the photo's size; > 0 is the object (see first)
   torch::Tensor scores;   // (K) the network's estimate of each mask's IoU
   torch::Tensor low_res;  // (K, S/4, S/4), for SegmentPrompt::previous
+  // The index of logits' first mask: 0, or with segment(..., best_only) the best's (logits then
+  // holds it alone: bringing the other two to the photo's size was most of a click's time).
+  int first = 0;
   int best() const;       // the mask of the highest score
-  Image mask(int k) const;  // 1 channel, 0/1
+  Image mask(int k) const;  // 1 channel, 0/1; k one of the masks logits holds
 };
 
 // A photo encoded for the decoder: the image embedding and the sizes to map prompts and masks.
@@ -87,7 +90,8 @@ class Segmenter {
   SegmenterImage encode(const Image& rgb) const;
   // The encoder's input for `rgb`: Pillow's bilinear resize, normalised, padded ((1, 3, S, S)).
   torch::Tensor encoder_input(const Image& rgb, int& input_width, int& input_height) const;
-  Segmentation segment(const SegmenterImage& image, const SegmentPrompt& prompt) const;
+  // best_only: of several masks, only the best-scored brought to the photo's size (Segmentation::first).
+  Segmentation segment(const SegmenterImage& image, const SegmentPrompt& prompt, bool best_only = false) const;
 
  private:
   Segmenter() = default;

@@ -183,6 +183,28 @@ TEST(Segmenter, APromptNeedsSomething) {
   EXPECT_EQ(parse_segment_box("1.5,2,30,40.25", "--box"), (SegmentBox{1.5, 2, 30, 40.25}));
 }
 
+// A click's mask brings only the best-scored of the three masks to the photo's size: the same
+// pixels as all three brought there, and the others not at hand.
+TEST(Segmenter, TheBestMaskAloneIsTheSameMask) {
+  const Segmenter segmenter = Segmenter::load(kMobile, SegmenterPrecision::Float32);
+  const Image photo = read_image_rgb("tests/segment/fixture/image.png");
+  const SegmenterImage image = segmenter.encode(photo);
+  SegmentPrompt prompt;
+  prompt.points = {{photo.width * 0.4, photo.height * 0.6, true}};
+  prompt.multimask = true;
+  const Segmentation all = segmenter.segment(image, prompt), best = segmenter.segment(image, prompt, true);
+  ASSERT_EQ(all.logits.size(0), 3);
+  ASSERT_EQ(best.logits.size(0), 1);
+  EXPECT_EQ(best.first, all.best());
+  EXPECT_EQ(best.best(), all.best());
+  // (the same arithmetic per pixel; LibTorch splits one channel and three differently over threads)
+  EXPECT_LT((best.logits[0] - all.logits[all.best()]).abs().max().item<float>(), 1e-5f);
+  EXPECT_EQ(best.mask(best.best()).pixels, all.mask(all.best()).pixels);
+  const int other = (all.best() + 1) % 3;
+  EXPECT_EQ(test::error_message([&] { best.mask(other); }),
+            fmt::format("segmentation: mask {} was not brought to the photo's size", other));
+}
+
 // The encoder and decoder run OpenBLAS on one thread (beside LibTorch's team) and give it back.
 TEST(Segmenter, OpenBlasRunsOneThreadWhileASegmenterWorks) {
   const Segmenter segmenter = Segmenter::load(kMobile, SegmenterPrecision::Float32);
