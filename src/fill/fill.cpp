@@ -551,8 +551,11 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
   const SceneSets near = sets.near(at.camera);  // read near the hole alone
   CameraViews full = render_camera(near.scene, near.kept, near.weights, at.camera);
   full.mask = hole_mask(full, other_observers(views, extra, result.cameras.sights, 0, kNone));
-  const Image colour = surface_colours(options, sets, at, full, result.cameras);
   result.stages.lap("render the reference at its size");
+  const Image colour = surface_colours(options, sets, at, full, result.cameras);
+  // The 2D inpainter's share of the fill (LaMa's is most of it where it paints).
+  const std::string painter = options.reference_image ? "the given reference" : options.inpainter.name();
+  result.stages.lap(fmt::format("the hole's colours ({})", painter));
   result.surface_width = at.camera.K.width;
   result.surface_height = at.camera.K.height;
   PreprocessOptions p;
@@ -565,6 +568,7 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
                      : at.camera.K.height == reference.camera.K.height
                          ? colour
                          : to_working_size(colour, working_size(colour.width, colour.height, p));
+  result.stages.lap(fmt::format("reference.png ({})", painter));
   const torch::Tensor hole = image_to_tensor(full.mask)[0][0] > 0.5;
   const GaussianSet added =
       splats_over(at.camera, full.kept_depth, full.kept_alpha > 0.5, hole, colour, reference.name, 4);

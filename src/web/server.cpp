@@ -663,7 +663,9 @@ std::optional<Refusal> WebServer::State::parse_fill(const httplib::Request& req,
   if (req.has_file("inpainter")) {
     const std::string name = req.get_file_value("inpainter").content;
     if (name == "lama") {
-      if (!options.inpainter.learned) return Refusal{400, "inpainter: lama needs serve --inpainter FILE (big-lama's best.ckpt)"};
+      if (!options.inpainter.learned)
+        return Refusal{400, "inpainter: lama needs LaMa in the cache (instainpaint models get big-lama, then serve "
+                            "again) or serve --inpainter FILE"};
       fill.inpainter = options.inpainter;
     } else {
       try {

@@ -705,7 +705,8 @@ TEST(Serve, FillOnSplatsAlone) {
                         "most 4 times its pixels)",
                         vw, vh));
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}, {"inpainter", "lama", "", ""}})),
-            "inpainter: lama needs serve --inpainter FILE (big-lama's best.ckpt)");
+            "inpainter: lama needs LaMa in the cache (instainpaint models get big-lama, then serve again) or serve "
+            "--inpainter FILE");
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""}, {"inpainter", "sd", "", ""}})),
             "inpainter: unknown 2D inpainter 'sd' (telea, ns or patch)");
   EXPECT_EQ(error_of(post({{"ply", "/api/plys/0", "", ""}, {"box", box, "", ""},
