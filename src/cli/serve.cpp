@@ -37,6 +37,31 @@ struct ServeArgs {
 
 WebServer* running_server = nullptr;
 
+// The model, the inpainter and the segmenter the server runs, into `o` and `predictor`.
+void load_networks(const ServeArgs& a, ServeOptions& o, std::optional<Predictor>& predictor) {
+  if (o.scene_dir || !o.plys.empty()) {
+    const Runtime runtime = apply_runtime_options(a.runtime);
+    // On a CPU the released checkpoint takes about 11 s an edit at 256 rows (2 cores): auto keeps
+    // the built-in model's instant Run and offers the released one as a slower, better Run.
+    std::string checkpoint = a.checkpoint;
+    if ((checkpoint.empty() || checkpoint == "auto") && runtime.device.is_cpu())
+      if (const auto released = cached_model(catalogue_entry("instainpaint"))) {
+        o.slower_checkpoint = released->file;
+        checkpoint = "default";
+        spdlog::info("the released checkpoint from the cache is offered as the page's slower Run (on a CPU)");
+      }
+    predictor.emplace(checkpoint, runtime.device, runtime.precision);
+    spdlog::info("model {} on {}", predictor->model_name(), runtime.device.str());
+  }
+  o.inpainter = inpainter_from_flag(a.inpainter, "ns");
+  if (o.inpainter.learned) spdlog::info("inpainter {}", o.inpainter.describe()["network"].get<std::string>());
+  if (const auto path = segmenter_path(a.segmenter)) {
+    o.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
+        *path, parse_segmenter_precision(a.runtime.precision)));
+    spdlog::info("segmenter {} ({})", o.segmenter->description(), path->string());
+  }
+}
+
 void run(const ServeArgs& a) {
   ServeOptions o;
   if (!a.scene_dir.empty()) o.scene_dir = a.scene_dir;
@@ -61,30 +86,12 @@ void run(const ServeArgs& a) {
   if (o.host != "127.0.0.1" && o.host != "localhost" && o.host != "::1")
     spdlog::warn("listening on {}: anyone who can reach this machine can see the scene and run edits", o.host);
 
-  // The model is loaded once, before the first request, when there is a scene to edit or
-  // splats to fill.
+  // The networks are read on the thread that runs every job and click (common/compute_thread.h):
+  // LibTorch's work on this one too would slow all of it. The model is loaded once, before the
+  // first request, when there is a scene to edit or splats to fill.
+  o.compute = std::make_shared<ComputeThread>();
   std::optional<Predictor> predictor;
-  if (o.scene_dir || !o.plys.empty()) {
-    const Runtime runtime = apply_runtime_options(a.runtime);
-    // On a CPU the released checkpoint takes about 11 s an edit at 256 rows (2 cores): auto keeps
-    // the built-in model's instant Run and offers the released one as a slower, better Run.
-    std::string checkpoint = a.checkpoint;
-    if ((checkpoint.empty() || checkpoint == "auto") && runtime.device.is_cpu())
-      if (const auto released = cached_model(catalogue_entry("instainpaint"))) {
-        o.slower_checkpoint = released->file;
-        checkpoint = "default";
-        spdlog::info("the released checkpoint from the cache is offered as the page's slower Run (on a CPU)");
-      }
-    predictor.emplace(checkpoint, runtime.device, runtime.precision);
-    spdlog::info("model {} on {}", predictor->model_name(), runtime.device.str());
-  }
-  o.inpainter = inpainter_from_flag(a.inpainter, "ns");
-  if (o.inpainter.learned) spdlog::info("inpainter {}", o.inpainter.describe()["network"].get<std::string>());
-  if (const auto path = segmenter_path(a.segmenter)) {
-    o.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
-        *path, parse_segmenter_precision(a.runtime.precision)));
-    spdlog::info("segmenter {} ({})", o.segmenter->description(), path->string());
-  }
+  o.compute->run([&] { load_networks(a, o, predictor); });
   WebServer server(o, predictor ? &*predictor : nullptr);
   const int port = server.bind();
   const std::string host = o.host.find(':') != std::string::npos ? "[" + o.host + "]" : o.host;

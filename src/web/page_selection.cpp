@@ -96,17 +96,19 @@ std::shared_ptr<const SegmenterImage> PageSelection::view_encoding(const View& v
   }
 }
 
-void PageSelection::encode_views_behind(std::vector<View> views, std::function<bool()> busy) {
+void PageSelection::encode_views_behind(std::vector<View> views, std::function<bool()> busy, ComputeThread& compute) {
   if (!segmenter_ || encoder_.joinable()) return;
-  encoder_ = std::thread([this, views = std::move(views), busy = std::move(busy)] {
+  encoder_ = std::thread([this, views = std::move(views), busy = std::move(busy), &compute] {
     Stopwatch watch;
     int encoded = 0;
     for (const View& view : views) {
       while (!stopping_ && busy()) std::this_thread::sleep_for(std::chrono::milliseconds(50));
       if (stopping_) return;
       try {
-        double ms = 0;
-        view_encoding(view, ms);
+        compute.run([&] {
+          double ms = 0;
+          view_encoding(view, ms);
+        });
         ++encoded;
       } catch (const std::exception& e) {
         spdlog::warn("segmenter: view {} was not encoded behind the page: {}", view.name, e.what());

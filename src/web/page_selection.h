@@ -22,6 +22,7 @@
 #include <nlohmann/json.hpp>
 
 #include "camera/camera.h"
+#include "common/compute_thread.h"
 #include "camera/click.h"
 #include "data/scene.h"
 #include "edit/select.h"
@@ -51,7 +52,8 @@ class PageSelection {
   // With a segmenter: every view's photo encoded behind the page, one after another in the order
   // given, so that a click on any view runs the decoder alone (a click on a view being encoded
   // waits for it; none is encoded twice). Between views it waits while `busy()` (a job runs).
-  void encode_views_behind(std::vector<View> views, std::function<bool()> busy);
+  // Each encoding runs on `compute`, the server's thread for LibTorch's work.
+  void encode_views_behind(std::vector<View> views, std::function<bool()> busy, ComputeThread& compute);
   // How many views' photos are encoded so far.
   int views_encoded() const;
 

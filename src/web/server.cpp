@@ -20,6 +20,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/compute_thread.h"
 #include "common/error.h"
 #include "common/files.h"
 #include "common/parallel.h"
@@ -387,6 +388,8 @@ void send_bytes(const httplib::Request& req, httplib::Response& res, std::shared
 
 struct WebServer::State {
   ServeOptions options;
+  // Every job's and click's LibTorch work (ServeOptions::compute, else one of the server's own).
+  std::shared_ptr<ComputeThread> compute;
   const Predictor* predictor = nullptr;
   std::optional<Scene> scene;
   PoseNormalization normalization;
@@ -793,12 +796,16 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   }
   stage("propagating the mask to every view", 0.05);
   // Without an uploaded reference the view is inpainted classically, beside the propagation
-  // (its mask is the region itself): 130 ms at 512 high that the edit no longer waits for.
+  // (its mask is the region itself): 130 ms at 512 high that the edit no longer waits for. A
+  // learned inpainter paints on this thread when it is waited for: LibTorch's work on a second
+  // thread would slow both (common/compute_thread.h).
   std::future<Image> inpainted;
+  const bool learned = input.inpainter.learned != nullptr;
   if (!edit.reference && edit.kind == "edit")
-    inpainted = std::async(std::launch::async, [this, &view, &edit, &stages, options = input] {
+    inpainted = std::async(learned ? std::launch::deferred : std::launch::async,
+                           [this, &view, &edit, &stages, learned, options = input] {
       return stages.time(fmt::format("inpaint reference ({})", options.inpainter.name()),
-                         [&] { return painted_reference(*scene, view.name, edit.region, options); }, true);
+                         [&] { return painted_reference(*scene, view.name, edit.region, options); }, !learned);
     });
   const SceneMasks masks = masks_from_one(
       *scene, request, [model]() -> const Predictor& { return *model; }, input, &stages);
@@ -976,7 +983,7 @@ void WebServer::State::worker_loop() {
       queued.reset();
       worker_busy = true;
     }
-    run_job(std::move(next.first), next.second);
+    compute->run([&] { run_job(std::move(next.first), next.second); });
     {
       std::lock_guard<std::mutex> lock(mutex);
       worker_busy = false;
@@ -1136,7 +1143,7 @@ void open_state(WebServer::State& s) {
     s.selection.encode_views_behind(s.scene->views, [&s] {
       std::lock_guard<std::mutex> lock(s.mutex);
       return s.worker_busy || s.queued.has_value();
-    });
+    }, *s.compute);
   fs::create_directories(s.options.out / "jobs");
   s.out = fs::canonical(s.options.out);
   for (const auto& e : fs::directory_iterator(s.out / "jobs")) {  // job numbers go on from a previous run
@@ -1399,7 +1406,7 @@ void serve_jobs(WebServer::State& s) {
   http.Post("/api/select", [&s](const httplib::Request& req, httplib::Response& res) {
     wait_for_job_splats(s, req);
     try {
-      reply(res, 200, s.select(req));
+      reply(res, 200, s.compute->run_if_idle([&] { return s.select(req); }));
     } catch (const Refusal& r) {
       refuse(res, r);
     } catch (const std::exception& e) {
@@ -1414,6 +1421,7 @@ WebServer::WebServer(ServeOptions options, const Predictor* predictor) : state_(
   State& s = *state_;
   s.options = std::move(options);
   s.predictor = predictor;
+  s.compute = s.options.compute ? s.options.compute : std::make_shared<ComputeThread>();
   open_state(s);
   guard_requests(s);
   serve_page(s.http);

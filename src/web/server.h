@@ -49,6 +49,7 @@
 #include <string>
 #include <vector>
 
+#include "common/compute_thread.h"
 #include "data/scene.h"
 #include "predict/predictor.h"
 #include "segment/segmenter.h"
@@ -82,6 +83,9 @@ struct ServeOptions {
   // On a CPU, with the cache's released checkpoint and the built-in model for Run (serve's
   // --checkpoint auto): the released one, offered as a slower, better Run (the page's "model").
   std::optional<std::filesystem::path> slower_checkpoint;
+  // The thread of every job's and click's LibTorch work (common/compute_thread.h): serve's, on
+  // which it also read the networks; null: the server makes its own.
+  std::shared_ptr<ComputeThread> compute;
 };
 
 class WebServer {
