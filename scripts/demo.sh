@@ -17,6 +17,10 @@ SIZE=${DEMO_SIZE:-128}
 start=$(date +%s)
 rm -rf "$OUT"
 mkdir -p "$OUT"
+# The demo runs the model built into the binary and the classical methods, whatever networks
+# `instainpaint models get` brought into the cache (docs/models.md): its figures are the documented ones.
+export INSTAINPAINT_MODELS_DIR="$OUT/no-models"
+unset INSTAINPAINT_SEGMENTER INSTAINPAINT_INPAINTER
 step() { printf '\n== %s\n' "$*"; }
 
 # --degrade none: the reference view is the exact object-free image, standing in for a good 2D

@@ -5,8 +5,9 @@
 # not reachable from the machines that measure), checked into a models' cache of their own through a
 # catalogue file pinning their MD5s, then `serve` with no network flag (auto):
 #   - how long until every view's photo is encoded behind the page, then a click on 8 views;
-#   - Run at 256 rows with the reference painted by Navier-Stokes (--inpainter ns) and by LaMa (auto);
-#   - fill of a million splats with LaMa painting the hole (scripts/measure-fill-speed.sh).
+#   - Run at 256 rows with the reference painted by Navier-Stokes (--inpainter ns) and by LaMa (auto),
+#     after every view is encoded (a Run while a view is being encoded waits for it);
+#   - the page's Fill of a million splats with a box, LaMa painting the hole (measure-serve-fill.py).
 #
 #   scripts/measure-page-networks.sh SAM MOBILE_SAM LAMA [--runs N] [--scene DIR] [--work DIR]
 # SAM, MOBILE_SAM, LAMA: git mirrors or work trees of github.com/facebookresearch/segment-anything,
@@ -57,6 +58,11 @@ echo "machine: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores; $(git -C
 echo "== the page, the reference painted by Navier-Stokes (--inpainter ns)"
 "$SEGMENTER_REPO/scripts/measure-serve-edit.py" --bin "$BIN" --scene "$SCENE" --runs "$RUNS" --clicks 8 -- --inpainter ns
 echo "== the page, the reference painted by LaMa (auto: the cache's)"
-"$SEGMENTER_REPO/scripts/measure-serve-edit.py" --bin "$BIN" --scene "$SCENE" --runs "$RUNS"
-echo "== fill of a million splats, the hole painted by LaMa (auto: the cache's)"
-"$SEGMENTER_REPO/scripts/measure-fill-speed.sh" --bin "$BIN" --work "$WORK/fill" --runs "$RUNS"
+"$SEGMENTER_REPO/scripts/measure-serve-edit.py" --bin "$BIN" --scene "$SCENE" --runs "$RUNS" --clicks 8
+echo "== the page's Fill of a million splats, the hole painted by LaMa (auto: the cache's)"
+ROOM=$WORK/fill/rooms/scene_000
+[ -f "$ROOM/scene.ply" ] || "$BIN" synth --out "$WORK/fill/rooms" --scenes 1 --seed 11 --views 24 --test-views 2 \
+  --width 512 --height 512 --detail 1.6 --object procedural --save-gaussians --no-depth > /dev/null
+BOX=$(python3 "$SEGMENTER_REPO/scripts/splat-bounds.py" "$ROOM/object.ply" --grow 1.1)
+"$SEGMENTER_REPO/scripts/measure-serve-fill.py" --bin "$BIN" --ply "$ROOM/scene.ply" --box "$BOX" --runs "$RUNS" \
+  -- --scene "$ROOM"

@@ -45,8 +45,9 @@ class PageSelection {
   std::shared_ptr<const SplatCloud> splats(const std::filesystem::path& ply);
 
   // With a segmenter (serve --segmenter), clicks are its points: on the object (`clicks`) and not
-  // (`not_clicks`); each view's photo (and the page's render of the splats) is encoded at its
-  // first click and kept, so a later click runs only the decoder.
+  // (`not_clicks`); each view's photo is encoded behind the page (encode_views_behind) or at its
+  // first click, the page's render of the splats at its click, and kept, so a later click runs
+  // only the decoder.
   void set_segmenter(std::shared_ptr<const Segmenter> segmenter);
 
   // With a segmenter: every view's photo encoded behind the page, one after another in the order

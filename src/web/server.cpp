@@ -511,15 +511,26 @@ json WebServer::State::networks() const {
   const auto served_file = [](const fs::path& file) {
     return json{{"file", file.filename().string()}, {"from", cached_model_of_file(file) ? "the cache" : "a path"}};
   };
-  if (options.segmenter) n["segmenter"] = served_file(options.segmenter->file()), n["segmenter"]["network"] = options.segmenter->description();
-  else n["segmenter"] = {{"missing", true}, {"get", get_command("mobile-sam")}, {"instead", "colour growth"}};
-  if (options.inpainter.learned) n["inpainter"] = served_inpainter(options.inpainter);
-  else n["inpainter"] = {{"missing", true}, {"get", get_command("big-lama")}, {"instead", options.inpainter.name()}};
+  if (options.segmenter) {
+    n["segmenter"] = served_file(options.segmenter->file());
+    n["segmenter"]["network"] = options.segmenter->description();
+  } else {
+    n["segmenter"] = {{"missing", true}, {"get", get_command("mobile-sam")}, {"instead", "colour growth"}};
+  }
+  if (options.inpainter.learned)
+    n["inpainter"] = served_inpainter(options.inpainter);
+  else
+    n["inpainter"] = {{"missing", true}, {"get", get_command("big-lama")}, {"instead", options.inpainter.name()}};
   if (predictor) {
     const bool builtin = predictor->model_name() == kDefaultModelName;
     n["model"] = builtin ? json{{"file", predictor->model_name()}, {"from", "built in"}} : served_file(predictor->model_name());
-    if (options.slower_checkpoint)
-      n["released"] = {{"offered", true}, {"seconds_estimate", 11}, {"file", options.slower_checkpoint->filename().string()}};
+    if (options.slower_checkpoint) {
+      // About 11 s an edit at 256 rows on 2 cores (its tokens grow with the square of the height).
+      const double rows = options.height / 256.0, cores = std::max(1u, std::thread::hardware_concurrency());
+      n["released"] = {{"offered", true},
+                       {"seconds_estimate", std::max(1L, std::lround(11.0 * rows * rows * 2.0 / cores))},
+                       {"file", options.slower_checkpoint->filename().string()}};
+    }
     else if (builtin)
       n["released"] = {{"missing", true}, {"get", get_command("instainpaint")}};
   }
@@ -867,7 +878,7 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   stage("writing the Gaussians", 0.95);
   result.update(write_splats_of(gaussians, dir, id, stages, behind));
   result["reference"] = p.input.reference_source;
-  result["model"] = model->model_name();
+  result["model"] = fs::path(model->model_name()).filename().string();  // by name only, as /api/info
   behind.insert(behind.begin(), {"masks", [write_masks] { write_masks(true); }});
   return result;
 }

@@ -269,6 +269,14 @@ class ModelsCommand(unittest.TestCase):
         if not os.path.isfile(os.path.join(statue, "PROVENANCE.md")):
             self.skipTest(f"shared data missing: {statue}")
         self.run_cli("models", "get", "mobile-sam", "big-lama", check=0)
+        # The built-in model's own file stands in for the released checkpoint (a CPU page offers it
+        # as a slower Run beside the built-in model's).
+        released = os.path.join(ROOT, "models", "default.safetensors")
+        entries = json.load(open(self.catalogue))
+        entries.append({"name": "instainpaint", "role": "checkpoint", "file": "released-stand-in.safetensors",
+                        "urls": [self.mirror + "/released-stand-in.safetensors"], "md5": md5(released)})
+        json.dump(entries, open(self.catalogue, "w"))
+        self.run_cli("models", "import", released, "--as", "instainpaint", check=0)
         env = dict(os.environ, INSTAINPAINT_MODELS_DIR=self.cache, INSTAINPAINT_MODELS_CATALOGUE=self.catalogue)
         for name in ("INSTAINPAINT_SEGMENTER", "INSTAINPAINT_INPAINTER"):
             env.pop(name, None)
@@ -289,7 +297,8 @@ class ModelsCommand(unittest.TestCase):
             networks = info["networks"]
             self.assertEqual((networks["segmenter"]["file"], networks["segmenter"]["from"]), ("mobile_sam.pt", "the cache"))
             self.assertEqual((networks["inpainter"]["file"], networks["inpainter"]["from"]), ("big-lama.pt", "the cache"))
-            self.assertEqual(networks["released"], {"missing": True, "get": "instainpaint models get instainpaint"})
+            self.assertEqual(networks["model"], {"file": "<embedded default model>", "from": "built in"})  # on a CPU
+            self.assertEqual(networks["released"]["file"], "released-stand-in.safetensors")
             self.assertEqual(info["segmenter"]["views_encoded"], views)  # all of them, behind the page
             # A click after that only decodes.
             boundary = "xyz"
@@ -300,6 +309,23 @@ class ModelsCommand(unittest.TestCase):
             answer = json.load(urllib.request.urlopen(request, timeout=30))
             self.assertEqual(answer["how"], "segmenter")
             self.assertLess(answer["ms"]["encode"], 5)
+            # Run with the released checkpoint: the same edit on the second model.
+            view = info["scene"]["views"][3]
+            mask = urllib.request.urlopen(base + view["mask"], timeout=30).read()
+            parts = [(k, None, v.encode()) for k, v in (("view", view["name"]), ("mode", "remove"), ("refine", "0"),
+                                                         ("model", "released"))] + [("mask", "mask.png", mask)]
+            body = b"".join(f'--{boundary}\r\nContent-Disposition: form-data; name="{k}"'.encode() +
+                            (f'; filename="{f}"\r\nContent-Type: image/png'.encode() if f else b"") +
+                            b"\r\n\r\n" + v + b"\r\n" for k, f, v in parts) + f"--{boundary}--\r\n".encode()
+            request = urllib.request.Request(base + "/api/edit", data=body, method="POST",
+                                             headers={"Content-Type": f"multipart/form-data; boundary={boundary}"})
+            job = json.load(urllib.request.urlopen(request, timeout=30))["job"]
+            while True:
+                state = json.load(urllib.request.urlopen(f"{base}/api/job?wait={job}", timeout=120))
+                if state["id"] == job and state["state"] != "running":
+                    break
+            self.assertEqual(state["state"], "done", state.get("error"))
+            self.assertEqual(state["result"]["model"], "released-stand-in.safetensors")
         finally:
             server.terminate()
             server.wait(timeout=30)
