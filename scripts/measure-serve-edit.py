@@ -54,6 +54,16 @@ def multipart(fields):
     return b"".join(parts) + f"--{boundary}--\r\n".encode(), f"multipart/form-data; boundary={boundary}"
 
 
+def start_server(command, script):
+    """Starts `instainpaint serve` (`command`, with --port 0) and returns (process, base address)."""
+    server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    for line in server.stdout:
+        found = re.search(r"open (http://[0-9.:]+)/", line)
+        if found:
+            return server, found.group(1)
+    sys.exit(f"{script}: the server did not start: {' '.join(command)}")
+
+
 def wait_for_job(base, job_id=None):
     while True:
         path = "/api/job" if job_id is None else f"/api/job?wait={job_id}"
@@ -110,16 +120,8 @@ def main():
     command = [args.bin, "serve", "--scene", args.scene, "--port", "0", "--token", TOKEN, "--out", out,
                *args.serve_args, *extra]
     opened = time.perf_counter()
-    server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    server, base = start_server(command, "measure-serve-edit")
     try:
-        base = None
-        for line in server.stdout:
-            found = re.search(r"open (http://[0-9.:]+)/", line)
-            if found:
-                base = found.group(1)
-                break
-        if not base:
-            sys.exit(f"measure-serve-edit: the server did not start: {' '.join(command)}")
         info = json.loads(request(base, "/api/info")[1])
         model = info.get("model") or {}
         print(f"server {base}, model {model.get('checkpoint')} ({model.get('config', {}).get('preset')})")

@@ -10,8 +10,6 @@ Example:
 import argparse
 import json
 import os
-import re
-import subprocess
 import sys
 import tempfile
 import time
@@ -32,16 +30,8 @@ def main():
     out = tempfile.mkdtemp(prefix="ii-serve-fill-")
     command = [args.bin, "serve", "--ply", args.ply, "--port", "0", "--token", serve_edit.TOKEN, "--out", out,
                *args.serve_args]
-    server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    server, base = serve_edit.start_server(command, "measure-serve-fill")
     try:
-        base = None
-        for line in server.stdout:
-            found = re.search(r"open (http://[0-9.:]+)/", line)
-            if found:
-                base = found.group(1)
-                break
-        if not base:
-            sys.exit(f"measure-serve-fill: the server did not start: {' '.join(command)}")
         info = json.loads(serve_edit.request(base, "/api/info")[1])
         print("inpainter:", info.get("inpainter", {}).get("network", info.get("inpainter", {}).get("name")))
         job = None

@@ -48,6 +48,9 @@ std::optional<json> read_record(const ModelEntry& entry) {
     if (!j.is_object() || !j.contains("sha256") || !j["sha256"].is_string() || !j.contains("size") ||
         !j["size"].is_number_unsigned() || !j.contains("modified_ns") || !j["modified_ns"].is_number_integer())
       return std::nullopt;
+    for (const char* text : {"md5", "origin", "checked_at"})
+      if (j.contains(text) && !j[text].is_string()) return std::nullopt;
+    if (j.contains("pinned") && !j["pinned"].is_boolean()) return std::nullopt;
     return j;
   } catch (const Error&) {
     return std::nullopt;
@@ -99,6 +102,15 @@ CacheStatus cache_status(const ModelEntry& entry) {
   const uintmax_t size = fs::file_size(file, ec);
   if (ec || size != (*r)["size"].get<uintmax_t>() || modified_ns(file) != (*r)["modified_ns"].get<int64_t>()) {
     s.why = "changed since it was checked (run instainpaint models verify " + entry.name + ")";
+    return s;
+  }
+  // A file checked against another catalogue's checksums (an organisation's, the tests') is not
+  // this one's.
+  FileDigests recorded;
+  recorded.sha256 = (*r)["sha256"].get<std::string>();
+  recorded.md5 = r->value("md5", "");
+  if (!published_mismatch(entry, recorded).empty()) {
+    s.why = "its recorded checksums are not the published ones (run instainpaint models verify " + entry.name + ")";
     return s;
   }
   s.state = CacheState::Verified;

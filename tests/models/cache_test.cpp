@@ -127,6 +127,18 @@ TEST(ModelCache, ImportChecksRecordsAndNoticesAChange) {
   EXPECT_EQ(m.file, dir / "cache" / "seeded.pt");
   ASSERT_EQ(cache_status(s.entry).state, CacheState::Verified);
   EXPECT_EQ(model_file_description(s.file)["from"], "a path");
+  // Checked against another catalogue's checksum: not this one's file.
+  ModelEntry other = s.entry;
+  other.md5 = std::string(32, '0');
+  EXPECT_EQ(cache_status(other).state, CacheState::Unchecked);
+  EXPECT_EQ(cache_status(other).why,
+            "its recorded checksums are not the published ones (run instainpaint models verify seeded)");
+  // A record that is not what the cache writes: the file is not used until it is verified again.
+  const std::string record = test::file_bytes(record_file(s.entry));
+  test::write_bytes(record_file(s.entry), R"({"sha256": "x", "size": 5000, "modified_ns": 1, "md5": 7})");
+  EXPECT_EQ(cache_status(s.entry).why, "no record of its check (run instainpaint models verify seeded)");
+  test::write_bytes(record_file(s.entry), record);
+  ASSERT_EQ(cache_status(s.entry).state, CacheState::Verified);
   // One byte changed: no longer used, and verify says what it found and what is published.
   {
     std::fstream f(m.file, std::ios::in | std::ios::out | std::ios::binary);
