@@ -880,10 +880,12 @@ function showNetworks(networks) {
   parts.push(inp.missing ? `hole: ${{ ns: "OpenCV Navier-Stokes", telea: "OpenCV Telea", patch: "patches" }[inp.instead] ?? inp.instead}`
     : `hole: ${inp.network}${from(inp)}`);
   if (networks.model) parts.push(`model: ${networks.model.from === "built in" ? "the built-in model" : networks.model.file}${from(networks.model)}`);
+  const label = { "mobile-sam": "a segmenter (MobileSAM)", "big-lama": "LaMa", instainpaint: "the released checkpoint" };
   const missing = [seg, inp, networks.released].filter((n) => n?.missing).map((n) => n.get.split(" ").pop());
   let html = `networks: ${parts.join(" · ")}`;
   if (missing.length)
-    html += `<br>learned networks absent: <code>instainpaint models get ${missing.join(" ")}</code> brings them (then serve again)`;
+    html += `<br>not in the cache: ${missing.map((m) => label[m] ?? m).join(", ")}; ` +
+      `<code>instainpaint models get ${missing.join(" ")}</code> brings ${missing.length > 1 ? "them" : "it"} (then serve again)`;
   $("networks").innerHTML = html;
   if (networks.released?.offered) {
     $("run-released").hidden = false;

@@ -26,7 +26,7 @@ try {
   // It says which networks it runs, and the command that brings the absent ones (LaMa, the released checkpoint).
   const networks = await page.locator("#networks").innerText();
   h.check(networks.includes("click: MobileSAM TinyViT") && networks.includes("hole: OpenCV Navier-Stokes") &&
-    networks.includes("instainpaint models get big-lama instainpaint"), `the page names its networks (${networks})`);
+    networks.includes("not in the cache: LaMa, the released checkpoint; instainpaint models get big-lama instainpaint"), `the page names its networks (${networks})`);
   const index = info.scene.views.findIndex((v) => v.name === "IMG_2707");
 
   // The editor: the photo, the click tool, a click.
