@@ -33,7 +33,7 @@ void list(bool as_json) {
   for (const ModelEntry& e : model_catalogue()) {
     const CacheStatus s = cache_status(e);
     fmt::print("{:<13} {:<11} {:>8}  {:<11} {:<26} {}\n", e.name, role_flag(e.role), size_text(e.size), e.licence,
-               cache_state_text(s), e.pinned() ? "pinned (" + e.checksum_source + ")" : "not pinned: none is published");
+               cache_state_text(s), e.pinned() ? "pinned (" + e.checksum_publisher() + ")" : "not pinned: none is published");
   }
   fmt::print("\n");
   for (const ModelEntry& e : model_catalogue()) fmt::print("{:<13} {}\n{:<13} from {}\n", e.name, e.purpose, "", e.urls[0]);
@@ -74,7 +74,7 @@ void verify(std::vector<std::string> names) {
     try {
       const CachedModel m = verify_cached(e);
       fmt::print("{}: {} ({}; SHA-256 {})\n", e.name, m.pinned ? "verified" : "unchanged since its first get",
-                 m.pinned ? "matches " + e.checksum_source : "no checksum is published", m.sha256);
+                 m.pinned ? "matches " + e.checksum_publisher() : "no checksum is published", m.sha256);
     } catch (const Error& err) {
       failures.push_back(err.what());
     }
@@ -140,7 +140,7 @@ void add_models_command(CLI::App& app) {
     const ModelEntry& e = catalogue_entry(*import_name);
     const CachedModel m = import_model(e, *import_file);
     fmt::print("{}: {} ({})\n", e.name, m.file.string(),
-               m.pinned ? "matches " + e.checksum_source : "no checksum is published: its SHA-256 recorded");
+               m.pinned ? "matches " + e.checksum_publisher() : "no checksum is published: its SHA-256 recorded");
   });
 
   auto remove_name = std::make_shared<std::string>();

@@ -134,7 +134,7 @@ std::string published_mismatch(const ModelEntry& entry, const FileDigests& diges
       (!entry.sha256.empty() && digests.sha256 == entry.sha256))
     return "";
   return fmt::format("its MD5 is {} and its SHA-256 {}, but {} publishes {}", digests.md5, digests.sha256,
-                     entry.checksum_source.empty() ? "the catalogue" : entry.checksum_source, published(entry));
+                     entry.checksum_publisher(), published(entry));
 }
 
 FileCheck check_file(const ModelEntry& entry, const fs::path& file, const std::string& recorded_sha256) {

@@ -28,6 +28,8 @@ struct ModelEntry {
   std::string md5, sha256;
   std::string checksum_source;  // who publishes the checksum, e.g. "IOPaint (iopaint/model/lama.py)"
   bool pinned() const { return !md5.empty() || !sha256.empty(); }
+  // Who publishes the checksum, for messages: checksum_source, else "the catalogue".
+  std::string checksum_publisher() const { return checksum_source.empty() ? "the catalogue" : checksum_source; }
 };
 
 // The built-in entries, then those of $INSTAINPAINT_MODELS_CATALOGUE (a JSON file: an

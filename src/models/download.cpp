@@ -225,7 +225,7 @@ CachedModel download_model(const ModelEntry& entry, const DownloadOptions& optio
       std::fprintf(stderr, "%s: %s%s in %.1f s (%s/s), %s\n", entry.name.c_str(), megabytes(m.size).c_str(),
                    resumed > 0 ? fmt::format(" (resumed at {})", megabytes(resumed)).c_str() : "", seconds,
                    megabytes((m.size - resumed) / std::max(seconds, 1e-3)).c_str(),
-                   check.pinned ? ("matches the checksum " + entry.checksum_source + " publishes").c_str()
+                   check.pinned ? ("matches the checksum " + entry.checksum_publisher() + " publishes").c_str()
                                 : "not pinned: its SHA-256 recorded");
     }
     return m;
