@@ -444,7 +444,7 @@ def test_models_name_the_catalogue_and_say_how_to_bring_a_network(tmp_path):
     import instainpaint as ii
     listed = ii.models.list()
     assert [n["name"] for n in listed["networks"]] == ["instainpaint", "mobile-sam", "sam-vit-b", "sam-vit-l",
-                                                        "sam-vit-h", "big-lama"]
+                                                        "sam-vit-h", "big-lama", "big-lama-authors"]
     assert listed["folder"] == os.environ["INSTAINPAINT_MODELS_DIR"]
     assert listed["auto"] == {"checkpoint": None, "segmenter": None, "inpainter": None}
     with pytest.raises(ii.Error, match="mobile-sam: not in the cache; bring it with: instainpaint models get mobile-sam"):

@@ -6,6 +6,7 @@
 
 #include "common/error.h"
 #include "common/files.h"
+#include "io/zip_archive.h"
 #include "models/download.h"
 
 namespace ii {
@@ -109,7 +110,7 @@ CacheStatus cache_status(const ModelEntry& entry) {
   FileDigests recorded;
   recorded.sha256 = (*r)["sha256"].get<std::string>();
   recorded.md5 = r->value("md5", "");
-  if (!published_mismatch(entry, recorded).empty()) {
+  if (entry.archive_member.empty() && !published_mismatch(entry, recorded).empty()) {
     s.why = "its recorded checksums are not the published ones (run instainpaint models verify " + entry.name + ")";
     return s;
   }
@@ -140,10 +141,13 @@ std::string published_mismatch(const ModelEntry& entry, const FileDigests& diges
 FileCheck check_file(const ModelEntry& entry, const fs::path& file, const std::string& recorded_sha256) {
   FileCheck c;
   c.digests = digests_of_file(file);
+  // An archive's member is held to the SHA-256 recorded when it was taken out (the published
+  // checksums are the archive's).
+  const bool by_publisher = entry.pinned() && entry.archive_member.empty();
   c.pinned = entry.pinned();
-  if (const std::string why = published_mismatch(entry, c.digests); !why.empty()) {
+  if (const std::string why = by_publisher ? published_mismatch(entry, c.digests) : ""; !why.empty()) {
     fail("{}: {} is not the published file: {}", entry.name, file.string(), why);
-  } else if (!entry.pinned() && !recorded_sha256.empty() && c.digests.sha256 != recorded_sha256) {
+  } else if (!by_publisher && !recorded_sha256.empty() && c.digests.sha256 != recorded_sha256) {
     fail("{}: {} has changed: its SHA-256 is {}, but {} was recorded when it was first fetched", entry.name,
          file.string(), c.digests.sha256, recorded_sha256);
   }
@@ -168,9 +172,64 @@ CachedModel verify_cached(const ModelEntry& entry) {
   return write_record(entry, check, r ? r->value("origin", "") : "found in the cache");
 }
 
+std::string published_name(const ModelEntry& entry) {
+  if (entry.archive_member.empty() || entry.urls.empty()) return entry.file_name;
+  std::string url = entry.urls[0].substr(0, entry.urls[0].find_first_of("?#"));
+  return url.substr(url.rfind('/') + 1);
+}
+
+namespace {
+
+// The archive's entry that ends in the entry's member path, or "" when it holds none.
+std::string member_of(const ZipArchive& zip, const std::string& member) {
+  for (const std::string& name : zip.names())
+    if (name == member || (name.size() > member.size() && name.compare(name.size() - member.size(), member.size(), member) == 0 &&
+                           name[name.size() - member.size() - 1] == '/'))
+      return name;
+  return "";
+}
+
+bool holds_member(const fs::path& file, const std::string& member) {
+  try {
+    return !member_of(ZipArchive(file), member).empty();
+  } catch (const Error&) {
+    return false;  // not a zip archive
+  }
+}
+
+}  // namespace
+
+CachedModel install_archive_member(const ModelEntry& entry, const fs::path& archive, const FileCheck& archive_check,
+                                   const std::string& origin) {
+  const ZipArchive zip(archive);
+  const std::string member = member_of(zip, entry.archive_member);
+  if (member.empty()) fail("{}: {} holds no {}", entry.name, archive.string(), entry.archive_member);
+  const fs::path taken = models_dir() / (entry.file_name + ".extract");
+  const std::vector<uint8_t> bytes = zip.read(member);
+  write_file_atomic(taken, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+  FileCheck check;
+  check.digests = digests_of_file(taken);
+  check.pinned = archive_check.pinned;
+  return install_checked(entry, taken, check, origin + " (its " + member + ")");
+}
+
 CachedModel import_model(const ModelEntry& entry, const fs::path& source) {
   std::error_code ec;
   if (!fs::is_regular_file(source, ec)) fail_file(source, "no such file");
+  // An archive entry takes the archive (checked as published, its member kept) or the member itself.
+  const bool archive = !entry.archive_member.empty() && holds_member(source, entry.archive_member);
+  if (archive || !entry.archive_member.empty()) {
+    fs::create_directories(models_dir(), ec);
+    if (ec) fail_file(models_dir(), "cannot create the models' folder: {}", ec.message());
+  }
+  if (archive) {
+    FileCheck check;
+    check.digests = digests_of_file(source);
+    check.pinned = entry.pinned();
+    if (const std::string why = published_mismatch(entry, check.digests); !why.empty())
+      fail("{}: {} is not the published file: {}", entry.name, source.string(), why);
+    return install_archive_member(entry, source, check, "imported from " + fs::absolute(source).string());
+  }
   const FileCheck check = check_file(entry, source, "");
   fs::create_directories(models_dir(), ec);
   if (ec) fail_file(models_dir(), "cannot create the models' folder: {}", ec.message());

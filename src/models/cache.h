@@ -65,6 +65,13 @@ FileCheck check_file(const ModelEntry& entry, const std::filesystem::path& file,
 CachedModel verify_cached(const ModelEntry& entry);
 // Copies `source` into the cache as the entry's file after checking it as a download is.
 CachedModel import_model(const ModelEntry& entry, const std::filesystem::path& source);
+// The name the entry is published under: its file, or for an archive entry the archive's (the
+// last part of its first URL): what a mirror holds.
+std::string published_name(const ModelEntry& entry);
+// Takes the entry's member out of `archive` (checked as published: `archive_check`) into the
+// cache under the entry's file name, and records it.
+CachedModel install_archive_member(const ModelEntry& entry, const std::filesystem::path& archive,
+                                   const FileCheck& archive_check, const std::string& origin);
 // Removes the entry's file, its record and any partial download; whether anything was there.
 bool remove_cached(const ModelEntry& entry);
 

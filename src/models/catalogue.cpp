@@ -61,6 +61,12 @@ std::vector<ModelEntry> builtin_entries() {
   e.push_back({"big-lama", ModelRole::Inpainter, "LaMa (big-lama): paints the removed object's hole in the reference photo",
                "big-lama.pt", {sanster + "add_big_lama/big-lama.pt"}, "Apache-2.0", 205669692,
                "e3aa4aaa15225a33ec84f9f4bc47e500", "", "IOPaint (iopaint/model/lama.py)"});
+  // The same network as its authors publish it (github.com/advimman/lama's README): an archive
+  // with no published checksum, of which the cache keeps models/best.ckpt.
+  e.push_back({"big-lama-authors", ModelRole::Inpainter,
+               "LaMa (big-lama) from its authors' archive (big-lama.zip's models/best.ckpt)", "big-lama-best.ckpt",
+               {"https://huggingface.co/smartywu/big-lama/resolve/main/big-lama.zip"}, "Apache-2.0", 0, "", "", "",
+               "models/best.ckpt"});
   return e;
 }
 
@@ -112,6 +118,7 @@ ModelEntry parse_entry(const json& j, const std::string& where) {
   e.purpose = text("purpose", false);
   e.licence = text("licence", false);
   e.checksum_source = text("checksum_source", false);
+  e.archive_member = text("archive_member", false);
   e.md5 = text("md5", false);
   e.sha256 = text("sha256", false);
   if (!e.md5.empty() && !is_hex(e.md5, 32)) fail("{}: md5 must be 32 lower-case hex digits", where);

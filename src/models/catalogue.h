@@ -27,6 +27,9 @@ struct ModelEntry {
   // Published checksums (lower-case hex; empty: none). A file matching neither is refused.
   std::string md5, sha256;
   std::string checksum_source;  // who publishes the checksum, e.g. "IOPaint (iopaint/model/lama.py)"
+  // When the published file is a zip archive: the cache keeps its member whose path ends so
+  // (big-lama.zip's "models/best.ckpt"); the checksums are the archive's.
+  std::string archive_member;
   bool pinned() const { return !md5.empty() || !sha256.empty(); }
   // Who publishes the checksum, for messages: checksum_source, else "the catalogue".
   std::string checksum_publisher() const { return checksum_source.empty() ? "the catalogue" : checksum_source; }
@@ -42,7 +45,7 @@ const ModelEntry& catalogue_entry(const std::string& name);
 bool in_catalogue(const std::string& name);
 
 // A catalogue file's entries (a JSON array of objects with the fields above: name, role,
-// file, urls, and optionally purpose, licence, size, md5, sha256, checksum_source); an Error
+// file, urls, and optionally purpose, licence, size, md5, sha256, checksum_source, archive_member); an Error
 // naming `source` and the problem for anything else.
 std::vector<ModelEntry> parse_model_catalogue(const std::string& text, const std::string& source);
 

@@ -200,7 +200,8 @@ CachedModel download_model(const ModelEntry& entry, const DownloadOptions& optio
 
   std::string mirror = options.mirror;
   if (const char* env = std::getenv("INSTAINPAINT_MODELS_MIRROR"); mirror.empty() && env) mirror = env;
-  const std::vector<std::string> urls = mirror.empty() ? entry.urls : std::vector{mirror_url(mirror, entry.file_name)};
+  const std::vector<std::string> urls =
+      mirror.empty() ? entry.urls : std::vector{mirror_url(mirror, published_name(entry))};
   const fs::path part = dir / (entry.file_name + ".part");
   std::vector<std::string> failures;
   for (const std::string& url : urls) {
@@ -219,7 +220,19 @@ CachedModel download_model(const ModelEntry& entry, const DownloadOptions& optio
       failures.push_back(fmt::format("{}: not the published file: {}; deleted", url, why));
       continue;
     }
-    CachedModel m = install_checked(entry, part, check, url);
+    CachedModel m;
+    if (entry.archive_member.empty()) {
+      m = install_checked(entry, part, check, url);
+    } else {  // the member kept, the archive not
+      try {
+        m = install_archive_member(entry, part, check, url);
+      } catch (const Error& e) {
+        fs::remove(part, ec);
+        failures.push_back(fmt::format("{}: {}; deleted", url, e.what()));
+        continue;
+      }
+      fs::remove(part, ec);
+    }
     if (options.progress) {
       const double seconds = watch.ms() / 1000;
       std::fprintf(stderr, "%s: %s%s in %.1f s (%s/s), %s\n", entry.name.c_str(), megabytes(m.size).c_str(),

@@ -45,15 +45,20 @@ TEST(ModelCatalogue, NamesEveryNetworkWithItsPublishedLocationAndChecksum) {
     EXPECT_FALSE(e.licence.empty()) << e.name;
     if (e.pinned()) EXPECT_EQ(e.md5.size(), 32u) << e.name;
   }
-  EXPECT_EQ(names, (std::vector<std::string>{"instainpaint", "mobile-sam", "sam-vit-b", "sam-vit-l", "sam-vit-h", "big-lama"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"instainpaint", "mobile-sam", "sam-vit-b", "sam-vit-l", "sam-vit-h", "big-lama",
+                                     "big-lama-authors"}));
   // SAM's file names end in the first digits of the MD5 IOPaint pins.
   for (const char* name : {"sam-vit-b", "sam-vit-l", "sam-vit-h"}) {
     const ModelEntry& e = catalogue_entry(name);
     EXPECT_NE(e.file_name.find(e.md5.substr(0, 6)), std::string::npos) << name;
   }
   EXPECT_FALSE(catalogue_entry("instainpaint").pinned());  // its authors publish no checksum
+  EXPECT_FALSE(catalogue_entry("big-lama-authors").pinned());
+  EXPECT_EQ(published_name(catalogue_entry("big-lama-authors")), "big-lama.zip");
+  EXPECT_EQ(published_name(catalogue_entry("big-lama")), "big-lama.pt");
   EXPECT_EQ(error_message([] { catalogue_entry("sam3"); }),
-            "'sam3' is not a network of the catalogue: instainpaint, mobile-sam, sam-vit-b, sam-vit-l, sam-vit-h, big-lama");
+            "'sam3' is not a network of the catalogue: instainpaint, mobile-sam, sam-vit-b, sam-vit-l, sam-vit-h, big-lama, "
+            "big-lama-authors");
 }
 
 TEST(ModelCatalogue, AFileOfEntriesIsCheckedField) {

@@ -19,6 +19,7 @@ import threading
 import time
 import unittest
 import urllib.request
+import zipfile
 
 EXE = None
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -27,6 +28,7 @@ FIXTURES = {
     "big-lama.pt": os.path.join(ROOT, "tests/inpaint/fixture/big-lama.pt"),
 }
 PHOTO = os.path.join(ROOT, "tests/segment/fixture/image.png")
+LAMA_CKPT = os.path.join(ROOT, "tests/inpaint/fixture/lama-small/models/best.ckpt")
 
 
 def md5(path):
@@ -89,6 +91,12 @@ class Files(http.server.BaseHTTPRequestHandler):
 class ModelsCommand(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
+        # The authors' archive of big-lama, made of the fixture's best.ckpt as theirs holds it.
+        cls.archive_dir = tempfile.mkdtemp(prefix="ii-models-archive-")
+        FIXTURES["big-lama.zip"] = os.path.join(cls.archive_dir, "big-lama.zip")
+        with zipfile.ZipFile(FIXTURES["big-lama.zip"], "w") as z:
+            z.writestr("big-lama/config.yaml", "generator: ffc_resnet\n")
+            z.write(LAMA_CKPT, "big-lama/models/best.ckpt")
         cls.server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Files)
         cls.mirror = f"http://127.0.0.1:{cls.server.server_address[1]}"
         threading.Thread(target=cls.server.serve_forever, daemon=True).start()
@@ -96,6 +104,7 @@ class ModelsCommand(unittest.TestCase):
     @classmethod
     def tearDownClass(cls):
         cls.server.shutdown()
+        shutil.rmtree(cls.archive_dir, ignore_errors=True)
 
     def setUp(self):
         Files.modes = {}
@@ -111,6 +120,8 @@ class ModelsCommand(unittest.TestCase):
                  "md5": md5(FIXTURES["mobile_sam.pt"]), "checksum_source": "the test"},
                 {"name": "big-lama", "role": "inpainter", "file": "big-lama.pt", "urls": [self.mirror + "/big-lama.pt"],
                  "md5": md5(FIXTURES["big-lama.pt"]), "checksum_source": "the test"},
+                {"name": "big-lama-authors", "role": "inpainter", "file": "big-lama-best.ckpt",
+                 "urls": [self.mirror + "/big-lama.zip"], "archive_member": "models/best.ckpt"},
             ], f)
 
     def tearDown(self):
@@ -181,6 +192,40 @@ class ModelsCommand(unittest.TestCase):
         self.assertEqual(Files.requests[-1], ("mobile_sam.pt", f"bytes={os.path.getsize(FIXTURES['mobile_sam.pt'])}-"))
         self.assertEqual(self.cache_files(), ["mobile_sam.pt", "mobile_sam.pt.record.json"])
 
+    def test_an_archive_keeps_its_member(self):
+        self.run_cli("models", "get", "big-lama-authors", check=0)
+        self.assertEqual(Files.requests[-1], ("big-lama.zip", None))
+        kept = os.path.join(self.cache, "big-lama-best.ckpt")
+        self.assertEqual(md5(kept), md5(LAMA_CKPT))  # the member, the archive not kept
+        self.assertEqual(self.cache_files(), ["big-lama-best.ckpt", "big-lama-best.ckpt.record.json"])
+        record = json.load(open(kept + ".record.json"))
+        self.assertFalse(record["pinned"])
+        self.assertTrue(record["origin"].endswith("(its big-lama/models/best.ckpt)"))
+        self.assertIn("unchanged since its first get", self.run_cli("models", "verify", check=0).stdout)
+        # The only inpainter in the cache: what auto takes.
+        self.assertEqual(json.loads(self.run_cli("models", "list", "--json", check=0).stdout)["auto"]["inpainter"],
+                         "big-lama-authors")
+        # Imported by hand: the archive, or the member itself.
+        self.assertIn("removed", self.run_cli("models", "remove", "big-lama-authors", check=0).stdout)
+        self.run_cli("models", "import", FIXTURES["big-lama.zip"], "--as", "big-lama-authors", check=0)
+        self.assertEqual(md5(kept), md5(LAMA_CKPT))
+        self.run_cli("models", "remove", "big-lama-authors", check=0)
+        self.run_cli("models", "import", LAMA_CKPT, "--as", "big-lama-authors", check=0)
+        self.assertEqual(md5(kept), md5(LAMA_CKPT))
+        # An archive without the member is refused, nothing kept.
+        self.run_cli("models", "remove", "big-lama-authors", check=0)
+        wrong = os.path.join(self.work, "big-lama.zip")
+        with zipfile.ZipFile(wrong, "w") as z:
+            z.writestr("big-lama/config.yaml", "x")
+        published = FIXTURES["big-lama.zip"]
+        FIXTURES["big-lama.zip"] = wrong
+        try:
+            p = self.run_cli("models", "get", "big-lama-authors", check=1)
+        finally:
+            FIXTURES["big-lama.zip"] = published
+        self.assertIn("holds no models/best.ckpt; deleted", p.stderr)
+        self.assertEqual(self.cache_files(), [])
+
     def test_a_404_is_one_clear_error(self):
         Files.modes["mobile_sam.pt"] = "404"
         p = self.run_cli("models", "get", "mobile-sam", check=1)
@@ -226,7 +271,7 @@ class ModelsCommand(unittest.TestCase):
     def test_a_name_not_in_the_catalogue(self):
         p = self.run_cli("models", "get", "sam3", catalogue=False, check=1)
         self.assertEqual(p.stderr.strip(), "error: 'sam3' is not a network of the catalogue: "
-                         "instainpaint, mobile-sam, sam-vit-b, sam-vit-l, sam-vit-h, big-lama")
+                         "instainpaint, mobile-sam, sam-vit-b, sam-vit-l, sam-vit-h, big-lama, big-lama-authors")
 
     def test_import_checks_like_a_download(self):
         p = self.run_cli("models", "import", FIXTURES["big-lama.pt"], "--as", "big-lama", catalogue=False, check=1)
