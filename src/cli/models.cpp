@@ -2,6 +2,7 @@
 // checked by one command (list, get, verify, path, import, remove).
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <memory>
 #include <string>
 #include <vector>
@@ -28,15 +29,17 @@ void list(bool as_json) {
     fmt::print("{}\n", catalogue_state().dump(2));
     return;
   }
+  size_t w = 4;  // the names' column
+  for (const ModelEntry& e : model_catalogue()) w = std::max(w, e.name.size());
   fmt::print("networks in {}\n\n", models_dir().string());
-  fmt::print("{:<13} {:<11} {:>8}  {:<11} {:<26} {}\n", "name", "for", "size", "licence", "state", "checksum");
+  fmt::print("{:<{}} {:<12} {:>8}  {:<11} {:<26} {}\n", "name", w, "for", "size", "licence", "state", "checksum");
   for (const ModelEntry& e : model_catalogue()) {
     const CacheStatus s = cache_status(e);
-    fmt::print("{:<13} {:<11} {:>8}  {:<11} {:<26} {}\n", e.name, role_flag(e.role), size_text(e.size), e.licence,
+    fmt::print("{:<{}} {:<12} {:>8}  {:<11} {:<26} {}\n", e.name, w, role_flag(e.role), size_text(e.size), e.licence,
                cache_state_text(s), e.pinned() ? "pinned (" + e.checksum_publisher() + ")" : "not pinned: none is published");
   }
   fmt::print("\n");
-  for (const ModelEntry& e : model_catalogue()) fmt::print("{:<13} {}\n{:<13} from {}\n", e.name, e.purpose, "", e.urls[0]);
+  for (const ModelEntry& e : model_catalogue()) fmt::print("{:<{}} {}\n{:<{}} from {}\n", e.name, w, e.purpose, "", w, e.urls[0]);
   fmt::print("\nwhat the commands use by default (auto):\n");
   const char* builtin[] = {"the built-in model", "colour growth (no network)", "Navier-Stokes (no network)"};
   int i = 0;
