@@ -121,9 +121,23 @@ CacheStatus cache_status(const ModelEntry& entry) {
 
 std::optional<CachedModel> cached_model(const ModelEntry& entry) { return cache_status(entry).model; }
 
+namespace {
+
+// The models' folder, or nullopt where none can be named (no HOME): no cache, the built-in path.
+std::optional<fs::path> known_models_dir() {
+  try {
+    return models_dir();
+  } catch (const Error&) {
+    return std::nullopt;
+  }
+}
+
+}  // namespace
+
 std::optional<CachedModel> cached_model_for(ModelRole role) {
   std::error_code ec;
-  if (!fs::is_directory(models_dir(), ec)) return std::nullopt;
+  const std::optional<fs::path> dir = known_models_dir();
+  if (!dir || !fs::is_directory(*dir, ec)) return std::nullopt;
   for (const ModelEntry& e : model_catalogue())
     if (e.role == role)
       if (auto m = cached_model(e)) return m;
@@ -252,6 +266,7 @@ bool remove_cached(const ModelEntry& entry) {
 
 std::optional<CachedModel> cached_model_of_file(const fs::path& file) {
   std::error_code ec;
+  if (!known_models_dir()) return std::nullopt;
   for (const ModelEntry& e : model_catalogue())
     if (fs::equivalent(file, cached_file(e), ec)) return cached_model(e);
   return std::nullopt;

@@ -174,6 +174,16 @@ TEST(ModelCache, AnUnpinnedFileIsHeldToTheSha256RecordedFirst) {
                         m.file.string(), sha256_of_file(m.file), m.sha256));
 }
 
+TEST(ModelCache, WithoutAFolderToNameAutoTakesTheBuiltInPath) {
+  const ScopedEnv dir("INSTAINPAINT_MODELS_DIR", ""), xdg("XDG_CACHE_HOME", ""), home("HOME", "");
+  EXPECT_EQ(test::error_message([] { models_dir(); }),
+            "the models' folder: neither INSTAINPAINT_MODELS_DIR, XDG_CACHE_HOME nor HOME is set");
+  EXPECT_FALSE(choose_model(ModelRole::Checkpoint, "auto").file);
+  const fs::path file = test::temp_dir("models-no-folder") / "weights.bin";
+  test::write_bytes(file, "weights");
+  EXPECT_EQ(model_file_description(file).value("from", ""), "a path");
+}
+
 TEST(ModelCache, AutoTakesTheBuiltInPathWithAnEmptyCacheAndANameItsCachedFile) {
   const fs::path dir = test::temp_dir("models-auto");
   const ScopedEnv env("INSTAINPAINT_MODELS_DIR", (dir / "empty").string());
