@@ -12,7 +12,6 @@
 #include "common/error.h"
 #include "common/files.h"
 #include "common/stage_times.h"
-#include "models/cache.h"
 #include "segment/segmenter.h"
 
 namespace ii::cli {
@@ -83,7 +82,7 @@ void run(const SegmentArgs& args) {
   for (float v : mask.pixels) pixels += v > 0.5f;
   nlohmann::json scores = nlohmann::json::array();
   for (int k = 0; k < static_cast<int>(s.scores.size(0)); ++k) scores.push_back(s.scores[k].item<double>());
-  nlohmann::json summary = model_file_description(*path);  // file, sha256, "from": the cache or a path
+  nlohmann::json summary = segmenter.file_description();  // file, sha256, "from": the cache or a path
   summary.update({{"segmenter", segmenter.description()}, {"precision", segmenter.bf16() ? "bf16" : "fp32"},
                   {"mask", args.out}, {"chosen", best}, {"scores", scores},
                   {"pixels", pixels}, {"stages", stages.to_json()}});

@@ -227,33 +227,38 @@ CachedModel install_archive_member(const ModelEntry& entry, const fs::path& arch
   return install_checked(entry, taken, check, origin + " (its " + member + ")");
 }
 
+fs::path make_models_dir() {
+  const fs::path dir = models_dir();
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir, ec))
+    fail_file(dir, "the models' folder cannot be made: {} (set INSTAINPAINT_MODELS_DIR to a folder you can write)",
+              ec ? ec.message() : "not a folder");
+  return dir;
+}
+
 CachedModel import_model(const ModelEntry& entry, const fs::path& source) {
   std::error_code ec;
   if (!fs::is_regular_file(source, ec)) fail_file(source, "no such file");
+  const std::string origin = "imported from " + fs::absolute(source).string();
   // An archive entry takes the archive (checked as published, its member kept) or the member itself.
-  const bool archive = !entry.archive_member.empty() && holds_member(source, entry.archive_member);
-  if (archive || !entry.archive_member.empty()) {
-    fs::create_directories(models_dir(), ec);
-    if (ec) fail_file(models_dir(), "cannot create the models' folder: {}", ec.message());
-  }
-  if (archive) {
+  if (!entry.archive_member.empty() && holds_member(source, entry.archive_member)) {
     FileCheck check;
     check.digests = digests_of_file(source);
     check.pinned = entry.pinned();
     if (const std::string why = published_mismatch(entry, check.digests); !why.empty())
       fail("{}: {} is not the published file: {}", entry.name, source.string(), why);
-    return install_archive_member(entry, source, check, "imported from " + fs::absolute(source).string());
+    make_models_dir();
+    return install_archive_member(entry, source, check, origin);
   }
   const FileCheck check = check_file(entry, source, "");
-  fs::create_directories(models_dir(), ec);
-  if (ec) fail_file(models_dir(), "cannot create the models' folder: {}", ec.message());
-  const fs::path tmp = models_dir() / (entry.file_name + ".import");
+  const fs::path tmp = make_models_dir() / (entry.file_name + ".import");
   fs::copy_file(source, tmp, fs::copy_options::overwrite_existing, ec);
   if (ec) {
     fs::remove(tmp, ec);
-    fail_file(models_dir(), "cannot write {}: {}", tmp.filename().string(), ec.message());
+    fail_file(tmp.parent_path(), "cannot write {}: {}", tmp.filename().string(), ec.message());
   }
-  return install_checked(entry, tmp, check, "imported from " + fs::absolute(source).string());
+  return install_checked(entry, tmp, check, origin);
 }
 
 bool remove_cached(const ModelEntry& entry) {

@@ -63,6 +63,8 @@ FileCheck check_file(const ModelEntry& entry, const std::filesystem::path& file,
 
 // Hashes the cached file again; an Error (the file left in place) when it differs.
 CachedModel verify_cached(const ModelEntry& entry);
+// The models' folder, made when it is not there; an Error naming it when it cannot be.
+std::filesystem::path make_models_dir();
 // Copies `source` into the cache as the entry's file after checking it as a download is.
 CachedModel import_model(const ModelEntry& entry, const std::filesystem::path& source);
 // The name the entry is published under: its file, or for an archive entry the archive's (the

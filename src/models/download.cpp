@@ -189,12 +189,8 @@ std::string transfer(const std::string& url, const fs::path& part, const ModelEn
 
 CachedModel download_model(const ModelEntry& entry, const DownloadOptions& options) {
   init_curl_once();
-  const fs::path dir = models_dir();
+  const fs::path dir = make_models_dir();
   std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec || !fs::is_directory(dir, ec))
-    fail_file(dir, "the models' folder cannot be made: {} (set INSTAINPAINT_MODELS_DIR to a folder you can write)",
-              ec ? ec.message() : "not a folder");
   const DownloadLock lock(dir / (entry.file_name + ".lock"), entry.name, options.progress);
   if (const auto done = cached_model(entry)) return *done;  // there already, or fetched while we waited
 

@@ -320,8 +320,13 @@ SegmentBox parse_segment_box(const std::string& text, const std::string& what) {
   return b;
 }
 
+const nlohmann::json& Segmenter::file_description() const {
+  std::call_once(file_description_->once, [&] { file_description_->json = model_file_description(file_); });
+  return file_description_->json;
+}
+
 nlohmann::json ClickedMask::describe(const Segmenter& segmenter) const {
-  nlohmann::json d = model_file_description(segmenter.file());  // file, sha256, "from": the cache or a path
+  nlohmann::json d = segmenter.file_description();  // file, sha256, "from": the cache or a path
   d.update({{"network", segmenter.description()}, {"precision", segmenter.bf16() ? "bf16" : "fp32"},
             {"chosen", chosen}, {"scores", scores}, {"pixels", pixels}});
   return d;

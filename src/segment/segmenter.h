@@ -14,6 +14,7 @@
 #include <array>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -84,6 +85,9 @@ class Segmenter {
   const std::string& description() const;
   bool bf16() const;
   const std::filesystem::path& file() const { return file_; }
+  // The file as records name it (models/cache.h model_file_description: file, sha256, "from"),
+  // made at the first call and kept: a file outside the cache is hashed once, not at every click.
+  const nlohmann::json& file_description() const;
   int image_size() const;  // the encoder's square input (1024 for the published models)
 
   // An RGB photo (values in [0,1], rounded to bytes as a decoded photo is).
@@ -97,6 +101,11 @@ class Segmenter {
   Segmenter() = default;
   std::unique_ptr<sam::Model> model_;
   std::filesystem::path file_;
+  struct FileDescription {
+    std::once_flag once;
+    nlohmann::json json;
+  };
+  std::shared_ptr<FileDescription> file_description_ = std::make_shared<FileDescription>();
 };
 
 // The mask of the object under clicks on a photo (pixel centres at +0.5, as camera/click.h's)
