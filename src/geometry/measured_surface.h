@@ -50,7 +50,8 @@ struct MeasuredSurfaceOptions {
   // Where no context view has a depth map: each view's depth measured from the context photos
   // themselves (geometry/stereo_depth.h), used where it is known (SPIn-NeRF scene 1 +0.55 dB whole
   // image with the official reference, +0.83 with the true photo; the statue +0.46, the fern
-  // +0.95; 0.15-0.2 s on 2 cores at any working size).
+  // +0.95; about 0.07 s on 2 cores at any working size, 0.15-0.2 s before its inner loop was one
+  // pass per depth: geometry/sweep_correlation.h).
   bool from_photos = true;
   StereoOptions stereo;
   // A depth map's pixels that straddle an edge, moved to its far side (geometry/flying_pixels.h;

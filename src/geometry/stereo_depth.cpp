@@ -6,6 +6,7 @@
 #include <Eigen/LU>
 
 #include "common/error.h"
+#include "geometry/sweep_correlation.h"
 #include "tensor/camera_projection.h"
 #include "tensor/image_tensor.h"
 
@@ -65,36 +66,6 @@ Matching matching_picture(const Image& photo, const Camera& camera, int window) 
   return m;
 }
 
-// Normalised cross-correlation (D, h, w) of the reference's windows with the source's picture
-// warped onto each of `depths` (D, h * w: D depths for each pixel); -1 where the point is outside
-// the source.
-torch::Tensor correlation_volume(const Matching& reference, const Camera& reference_camera, const Matching& source,
-                                 const Camera& source_camera, const torch::Tensor& depths, int window) {
-  const int64_t h = reference_camera.K.height, w = reference_camera.K.width, D = depths.size(0);
-  const Eigen::Matrix4d reference_to_source =
-      source_camera.w2c_opencv() * reference_camera.w2c_opencv().inverse();
-  const auto [R, t] = rotation_and_translation(reference_to_source, torch::TensorOptions(torch::kFloat32));
-  const torch::Tensor turned = pixel_directions(reference_camera).matmul(R.t());  // (N, 3)
-  // Each pixel's point at each depth in the source's camera: depth * turned direction + t.
-  auto axis = [&](int64_t i) { return depths * turned.select(1, i).unsqueeze(0) + t[i]; };  // (D, N)
-  const torch::Tensor z = axis(2);
-  const torch::Tensor reciprocal = z.clamp_min(1e-6).reciprocal();
-  const Intrinsics& K = source_camera.K;
-  const torch::Tensor gx = axis(0) * reciprocal * (2.0 * K.fx / K.width) + (2.0 * K.cx / K.width - 1);
-  const torch::Tensor gy = axis(1) * reciprocal * (2.0 * K.fy / K.height) + (2.0 * K.cy / K.height - 1);
-  const torch::Tensor inside = z.gt(1e-6).logical_and(gx.abs().le(1)).logical_and(gy.abs().le(1)).view({D, 1, h, w});
-  const torch::Tensor grid = torch::stack({gx, gy}, 2).view({D, h, w, 2});
-  const torch::Tensor warped = torch::grid_sampler(source.grey.expand({D, 1, K.height, K.width}), grid,
-                                                  /*bilinear*/ 0, /*zeros*/ 0, /*align_corners=*/false);
-  // The three window means in one pass: of the warped picture, its square, its product with the reference's.
-  const torch::Tensor means = box_mean(torch::cat({warped, warped * warped, warped * reference.grey}, 1), window);
-  const torch::Tensor mean = means.narrow(1, 0, 1);
-  const torch::Tensor deviation = (means.narrow(1, 1, 1) - mean * mean).clamp_min(0).sqrt();
-  const torch::Tensor covariance = means.narrow(1, 2, 1) - mean * reference.mean;
-  const torch::Tensor ncc = covariance / (deviation * reference.deviation + 1e-4f);
-  return torch::where(inside, ncc, torch::full({}, -1.0f)).squeeze(1);
-}
-
 // The mean over the first dimension of its best two (of three: the sum less the least).
 torch::Tensor best_two_mean(const torch::Tensor& all) {
   if (all.size(0) <= 2) return all.mean(0);
@@ -110,8 +81,8 @@ torch::Tensor sweep(const std::vector<Matching>& pictures, const std::vector<Cam
   std::vector<torch::Tensor> volumes;
   for (size_t s = 0; s < pictures.size(); ++s)
     if (s != reference)
-      volumes.push_back(correlation_volume(pictures[reference], cameras[reference], pictures[s], cameras[s], depths,
-                                           options.window));
+      volumes.push_back(sweep_correlation(pictures[reference].grey[0][0], cameras[reference], pictures[s].grey[0][0],
+                                          cameras[s], depths, options.window));
   const torch::Tensor all = torch::stack(volumes);  // (S, D, h, w)
   // The best two views' correlations: a third may see something else in front of the point.
   const torch::Tensor score = best_two_mean(all);  // (D, h, w)

@@ -4,14 +4,18 @@
 // scene without depth maps puts its Gaussians on that surface when asked, recording it.
 #include <gtest/gtest.h>
 
+#include <Eigen/LU>
+
 #include "data/masks.h"
 #include "data/scene.h"
 #include "model/default_model.h"
 #include "predict/predictor.h"
 #include "geometry/stereo_depth.h"
+#include "geometry/sweep_correlation.h"
 #include "geometry/surface_splats.h"
 #include "render/rasterizer.h"
 #include "synthetic_room.h"
+#include "tensor/camera_projection.h"
 #include "tensor/image_tensor.h"
 #include "test_support.h"
 
@@ -109,6 +113,84 @@ TEST(StereoDepth, FindsATexturedFloorsDepthFromAGuideThirtyPercentOff) {
     EXPECT_LT(error.median().item<double>(), 0.01) << "view " << v;
     EXPECT_LT(torch::quantile(error, 0.9).item<double>(), 0.03) << "view " << v;
   }
+}
+
+// The correlation written as LibTorch's operations (zero-padded window sums, grid_sampler): what
+// sweep_correlation must give, as it did before it was one pass.
+torch::Tensor window_mean_by_operations(const torch::Tensor& x, int window) {  // x (B, C, H, W)
+  auto sums = [&](const torch::Tensor& t, int64_t dim) {
+    const int64_t half = window / 2;
+    const std::vector<int64_t> pad =
+        dim == 3 ? std::vector<int64_t>{half + 1, half} : std::vector<int64_t>{0, 0, half + 1, half};
+    const torch::Tensor running = torch::constant_pad_nd(t, pad, 0).cumsum(dim);
+    return running.narrow(dim, window, t.size(dim)) - running.narrow(dim, 0, t.size(dim));
+  };
+  const torch::Tensor ones = torch::ones({1, 1, x.size(2), x.size(3)});
+  return sums(sums(x, 3), 2) / sums(sums(ones, 3), 2);
+}
+
+torch::Tensor correlation_by_operations(const torch::Tensor& reference, const Camera& reference_camera,
+                                        const torch::Tensor& source, const Camera& source_camera,
+                                        const torch::Tensor& depths, int window) {
+  const int64_t h = reference.size(0), w = reference.size(1), D = depths.size(0);
+  const torch::Tensor ref = reference.view({1, 1, h, w});
+  const torch::Tensor ref_mean = window_mean_by_operations(ref, window);
+  const torch::Tensor ref_deviation =
+      (window_mean_by_operations(ref * ref, window) - ref_mean * ref_mean).clamp_min(0).sqrt();
+  const Eigen::Matrix4d to_source = source_camera.w2c_opencv() * reference_camera.w2c_opencv().inverse();
+  const auto [R, t] = rotation_and_translation(to_source, torch::TensorOptions(torch::kFloat32));
+  const Intrinsics& RK = reference_camera.K;
+  const torch::Tensor x = (torch::arange(w, torch::kFloat32) + 0.5f - RK.cx) / RK.fx;
+  const torch::Tensor y = (torch::arange(h, torch::kFloat32) + 0.5f - RK.cy) / RK.fy;
+  const std::vector<torch::Tensor> grid_xy = torch::meshgrid({y, x}, "ij");
+  const torch::Tensor turned =
+      torch::stack({grid_xy[1].flatten(), grid_xy[0].flatten(), torch::ones({h * w})}, 1).matmul(R.t());
+  auto axis = [&](int64_t i) { return depths * turned.select(1, i).unsqueeze(0) + t[i]; };
+  const torch::Tensor z = axis(2);
+  const torch::Tensor reciprocal = z.clamp_min(1e-6).reciprocal();
+  const Intrinsics& K = source_camera.K;
+  const torch::Tensor gx = axis(0) * reciprocal * (2.0 * K.fx / K.width) + (2.0 * K.cx / K.width - 1);
+  const torch::Tensor gy = axis(1) * reciprocal * (2.0 * K.fy / K.height) + (2.0 * K.cy / K.height - 1);
+  const torch::Tensor inside = z.gt(1e-6).logical_and(gx.abs().le(1)).logical_and(gy.abs().le(1)).view({D, 1, h, w});
+  const torch::Tensor warped =
+      torch::grid_sampler(source.view({1, 1, K.height, K.width}).expand({D, 1, K.height, K.width}),
+                          torch::stack({gx, gy}, 2).view({D, h, w, 2}), 0, 0, false);
+  const torch::Tensor means = window_mean_by_operations(torch::cat({warped, warped * warped, warped * ref}, 1), window);
+  const torch::Tensor mean = means.narrow(1, 0, 1);
+  const torch::Tensor deviation = (means.narrow(1, 1, 1) - mean * mean).clamp_min(0).sqrt();
+  const torch::Tensor ncc = (means.narrow(1, 2, 1) - mean * ref_mean) / (deviation * ref_deviation + 1e-4f);
+  return torch::where(inside, ncc, torch::full({}, -1.0f)).squeeze(1);
+}
+
+// (ctest runs it again on the baseline loop: geometry.StereoOnTheBaseline.)
+TEST(StereoDepth, TheSweepsCorrelationIsWhatLibTorchsOperationsGive) {
+  const Views floor = textured_floor(48);
+  // 45 x 47 pixels: not a whole number of 8-pixel vectors (the vectorised warp's last pixels too).
+  const Camera reference = floor.cameras[0].resized(45, 47);
+  const torch::Tensor reference_grey = torch::adaptive_avg_pool2d(
+      image_to_tensor(floor.photos[0]).narrow(1, 0, 3).mean(1, true), {47, 45})[0][0];
+  torch::manual_seed(36);
+  for (size_t s = 1; s < 4; ++s) {
+    // A smaller source camera too: the two pictures need not be the same size.
+    const Camera source = s == 3 ? floor.cameras[s].resized(32, 40) : floor.cameras[s];
+    torch::Tensor source_grey = image_to_tensor(floor.photos[s]).narrow(1, 0, 3).mean(1, true);
+    source_grey = torch::adaptive_avg_pool2d(source_grey, {source.K.height, source.K.width})[0][0];
+    // Depths from in front of the camera (behind the source too) to far off the floor.
+    const torch::Tensor depths =
+        torch::logspace(-2, 1, 9).unsqueeze(1) * (1 + 0.1 * torch::rand({1, 45 * 47}));
+    const torch::Tensor fused = sweep_correlation(reference_grey, reference, source_grey, source, depths, 5);
+    const torch::Tensor expected = correlation_by_operations(reference_grey, reference, source_grey, source, depths, 5);
+    ASSERT_EQ(fused.sizes(), expected.sizes());
+    const torch::Tensor outside = expected.eq(-1);
+    EXPECT_GT(outside.sum().item<int64_t>(), 0) << "some points outside the source";
+    EXPECT_LT(outside.sum().item<int64_t>(), outside.numel()) << "some inside";
+    EXPECT_EQ(fused.eq(-1).ne(outside).sum().item<int64_t>(), 0) << "source " << s;
+    EXPECT_LT((fused - expected).abs().max().item<double>(), 1e-3) << "source " << s;
+  }
+  EXPECT_EQ(test::error_message([&] {
+              sweep_correlation(reference_grey, reference, reference_grey, reference, torch::ones({2, 7}), 5);
+            }),
+            "the sweep's pictures and depths do not match their cameras' sizes");
 }
 
 TEST(StereoDepth, AFlatPictureIsUnknown) {
