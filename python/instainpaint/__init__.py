@@ -380,10 +380,14 @@ def _segmenter_of(segmenter: Union[Segmenter, str, None]) -> Optional[Segmenter]
     return Segmenter(segmenter)
 
 
-def select(scene: Scene, view: str, click, *, not_click=None, segmenter: Union[Segmenter, str, None] = "auto",
-           predictor: Optional[Predictor] = None, height: int = 512, views: int = 4) -> Tuple[Dict[str, Any], dict]:
-    """The object under a click, masked in every view (`instainpaint masks --click`).
+def select(scene: Scene, view: str, click=None, *, box: Optional[Sequence[float]] = None, not_click=None,
+           segmenter: Union[Segmenter, str, None] = "auto", predictor: Optional[Predictor] = None, height: int = 512,
+           views: int = 4) -> Tuple[Dict[str, Any], dict]:
+    """The object under a click, or in a box, masked in every view (`instainpaint masks --click` / `--box`).
 
+    box: (x0, y0, x1, y1) around the object in pixels of the view's photo: without a segmenter GrabCut
+    finds the object in it by colour (click= points in it are the object, not_click= points are not);
+    with one, the box prompts it.
     click: (x, y) in pixels of the view's photo as stored, or a list of such points. With a segmenter
     (a Segmenter, a catalogue name or file, or the default "auto": the cache's when there is one; None: none), its mask of the clicked view (not_click= points that are not the object) is lifted
     to every view and carved; without, each click's object is grown by colour in the network's
@@ -391,11 +395,16 @@ def select(scene: Scene, view: str, click, *, not_click=None, segmenter: Union[S
     to it. Returns ({view name: H x W float32 mask}, a report: how the clicked view's mask was made,
     the carved views).
     """
+    if click is None and box is None:
+        raise ValueError("select: give click=(x, y) on the object or box=(x0, y0, x1, y1) around it")
+    if box is not None and len(box) != 4:
+        raise ValueError(f"box: {box!r} is not (x0, y0, x1, y1)")
     if predictor is None:
         predictor = Predictor()
     s = _segmenter_of(segmenter)
     masks, report = _core._masks_from_one(scene, view, None, _clicks(click), _clicks(not_click),
-                                          s._s if s else None, predictor._p, height, views)
+                                          s._s if s else None, predictor._p, height, views,
+                                          None if box is None else tuple(float(v) for v in box))
     return masks, json.loads(report)
 
 

@@ -576,15 +576,23 @@ NB_MODULE(_core, m) {
   m.def("_masks_from_one",
         [](const Scene& scene, const std::string& view, const nb::object& region,
            const std::vector<std::pair<double, double>>& clicks, const std::vector<std::pair<double, double>>& not_clicks,
-           const PySegmenter* segmenter, const Predictor* predictor, int height, int views) {
+           const PySegmenter* segmenter, const Predictor* predictor, int height, int views,
+           const std::optional<std::array<double, 4>>& box) {
           const View* v = &view_of(scene, view);
           OneMask request;
           request.view = view;
           request.clicks = clicks_of(clicks);
           request.not_clicks = clicks_of(not_clicks);
+          if (box) {
+            if ((*box)[2] <= (*box)[0] || (*box)[3] <= (*box)[1])
+              fail("box=({}, {}, {}, {}): expected (x0, y0, x1, y1) with x1 > x0 and y1 > y0", (*box)[0], (*box)[1],
+                   (*box)[2], (*box)[3]);
+            request.box = *box;
+          }
           if (segmenter) request.segmenter = segmenter->segmenter;
-          else if (!not_clicks.empty()) fail("not_click= needs segmenter=: the colour growth takes no such points");
-          if (!clicks.empty()) {
+          else if (!not_clicks.empty() && !box)
+            fail("not_click= needs segmenter= or box=: the colour growth takes no such points");
+          if (!clicks.empty() || box) {
             // the clicks select
           } else if (nb::isinstance<nb::str>(region) || nb::hasattr(region, "__fspath__"))
             request.region = read_region_mask(nb::cast<std::string>(nb::str(region)), *v);
@@ -605,7 +613,7 @@ NB_MODULE(_core, m) {
           return std::make_pair(out, masks.describe(request).dump());
         },
         "scene"_a, "view"_a, "region"_a.none(), "clicks"_a, "not_clicks"_a, "segmenter"_a.none(), "predictor"_a.none(),
-        "height"_a, "views"_a);
+        "height"_a, "views"_a, "box"_a.none() = nb::none());
 
   m.def("_evaluate",
         [](const std::string& scene, const std::string& out, const std::string& method,

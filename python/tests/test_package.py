@@ -290,6 +290,20 @@ def test_a_segmenter_outlines_the_click_as_the_reference_code_does(tmp_path, sta
         ii.Segmenter(tmp_path / "absent.pt")
 
 
+def test_select_takes_a_box_without_a_segmenter(statue, predictor):
+    # IMG_2707's label's box grown by 5 %: GrabCut in it, as `masks --box` does.
+    box = (217.4, 122.7, 369.6, 346.3)
+    masks, report = ii.select(statue, "IMG_2707", box=box, segmenter=None, predictor=predictor, height=128)
+    assert report["clicked_mask"] == "GrabCut in the box" and report["box"] == list(box)
+    own = statue.mask("IMG_2707") > 0.5
+    mine = masks["IMG_2707"] > 0.5
+    assert (mine & own).sum() / own.sum() > 0.9 and (mine & own).sum() / mine.sum() > 0.95
+    with pytest.raises(ii.Error, match="the box 0,0,504,378 covers the whole photo"):
+        ii.select(statue, "IMG_2707", box=(0, 0, 504, 378), segmenter=None, predictor=predictor, height=128)
+    with pytest.raises(ValueError, match="give click=.* or box="):
+        ii.select(statue, "IMG_2707", segmenter=None, predictor=predictor)
+
+
 def test_evaluate_writes_what_the_cli_writes(tmp_path, cli, statue_dir):
     args = ["--hold-out-every", "8", "--height", str(HEIGHT), "--device", "cpu", "--no-report", "--threads", "1"]
     subprocess.run([str(cli), "eval", "--scene", str(statue_dir), "--out", str(tmp_path / "cli"), *args],

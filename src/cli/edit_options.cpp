@@ -21,8 +21,14 @@ void add_edit_options(CLI::App* cmd, EditArgs& args) {
                                 "X,Y: a click on the object in that view (pixels of its image as stored), in place "
                                 "of --mask: the object is selected in the network's reconstruction and every "
                                 "view's mask carved to it; repeat to add objects or parts of another colour");
-  auto* not_click = cmd->add_option("--not-click", args.not_clicks,
-                                    "X,Y: a point of that view that is not the object (with --segmenter); repeatable");
+  cmd->add_option("--not-click", args.not_clicks,
+                                    "X,Y: a point of that view that is not the object (with --segmenter or --box); "
+                                    "repeatable");
+  auto* box = cmd->add_option("--box", args.box,
+                              "X0,Y0,X1,Y1: a box around the object in that view (pixels of its image as stored), in "
+                              "place of --mask: without a segmenter GrabCut finds the object in it by colour (the "
+                              "photo outside the box is not the object; --click points in it are, --not-click "
+                              "points are not); with one, the box prompts it. Then lifted to every view and carved");
   cmd->add_option("--segmenter", args.segmenter,
                   kSegmenterHelp + ". With one, the clicked view's mask from the network (one click: the best-scored of "
                   "its three masks), then lifted to every view and carved; without it, the object is grown by "
@@ -30,7 +36,8 @@ void add_edit_options(CLI::App* cmd, EditArgs& args) {
   mask->needs(view);
   click->needs(view);
   click->excludes(mask);
-  not_click->needs(click);
+  box->needs(view);
+  box->excludes(mask);
   cmd->add_option("--mode", args.mode,
                   "remove: the region shows an object to take out; insert: the edited reference shows a new "
                   "object there")
@@ -115,21 +122,25 @@ void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
 
 std::optional<OneMask> one_mask_request(const EditArgs& args, const Scene& scene, const std::string& precision) {
   if (args.view.empty()) return std::nullopt;
-  if (args.mask.empty() && args.clicks.empty())
-    fail("--view {}: give the region on it, --mask FILE or --click X,Y", args.view);
+  if (args.mask.empty() && args.clicks.empty() && args.box.empty())
+    fail("--view {}: give the region on it, --mask FILE, --click X,Y or --box X0,Y0,X1,Y1", args.view);
+  if (!args.not_clicks.empty() && args.clicks.empty() && args.box.empty())
+    fail("--not-click needs --click or --box: points that are not the object go with a prompt for it");
   OneMask request;
   request.view = args.view;
   const View& view = scene.views[static_cast<size_t>(input_view_index(scene, args.view))];
-  if (!args.clicks.empty()) {
-    if (args.mode != "remove") fail("--click selects an object to remove: --mode insert needs --mask");
+  if (!args.clicks.empty() || !args.box.empty()) {
+    if (args.mode != "remove")
+      fail("--{} selects an object to remove: --mode insert needs --mask", args.box.empty() ? "click" : "box");
     for (const std::string& click : args.clicks) request.clicks.push_back(parse_click(click, "--click"));
     for (const std::string& click : args.not_clicks) request.not_clicks.push_back(parse_click(click, "--not-click"));
+    if (!args.box.empty()) request.box = parse_view_box(args.box, "--box");
     if (const auto path = segmenter_path(args.segmenter)) {
       spdlog::info("reading the segmenter {}", path->string());
       request.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
           *path, parse_segmenter_precision(precision)));
-    } else if (!request.not_clicks.empty()) {
-      fail("--not-click needs --segmenter (or INSTAINPAINT_SEGMENTER): the colour growth takes no such points");
+    } else if (!request.not_clicks.empty() && !request.box) {
+      fail("--not-click needs --segmenter (or INSTAINPAINT_SEGMENTER) or --box: the colour growth takes no such points");
     }
   } else {
     request.region = read_region_mask(args.mask, view);

@@ -29,7 +29,8 @@ inline const std::string kSegmenterHelp =
 struct EditArgs {
   std::string view, mask;
   std::vector<std::string> clicks;      // --click X,Y (repeatable)
-  std::vector<std::string> not_clicks;  // --not-click X,Y (repeatable; with --segmenter)
+  std::vector<std::string> not_clicks;  // --not-click X,Y (repeatable; with --segmenter or --box)
+  std::string box;                      // --box X0,Y0,X1,Y1
   std::string segmenter;                // --segmenter FILE (else $INSTAINPAINT_SEGMENTER)
   std::string mode = "remove";
   std::string depth;
@@ -43,7 +44,7 @@ struct EditArgs {
   GeometryOptions geometry;  // add_geometry_options
 };
 
-// --view, --mask, --click, --not-click, --segmenter, --mode, --depth, --depth-scale, --extent, --dilate.
+// --view, --mask, --click, --not-click, --box, --segmenter, --mode, --depth, --depth-scale, --extent, --dilate.
 void add_edit_options(CLI::App* cmd, EditArgs& args);
 // --reference-view, --reference-inpainter and add_geometry_options (commands that build the
 // network's input).

@@ -200,6 +200,7 @@ void add_infer_command(CLI::App& app) {
       "--reference inpainted.png --out out/statue\n"
       "  remove (one mask):  instainpaint infer --scene SCENE --view IMG_2707 --mask region.png "
       "--reference inpainted.png\n"
+      "  remove (a box around the object):  instainpaint infer --scene SCENE --view IMG_2707 --box 150,90,360,330\n"
       "  insert:  instainpaint infer --scene SCENE --mode insert --view IMG_2707 --mask region.png "
       "--reference with_new_object.png\n"
       "  compressed as well:  instainpaint infer --scene SCENE --splats gaussians.ply,gaussians.spz");

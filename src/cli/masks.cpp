@@ -57,8 +57,8 @@ void run(const MasksArgs& a) {
     nlohmann::json entry = {{"name", view.name},
                             {"coverage", std::count(mask.pixels.begin(), mask.pixels.end(), 1.f) /
                                              static_cast<double>(mask.pixels.size())}};
-    // A region marked by hand is its own mask; a click's marked view is made like the others.
-    if (view.name != request.view || !request.clicks.empty()) {
+    // A region marked by hand is its own mask; a click's or a box's marked view is made like the others.
+    if (view.name != request.view || !request.clicks.empty() || request.box) {
       if (const auto truth = load_view_mask(view)) {
         const MaskAgreement agreement = mask_agreement(mask, *truth);
         entry["recall"] = agreement.recall;
@@ -93,7 +93,7 @@ void run(const MasksArgs& a) {
                masks.segmenter["scores"][masks.segmenter["chosen"].get<int>()].get<double>(),
                masks.segmenter["pixels"].get<int64_t>());
   else if (!masks.clicked_mask.empty())
-    fmt::print("clicked view's mask: {} (no --segmenter)\n", masks.clicked_mask);
+    fmt::print("{} view's mask: {} (no --segmenter)\n", request.box ? "boxed" : "clicked", masks.clicked_mask);
   fmt::print("{} masks from view {} ({} region{}, depth: {})\n", scene.views.size(), request.view,
              masks.regions.size(), masks.regions.size() == 1 ? "" : "s", masks.depth_source);
   if (compared > 0)
@@ -130,8 +130,9 @@ void add_masks_command(CLI::App& app) {
       "  instainpaint masks --scene ../shared/data/statue --view IMG_2707 "
       "--mask ../shared/data/statue/images_2/label/IMG_2707.png --out masks\n"
       "  instainpaint masks --scene my_capture --view IMG_0001 --click 512,300 --out masks   # one click on the object\n"
-      "  instainpaint masks --scene my_capture --view IMG_0001 --click 512,300 --segmenter mobile_sam.pt --out masks\n"
-      "      # the clicked view's outline from MobileSAM (github.com/ChaoningZhang/MobileSAM, weights/mobile_sam.pt)");
+      "  instainpaint masks --scene my_capture --view IMG_0001 --box 400,180,640,420 --out masks   # a box around it\n"
+      "  instainpaint masks --scene my_capture --view IMG_0001 --click 512,300 --segmenter mobile-sam --out masks\n"
+      "      # the clicked view's outline from MobileSAM (instainpaint models get mobile-sam)");
   cmd->callback([args] { run(*args); });
 }
 

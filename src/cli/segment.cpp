@@ -60,7 +60,7 @@ void run(const SegmentArgs& args) {
     const Click k = parse_click(c, "--not");
     prompt.points.push_back({k.x - 0.5, k.y - 0.5, false});
   }
-  if (!args.box.empty()) prompt.box = parse_segment_box(args.box, "--box");
+  if (!args.box.empty()) prompt.box = parse_view_box(args.box, "--box");
   if (prompt.points.empty() && !prompt.box) fail("give at least one --click or a --box");
   prompt.multimask = prompt.points.size() == 1 && !prompt.box;  // SAM's advice: one point is ambiguous
   SegmenterImage encoded;

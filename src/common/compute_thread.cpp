@@ -26,6 +26,11 @@ void ComputeThread::post(std::function<void()> job) {
   changed_.notify_all();
 }
 
+void ComputeThread::mark_idle() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  working_ = false;
+}
+
 void ComputeThread::loop() {
   for (;;) {
     std::function<void()> job;

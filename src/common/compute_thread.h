@@ -30,7 +30,15 @@ class ComputeThread {
     if (on_this_thread()) return fn();
     std::packaged_task<std::invoke_result_t<Fn&>()> task(std::forward<Fn>(fn));
     auto result = task.get_future();
-    post([&task] { task(); });  // `task` lives until result.get() returns
+    // Idle again before the caller has the result: busy() right after run() returns says false.
+    std::promise<void> finished;
+    auto done = finished.get_future();
+    post([this, &task, &finished] {  // both live until done.wait() returns
+      task();
+      mark_idle();
+      finished.set_value();
+    });
+    done.wait();
     return result.get();
   }
   // As run() while the compute thread is idle; while it works (a job of minutes), fn() on the
@@ -45,6 +53,7 @@ class ComputeThread {
 
  private:
   void post(std::function<void()> job);
+  void mark_idle();
   void loop();
   mutable std::mutex mutex_;
   std::condition_variable changed_;

@@ -10,6 +10,7 @@
 #include "common/stopwatch.h"
 #include "data/masks.h"
 #include "data/view_selection.h"
+#include "edit/box_select.h"
 
 namespace ii {
 
@@ -163,15 +164,16 @@ nlohmann::json SceneMasks::describe(const OneMask& request) const {
           {"notes", notes},
           {"regions", regions_json},
           {"carved", carved}};
-  if (!request.clicks.empty()) {
+  if (request.box) out["box"] = *request.box;
+  if (!request.clicks.empty() || request.box) {
     nlohmann::json clicks = nlohmann::json::array(), not_clicks = nlohmann::json::array();
     for (const Click& c : request.clicks) clicks.push_back({c.x, c.y});
     for (const Click& c : request.not_clicks) not_clicks.push_back({c.x, c.y});
-    out["clicks"] = clicks;
+    if (!clicks.empty()) out["clicks"] = clicks;
     if (!not_clicks.empty()) out["not_clicks"] = not_clicks;
     out["clicked_mask"] = clicked_mask;
     if (!segmenter.is_null()) out["segmenter"] = segmenter;
-    if (!request.segmenter) {
+    if (!request.segmenter && !request.box) {
       out["selected_points"] = selected;
       out["points"] = points;
     }
@@ -238,15 +240,31 @@ void select_the_clicked_object(const Scene& scene, const std::vector<Camera>& ca
 
 }  // namespace
 
-ClickedMask segmented_view_mask(const Segmenter& segmenter, const View& view, const std::vector<Click>& clicks,
-                                const std::vector<Click>& not_clicks, StageTimes* stages) {
-  check_clicks_inside(view.camera, view.name, clicks, not_clicks);
+namespace {
+
+// The view's photo, at its camera's size.
+Image view_photo(const View& view) {
   Image photo = load_view_image(view);
   if (photo.width != view.camera.K.width || photo.height != view.camera.K.height)
     fail("view {}: its photo is {}x{}, its camera {}x{}", view.name, photo.width, photo.height, view.camera.K.width,
          view.camera.K.height);
+  return photo;
+}
+
+}  // namespace
+
+ClickedMask segmented_view_mask(const Segmenter& segmenter, const View& view, const std::vector<Click>& clicks,
+                                const std::vector<Click>& not_clicks, StageTimes* stages,
+                                const std::optional<ViewBox>& box) {
+  check_clicks_inside(view.camera, view.name, clicks, not_clicks);
+  if (box) check_box(view.name, view.camera.K.width, view.camera.K.height, *box, clicks, true);
+  const Image photo = view_photo(view);
   try {
-    return mask_from_clicks(segmenter, photo, clicks, not_clicks, stages);
+    if (!box) return mask_from_clicks(segmenter, photo, clicks, not_clicks, stages);
+    StageTimes unrecorded;
+    const SegmenterImage encoded =
+        (stages ? *stages : unrecorded).time("segmenter: encode the view", [&] { return segmenter.encode(photo); });
+    return mask_from_prompt(segmenter, encoded, clicks, not_clicks, box, stages);
   } catch (const Error& e) {
     fail("view {}: {}", view.name, e.what());
   }
@@ -260,18 +278,33 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
   std::vector<Camera> cameras;
   for (const View& v : scene.views) cameras.push_back(v.camera);
 
-  if (!request.clicks.empty() && request.segmenter) {
-    // The segmenter's mask of the clicked view is the region, lifted (and carved) as a drawn one.
-    const ClickedMask clicked =
-        segmented_view_mask(*request.segmenter, marked, request.clicks, request.not_clicks, stages);
+  // The segmenter's mask of the clicked view, or GrabCut's in the box, is the region, lifted (and
+  // carved, as the request says: on by default) as a drawn one.
+  auto as_drawn = [&](const Image& region) {
     OneMask drawn = request;
     drawn.clicks.clear();
     drawn.not_clicks.clear();
+    drawn.box.reset();
     drawn.segmenter = nullptr;
-    drawn.region = clicked.mask;  // carved as the request says (on by default)
-    SceneMasks out = masks_from_one(scene, drawn, predictor, options, stages);
+    drawn.region = region;
+    return masks_from_one(scene, drawn, predictor, options, stages);
+  };
+  if ((!request.clicks.empty() || request.box) && request.segmenter) {
+    const ClickedMask clicked =
+        segmented_view_mask(*request.segmenter, marked, request.clicks, request.not_clicks, stages, request.box);
+    SceneMasks out = as_drawn(clicked.mask);
     out.clicked_mask = "segmenter";
     out.segmenter = clicked.describe(*request.segmenter);
+    return out;
+  }
+  if (request.box) {
+    check_clicks_inside(marked.camera, marked.name, request.clicks, request.not_clicks);
+    check_box(marked.name, marked.camera.K.width, marked.camera.K.height, *request.box, request.clicks, false);
+    const Image region = times.time("masks: GrabCut in the box", [&] {
+      return object_in_box(view_photo(marked), marked.name, *request.box, request.clicks, request.not_clicks);
+    });
+    SceneMasks out = as_drawn(region);
+    out.clicked_mask = "GrabCut in the box";
     return out;
   }
 

@@ -50,6 +50,9 @@ struct OneMask {
   // lifted and carved (`carve`) like a drawn one. Without, the object under each click is selected in the
   // network's reconstruction (edit/select.h) and each view's mask carved to it.
   std::vector<Click> clicks, not_clicks;
+  // A box around the object on the view, with or without clicks inside it: with a segmenter its
+  // prompt; without, GrabCut in it (edit/box_select.h) makes the region, lifted and carved.
+  std::optional<ViewBox> box;
   std::shared_ptr<const Segmenter> segmenter;
   SelectOptions selecting;
 };
@@ -95,7 +98,8 @@ struct SceneMasks {
   int carved = 0;  // views whose masks were carved to the object (edit/carve.h)
   int64_t selected = 0, points = 0;  // clicks': the reconstruction's points selected, of all
   // How the clicked view's mask was made: "segmenter" (with `segmenter`: the network and the mask
-  // it chose) or "colour growth over the reconstruction"; empty without clicks.
+  // it chose), "GrabCut in the box" or "colour growth over the reconstruction"; empty without
+  // clicks or a box.
   std::string clicked_mask;
   nlohmann::json segmenter;
   // {"view", "mode", "depth_source", "notes", "regions": [{pixels, depth_inside, depth_ring, near, far}]}
@@ -118,9 +122,10 @@ Image depth_at_image_size(const torch::Tensor& working_depth, double normalizati
 SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
                           const SceneInputOptions& options, StageTimes* stages = nullptr);
 
-// The segmenter's mask of `view`'s photo (segment/segmenter.h's mask_from_clicks). An Error names a
-// click outside the view.
+// The segmenter's mask of `view`'s photo (segment/segmenter.h's mask_from_clicks, or
+// mask_from_prompt with a box). An Error names a click or a box outside the view.
 ClickedMask segmented_view_mask(const Segmenter& segmenter, const View& view, const std::vector<Click>& clicks,
-                                const std::vector<Click>& not_clicks, StageTimes* stages = nullptr);
+                                const std::vector<Click>& not_clicks, StageTimes* stages = nullptr,
+                                const std::optional<ViewBox>& box = std::nullopt);
 
 }  // namespace ii

@@ -284,7 +284,7 @@ ClickedMask mask_from_clicks(const Segmenter& segmenter, const SegmenterImage& e
 }
 
 ClickedMask mask_from_prompt(const Segmenter& segmenter, const SegmenterImage& encoded, const std::vector<Click>& clicks,
-                             const std::vector<Click>& not_clicks, const std::optional<SegmentBox>& box,
+                             const std::vector<Click>& not_clicks, const std::optional<ViewBox>& box,
                              StageTimes* stages) {
   StageTimes unrecorded;
   StageTimes& times = stages ? *stages : unrecorded;
@@ -308,16 +308,6 @@ ClickedMask mask_from_prompt(const Segmenter& segmenter, const SegmenterImage& e
          clicks[0].y);
   }
   return out;
-}
-
-SegmentBox parse_segment_box(const std::string& text, const std::string& what) {
-  SegmentBox b{};
-  char c1 = 0, c2 = 0, c3 = 0;
-  std::istringstream in(text);
-  if (!(in >> b[0] >> c1 >> b[1] >> c2 >> b[2] >> c3 >> b[3]) || c1 != ',' || c2 != ',' || c3 != ',' || !in.eof() ||
-      !std::isfinite(b[0] + b[1] + b[2] + b[3]) || b[2] <= b[0] || b[3] <= b[1])
-    fail("{} {}: expected X0,Y0,X1,Y1 with X1 > X0 and Y1 > Y0", what, text);
-  return b;
 }
 
 const nlohmann::json& Segmenter::file_description() const {

@@ -123,14 +123,10 @@ ClickedMask mask_from_clicks(const Segmenter& segmenter, const Image& photo, con
 // The same on a photo encoded before (a page's later clicks on the same view: the decoder alone).
 ClickedMask mask_from_clicks(const Segmenter& segmenter, const SegmenterImage& photo, const std::vector<Click>& clicks,
                              const std::vector<Click>& not_clicks, StageTimes* stages = nullptr);
-// A box around the object (x0, y0, x1, y1 in the photo's pixels, edges as drawn), with or
-// without clicks: one mask.
-using SegmentBox = std::array<double, 4>;
+// A box around the object (camera/click.h), with or without clicks: one mask.
 ClickedMask mask_from_prompt(const Segmenter& segmenter, const SegmenterImage& photo, const std::vector<Click>& clicks,
-                             const std::vector<Click>& not_clicks, const std::optional<SegmentBox>& box,
+                             const std::vector<Click>& not_clicks, const std::optional<ViewBox>& box,
                              StageTimes* stages = nullptr);
-// "X0,Y0,X1,Y1" as a box (an Error naming `what` unless four numbers with X1 > X0 and Y1 > Y0).
-SegmentBox parse_segment_box(const std::string& text, const std::string& what);
 
 // The segmenter named by a command's --segmenter, else $INSTAINPAINT_SEGMENTER, else "auto": the
 // cache's (MobileSAM before the larger SAMs; instainpaint models get mobile-sam), else none.

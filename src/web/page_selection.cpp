@@ -6,6 +6,7 @@
 
 #include "common/error.h"
 #include "common/stopwatch.h"
+#include "edit/box_select.h"
 #include "edit/scene_masks.h"
 #include "fill/region.h"
 #include "io/image.h"
@@ -175,7 +176,7 @@ json PageSelection::select_splats(const std::filesystem::path& ply, const Camera
     answer["ms"] = {{"read", read_ms}, {"encode", encode_ms}, {"decode", decode_ms}, {"select", watch.lap()}};
     return answer;
   }
-  if (!not_clicks.empty()) fail("points that are not the object need serve --segmenter");
+  if (!not_clicks.empty()) fail("points that are not the object need a box around it, or serve --segmenter");
   const RegionMask region = region_from_clicks(*cloud, camera, "the page's view", clicks);
   const double select_ms = watch.lap();
   std::vector<Eigen::Vector3d> points;
@@ -197,9 +198,18 @@ void PageSelection::set_reconstruction(const GaussianSet& reconstruction) {
 
 std::optional<json> PageSelection::select_on_view(const View& view, const Camera& camera,
                                                   const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
-                                                  std::optional<double> scene_far, const std::optional<SegmentBox>& box) {
+                                                  std::optional<double> scene_far, const std::optional<ViewBox>& box) {
   Stopwatch watch;
-  if (box && !segmenter_) fail("a box around the object needs serve --segmenter");
+  if (box && !segmenter_) {
+    // GrabCut in the box on the view's photo, as `masks --box` makes the region.
+    check_clicks_inside(view.camera, view.name, clicks, not_clicks);
+    const Image mask = object_in_box(load_view_image(view), view.name, *box, clicks, not_clicks);
+    json answer = selection_answer(std::count(mask.pixels.begin(), mask.pixels.end(), 1.f),
+                                   static_cast<int64_t>(mask.pixels.size()), mask);
+    answer["how"] = "GrabCut in the box";
+    answer["ms"] = {{"grabcut", watch.lap()}};
+    return answer;
+  }
   if (segmenter_) {
     check_clicks_inside(view.camera, view.name, clicks, not_clicks);
     double encode_ms = 0;
@@ -212,7 +222,7 @@ std::optional<json> PageSelection::select_on_view(const View& view, const Camera
     answer["ms"] = {{"encode", encode_ms}, {"decode", watch.lap()}};
     return answer;
   }
-  if (!not_clicks.empty()) fail("points that are not the object need serve --segmenter");
+  if (!not_clicks.empty()) fail("points that are not the object need a box around it, or serve --segmenter");
   std::shared_ptr<const ColouredPoints> points;
   {
     std::lock_guard<std::mutex> lock(mutex_);

@@ -75,13 +75,14 @@ class PageSelection {
   // reconstruction has been made.
   // With a segmenter: its mask of the view's photo ({..., how: "segmenter", ms: {encode, decode}}),
   // with or without a reconstruction.
-  // `box` (with a segmenter only): a box around the object on the photo, with or without clicks.
+  // `box`: a box around the object on the photo, with or without clicks: with a segmenter its
+  // prompt, without GrabCut in it (edit/box_select.h; {..., how: "GrabCut in the box", ms: {grabcut}}).
   // `scene_far`: the scene's far depth bound in the reconstruction's frame, when known
   // (SelectOptions::scene_far).
   std::optional<nlohmann::json> select_on_view(const View& view, const Camera& camera, const std::vector<Click>& clicks,
                                                const std::vector<Click>& not_clicks = {},
                                                std::optional<double> scene_far = std::nullopt,
-                                               const std::optional<SegmentBox>& box = std::nullopt);
+                                               const std::optional<ViewBox>& box = std::nullopt);
 
  private:
   mutable std::mutex mutex_;

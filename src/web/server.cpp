@@ -433,7 +433,7 @@ struct WebServer::State {
   // The request's `ply`: splats this server serves.
   fs::path selection_splats_file(const httplib::Request& req);
   json select_on_view(const httplib::Request& req, const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
-                      const std::optional<SegmentBox>& box);
+                      const std::optional<ViewBox>& box);
 
   // The released checkpoint a CPU page offers as a slower, better Run (ServeOptions::slower_checkpoint),
   // read at its first use.
@@ -1329,8 +1329,8 @@ json WebServer::State::select(const httplib::Request& req) {
     if (auto r = read_clicks(req, not_clicks, "not_clicks")) throw *r;
   try {
     if (req.has_file("view")) {
-      std::optional<SegmentBox> box;
-      if (boxed) box = parse_segment_box(req.get_file_value("box").content, "box");
+      std::optional<ViewBox> box;
+      if (boxed) box = parse_view_box(req.get_file_value("box").content, "box");
       return select_on_view(req, clicks, not_clicks, box);
     }
     Camera camera;
@@ -1349,7 +1349,7 @@ fs::path WebServer::State::selection_splats_file(const httplib::Request& req) {
 }
 
 json WebServer::State::select_on_view(const httplib::Request& req, const std::vector<Click>& clicks,
-                                      const std::vector<Click>& not_clicks, const std::optional<SegmentBox>& box) {
+                                      const std::vector<Click>& not_clicks, const std::optional<ViewBox>& box) {
   if (!scene) throw Refusal{400, "the server was started without --scene: no views to click on"};
   int index = -1;
   try {

@@ -221,7 +221,7 @@ TEST(MasksCli, WritesAMaskPerViewAndComparesWithTheScenesOwn) {
 
   EXPECT_NE(test::run_command(exe.string() + " masks --scene '" + dir.string() + "' --view IMG_2707 --out x", log), 0)
       << test::file_bytes(log);
-  EXPECT_NE(test::file_bytes(log).find("--view IMG_2707: give the region on it, --mask FILE or --click X,Y"),
+  EXPECT_NE(test::file_bytes(log).find("--view IMG_2707: give the region on it, --mask FILE, --click X,Y or --box X0,Y0,X1,Y1"),
             std::string::npos)
       << test::file_bytes(log);
   EXPECT_NE(test::run_command(exe.string() + " masks --scene '" + dir.string() + "' --view IMG_2707 --click 5000,3 --out x",

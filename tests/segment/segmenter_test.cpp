@@ -178,9 +178,9 @@ TEST(Segmenter, APromptNeedsSomething) {
             "a segmentation prompt needs a point, a box or a previous mask");
   EXPECT_EQ(test::error_message([&] { mask_from_prompt(segmenter, image, {}, {}, std::nullopt); }),
             "the segmenter needs a click on the object or a box around it");
-  EXPECT_EQ(test::error_message([&] { parse_segment_box("4,5,3,9", "--box"); }),
+  EXPECT_EQ(test::error_message([&] { parse_view_box("4,5,3,9", "--box"); }),
             "--box 4,5,3,9: expected X0,Y0,X1,Y1 with X1 > X0 and Y1 > Y0");
-  EXPECT_EQ(parse_segment_box("1.5,2,30,40.25", "--box"), (SegmentBox{1.5, 2, 30, 40.25}));
+  EXPECT_EQ(parse_view_box("1.5,2,30,40.25", "--box"), (ViewBox{1.5, 2, 30, 40.25}));
 }
 
 // A click's mask brings only the best-scored of the three masks to the photo's size: the same

@@ -251,10 +251,16 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
             "reference: 4000x4000 pixels, more than this server decodes for view view_001 (48x40: at most 4 times its "
             "pixels)");
   EXPECT_LT(test::peak_rss_mb() - peak, 100.0);
-  // A box on a view's photo prompts a segmenter: refused without one, and when it is not a box.
+  // A box on a view's photo (GrabCut in it without a segmenter): refused when it is not a box, when
+  // it reaches outside the photo or covers all of it, with a click outside it.
   auto select = [&](httplib::MultipartFormDataItems items) { return s.client->Post("/api/select", items); };
-  EXPECT_EQ(error_of(select({{"view", "1", "", ""}, {"box", "2,3,20,30", "", ""}})),
-            "a box around the object needs serve --segmenter");
+  EXPECT_EQ(error_of(select({{"view", "1", "", ""}, {"box", "2,3,60,30", "", ""}})),
+            "view view_001: the box 2,3,60,30 reaches outside its photo (48x40)");
+  EXPECT_EQ(error_of(select({{"view", "1", "", ""}, {"box", "0,0,48,40", "", ""}})).substr(0, 65),
+            "view view_001: the box 0,0,48,40 covers the whole photo (48x40): ");
+  EXPECT_EQ(error_of(select({{"view", "1", "", ""}, {"box", "2,3,20,30", "", ""}, {"clicks", "40,35", "", ""}})),
+            "view view_001: the click (40, 35) is outside the box 2,3,20,30: clicks with a box are on the object inside "
+            "it");
   EXPECT_EQ(error_of(select({{"view", "1", "", ""}, {"box", "20,3,2,30", "", ""}})),
             "box 20,3,2,30: expected X0,Y0,X1,Y1 with X1 > X0 and Y1 > Y0");
   EXPECT_EQ(error_of(select({{"view", "1", "", ""}, {"box", "2,3,nan,30", "", ""}})),

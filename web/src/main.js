@@ -374,10 +374,10 @@ function attachBrush(canvas, erasingNow, radiusOf, enabled = () => true) {
   return ctx;
 }
 let picking = false; // the click tool: a click selects the object under it instead of painting
-let boxing = false; // the box tool (with a segmenter): a box dragged around the object
+let boxing = false; // the box tool: a box dragged around the object
 let viewClicks = []; // its clicks so far on the selected view, in the view's pixels
-let viewNotClicks = []; // with a segmenter: alt-clicks, points that are not the object
-let viewBox = null; // with a segmenter: the box dragged around the object, [x0, y0, x1, y1]
+let viewNotClicks = []; // with a segmenter or a box: alt-clicks, points that are not the object
+let viewBox = null; // the box dragged around the object, [x0, y0, x1, y1]
 const paint = attachBrush(paintCanvas, () => erasing, () => (Number($("size").value) * paintCanvas.width) / 400,
   () => !picking && !boxing);
 function setTool(tool) {
@@ -393,7 +393,7 @@ $("photo-box").onclick = () => setTool("photo-box");
 // The clicks after a click at (x, y): a plain click starts again, shift-click adds a point on the
 // object, alt-click (with a segmenter) a point that is not the object.
 function nextClicks(e, x, y, clicks, notClicks) {
-  if (e.altKey && api.info?.segmenter && (clicks.length || viewBox)) return [clicks, [...notClicks, [x, y]]];
+  if (e.altKey && ((api.info?.segmenter && clicks.length) || viewBox)) return [clicks, [...notClicks, [x, y]]];
   if (e.shiftKey) return [[...clicks, [x, y]], notClicks];
   return [[[x, y]], []];
 }
@@ -413,18 +413,20 @@ paintCanvas.addEventListener("pointerdown", async (e) => {
   viewClicks = clicks;
   viewNotClicks = notClicks;
   viewBox = box;
-  status(selection.how === "segmenter"
-    ? `${api.info.segmenter.network}: ${selection.pixels} pixels of the view from ${box ? "a box and " : ""}` +
+  status(selection.how === "colour growth"
+    ? `selected ${selection.selected} of the reconstruction's ${selection.total} points (${selection.pixels} pixels ` +
+      `of the view); ${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds`
+    : `${boxSelector(selection)}: ${selection.pixels} pixels of the view from ${box ? "a box and " : ""}` +
       `${clicks.length} point${clicks.length === 1 ? "" : "s"} on the object and ${notClicks.length} off it; ` +
       `${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds a point, alt-click ` +
-      "marks what is not the object"
-    : `selected ${selection.selected} of the reconstruction's ${selection.total} points (${selection.pixels} pixels ` +
-      `of the view); ${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it, shift-click adds`);
+      "marks what is not the object");
 });
 
-// The box tool: a box dragged on the photo (drawn as it is dragged), sent to the segmenter when
-// the button is released; a later shift-click adds points to it.
+// The box tool: a box dragged on the photo (drawn as it is dragged), sent to the server when the
+// button is released: the segmenter outlines the object in it, or without one GrabCut does by
+// colour; a later shift-click adds points to it, alt-click points that are not the object.
 const boxText = (b) => b.map((v) => +v.toFixed(2)).join(",");
+const boxSelector = (selection) => (selection.how === "segmenter" ? api.info.segmenter.network : "GrabCut in the box");
 let boxStart = null;
 function draggedBox(e) {
   const [x, y] = canvasPixel(paintCanvas, e);
@@ -451,7 +453,7 @@ paintCanvas.addEventListener("pointerup", async (e) => {
   const selection = await requestSelection({ view: String(selected), box: boxText(box) }, [], paint);
   if (!selection) return;
   [viewClicks, viewNotClicks, viewBox] = [[], [], box];
-  status(`${api.info.segmenter.network}: ${selection.pixels} pixels of the view from the box; ` +
+  status(`${boxSelector(selection)}: ${selection.pixels} pixels of the view from the box; ` +
     `${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it; with the click tool, shift-click adds a ` +
     "point, alt-click marks what is not the object");
 });
@@ -934,7 +936,6 @@ async function start() {
   }
   if (reconstruction?.result?.splats) listPlys([first]);  // not "none given": the scene's own
   $("fill-panel").hidden = !info.filling || !first;
-  $("photo-box").hidden = !info.segmenter;  // a box prompts the segmenter only
   if (info.inpainter?.name === "lama") {  // serve --inpainter: LaMa paints Run's reference and Fill's hole
     $("reference-default").textContent = `(none: ${info.inpainter.network})`;
     const lama = document.createElement("option");

@@ -67,6 +67,41 @@ try {
   h.check(preview.state === "done" && Object.keys(preview.result.masks).length > 1,
     `Preview masks propagates the clicked region (${preview.state}${preview.error ? ": " + preview.error : ""})`);
 
+  // The box tool without a segmenter: a box dragged around the statue's own mask (its bounding box
+  // grown by 5 %) outlines it by GrabCut, as `masks --box` does.
+  const [bx0, by0, bx1, by1] = (() => {
+    let x0 = own.width, y0 = own.height, x1 = 0, y1 = 0;
+    own.inside.forEach((v, k) => {
+      if (!v) return;
+      const x = k % own.width, y = Math.floor(k / own.width);
+      [x0, y0, x1, y1] = [Math.min(x0, x), Math.min(y0, y), Math.max(x1, x + 1), Math.max(y1, y + 1)];
+    });
+    const [dx, dy] = [(x1 - x0) * 0.025, (y1 - y0) * 0.025];
+    return [Math.max(0, x0 - dx), Math.max(0, y0 - dy), Math.min(own.width, x1 + dx), Math.min(own.height, y1 + dy)];
+  })();
+  await page.evaluate(() => (window.instainpaint.lastSelect = null));
+  await page.locator("#photo-box").click();
+  const toScreen = (x, y) => [paintBox.x + (x / own.width) * paintBox.width, paintBox.y + (y / own.height) * paintBox.height];
+  await page.mouse.move(...toScreen(bx0 + 0.5, by0 + 0.5));
+  await page.mouse.down();
+  await page.mouse.move(...toScreen(bx1 - 0.5, by1 - 0.5), { steps: 4 });
+  await page.mouse.up();
+  await page.waitForFunction(() => window.instainpaint.lastSelect, null, { timeout: 60000 });
+  const boxed = await page.evaluate(() => window.instainpaint.lastSelect);
+  h.check(!boxed.error && boxed.how === "GrabCut in the box", `a box on the photo selects by GrabCut (${boxed.error ?? boxed.how})`);
+  let boxAt = 0, boxBoth = 0;
+  boxed.runs.forEach((length, k) => {
+    if (k % 2) for (let i = boxAt; i < boxAt + length; i++) boxBoth += own.inside[i];
+    boxAt += length;
+  });
+  h.check(boxBoth / boxed.pixels > 0.95 && boxBoth / ownCount > 0.9, `the box's outline is the statue's (precision ` +
+    `${(boxBoth / boxed.pixels).toFixed(3)}, recall ${(boxBoth / ownCount).toFixed(3)} against the view's own mask)`);
+  console.log(`measured: a box on the photo to its outline drawn ${boxed.clientSeconds.toFixed(2)} s ` +
+    `(server: GrabCut ${boxed.ms.grabcut.toFixed(0)} ms)`);
+  writeFileSync(join(dir, "box-outline.png"), await page.screenshot());
+  console.log(`picture: ${join(dir, "box-outline.png")}`);
+  h.check((await page.locator("#status").textContent()).includes("GrabCut in the box"), "the status names GrabCut");
+
   // The splats: the camera on that view, a click on the statue there.
   await page.evaluate(() => (window.instainpaint.lastSelect = null));
   await page.evaluate((i) => window.instainpaint.jumpToView(i), index);
