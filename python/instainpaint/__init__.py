@@ -210,8 +210,9 @@ class Gaussians:
 
         The region, one of: box=(cx, cy, cz, sx, sy, sz[, rx, ry, rz]) in the scene's frame;
         selection= the same Gaussians with the region deleted; view= a camera's name and mask= a
-        stroke over the object on it (an H x W array or a file) or click=(x, y) on the object (a
-        list of points adds more). Cameras: scene= (its views and
+        stroke over the object on it (an H x W array or a file), click=(x, y) on the object (a
+        list of points adds more) or box=(x0, y0, x1, y1) around it in that camera's pixels (GrabCut
+        in the render from it). Cameras: scene= (its views and
         object-free test views) and/or
         cameras= {name: Camera}; none: automatic views around the region (up= the scene's up).
         reference= the reference view's hole painted by any 2D inpainter (array or file), for

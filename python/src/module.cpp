@@ -452,7 +452,11 @@ NB_MODULE(_core, m) {
           if (box) {
             std::string text;
             for (double v : *box) text += (text.empty() ? "" : ",") + fmt::format("{}", v);
-            o.box = parse_box(text);
+            // With view=, four numbers are a box on that camera's picture; else a box in the scene's frame.
+            if (!view.empty())
+              o.view_box = parse_view_box(text, "box=");
+            else
+              o.box = parse_box(text);
           }
           if (selection) {
             o.selection = scene_splats(*selection);
@@ -462,8 +466,10 @@ NB_MODULE(_core, m) {
           if (!view.empty()) {
             o.stroke_view = view;
             for (const auto& [x, y] : clicks) o.clicks.push_back({x, y});
-            if (mask.is_none() == o.clicks.empty())
-              fail("fill: view= needs mask= (the stroke drawn on that view) or click= (a point on the object), one of them");
+            if (!mask.is_none() && (!o.clicks.empty() || o.view_box))
+              fail("fill: view= takes mask= (the stroke drawn on that view), or click= and box= (a point on the object, a box around it)");
+            if (mask.is_none() && o.clicks.empty() && !o.view_box)
+              fail("fill: view= needs mask= (the stroke drawn on that view), click= (a point on the object) or box= (a box around it)");
             if (!mask.is_none()) o.stroke = image_or_file(mask, "mask", 1);
           } else if (!clicks.empty()) {
             fail("fill: click= is on a view: name it with view=");

@@ -127,8 +127,15 @@ void run(const FillArgs& a) {
   splat_format_of(a.out);  // a bad output name fails before the work
   if (a.views < 1) fail("--views: at least 1, got {}", a.views);
   if (a.height < 32 || a.height % 8 != 0) fail("--height: a multiple of 8 of at least 32, got {}", a.height);
-  if (!a.view.empty() && a.mask.empty() && a.clicks.empty())
-    fail("--view {}: give the region on it, --mask FILE or --click X,Y", a.view);
+  // --box: a box in the file's frame, or with --view one on that camera's picture.
+  const bool view_box = !a.view.empty() && !a.box.empty();
+  const int ways = (!a.box.empty() && !view_box) + !a.selection.empty() + !a.view.empty();
+  if (ways != 1)
+    fail("give the region one way: --box (a box in the file's frame), --selection FILE, or --view with --mask, --click "
+         "or --box X0,Y0,X1,Y1 on it");
+  if (!a.view.empty() && a.mask.empty() && a.clicks.empty() && !view_box)
+    fail("--view {}: give the region on it, --mask FILE, --click X,Y or --box X0,Y0,X1,Y1", a.view);
+  if (view_box && !a.mask.empty()) fail("--view {}: --mask or --box, not both", a.view);
   if (a.view.empty() && (!a.mask.empty() || !a.clicks.empty()))
     fail("--{} is on a view: name it with --view", a.mask.empty() ? "click" : "mask");
   FillOptions o;
@@ -141,7 +148,10 @@ void run(const FillArgs& a) {
   o.inpainter = inpainter_from_flag(a.inpainter, "ns");
   o.reference_only = !a.all_views;
   o.fill = !a.delete_only;
-  if (!a.box.empty()) o.box = parse_box(a.box);
+  if (view_box)
+    o.view_box = parse_view_box(a.box, "--box");
+  else if (!a.box.empty())
+    o.box = parse_box(a.box);
   o.cameras = given_cameras(a);
   if (!a.reference.empty()) {
     o.reference_image = read_image_rgb(a.reference);
@@ -155,7 +165,7 @@ void run(const FillArgs& a) {
     for (const std::string& click : a.not_clicks) o.not_clicks.push_back(parse_click(click, "--not-click"));
   }
   const Runtime runtime = apply_runtime_options(a.runtime);
-  if (!a.clicks.empty())
+  if (!a.clicks.empty() || view_box)
     if (const auto path = segmenter_path(a.segmenter)) {
       spdlog::info("reading the segmenter {}", path->string());
       o.segmenter = std::make_shared<const Segmenter>(Segmenter::load(
@@ -204,7 +214,9 @@ void add_fill_command(CLI::App& app) {
   cmd->add_option("--report", a->report, "Folder for fill.json and the pictures (default: beside --out, <name>-fill)");
   auto* region = cmd->add_option_group("region", "The region to remove, one of:");
   region->add_option("--box", a->box, "cx,cy,cz,sx,sy,sz[,rx,ry,rz]: centre, size and rotation (degrees about x, y, z) in "
-                                      "the splat file's own frame");
+                                      "the splat file's own frame; with --view, X0,Y0,X1,Y1: a box around the object "
+                                      "in that camera's pixels (GrabCut in the splats' render from it, or with "
+                                      "--segmenter its prompt)");
   region->add_option("--selection", a->selection, "The same scene with the region already deleted (e.g. SuperSplat's "
                                                   "export): the splats it lacks")
       ->check(CLI::ExistingFile);
@@ -216,10 +228,10 @@ void add_fill_command(CLI::App& app) {
                   "neighbours alike in colour (repeat to add); with --segmenter, the object it outlines in the "
                   "scene's render from that camera")
       ->excludes(mask);
-  cmd->add_option("--not-click", a->not_clicks, "With --click and --segmenter: X,Y on something that is not the object");
+  cmd->add_option("--not-click", a->not_clicks,
+                  "With --click and --segmenter, or a box on --view: X,Y on something that is not the object");
   cmd->add_option("--segmenter", a->segmenter,
                   kSegmenterHelp + " (for --click)");
-  region->require_option(1);
   cmd->add_option("--scene", a->scene_dir, "The capture the splats were trained from (any format we read): its cameras");
   cmd->add_option("--scene-format", a->scene.format, "auto, llff, nerfstudio or colmap")->capture_default_str();
   cmd->add_option("--images", a->scene.image_folder, "The capture's image folder (e.g. images_4)");
@@ -250,6 +262,7 @@ void add_fill_command(CLI::App& app) {
       "  instainpaint fill scene.ply --box 0.1,0.4,2.0,0.6,0.8,0.6 --out filled.ply\n"
       "  instainpaint fill scene.spz --scene capture/ --view IMG_0012 --mask stroke.png --out filled.spz\n"
       "  instainpaint fill scene.spz --scene capture/ --view IMG_0012 --click 512,300 --out filled.spz\n"
+      "  instainpaint fill scene.spz --scene capture/ --view IMG_0012 --box 400,180,640,420 --out filled.spz\n"
       "  instainpaint fill scene.ply --selection scene-without-chair.ply --refine fast --out filled.ply\n"
       "  instainpaint fill scene.ply --box 0,0,0,1,1,1 --scene capture/ --reference-view IMG_0003 \\\n"
       "      --reference my-inpainted-IMG_0003.png --out filled.ply");

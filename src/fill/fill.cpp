@@ -204,10 +204,11 @@ FillPlacement parse_fill_placement(const std::string& name) {
 }
 
 RegionMask choose_region(const SplatCloud& cloud, const FillOptions& options, nlohmann::json& segmenter_record) {
-  const int ways =
-      (options.box ? 1 : 0) + (options.selection ? 1 : 0) + (options.stroke ? 1 : 0) + (options.clicks.empty() ? 0 : 1);
+  const bool prompted = !options.clicks.empty() || options.view_box;  // clicks, a box on the view, or both
+  const int ways = (options.box ? 1 : 0) + (options.selection ? 1 : 0) + (options.stroke ? 1 : 0) + (prompted ? 1 : 0);
   if (ways != 1)
-    fail("fill: name the region one way: a box, a selection file, or a view and its mask or clicks ({} given)", ways);
+    fail("fill: name the region one way: a box, a selection file, or a view and its mask, clicks or box ({} given)",
+         ways);
   RegionMask region;
   std::string what;
   if (options.box) {
@@ -224,6 +225,12 @@ RegionMask choose_region(const SplatCloud& cloud, const FillOptions& options, nl
     if (options.stroke) {
       region = region_under_stroke(cloud, named->camera, *options.stroke);
       what = "the mask on view " + options.stroke_view;
+    } else if (options.view_box) {
+      ClickedMask clicked;
+      region = region_from_view_box(cloud, named->camera, options.stroke_view, *options.view_box, options.clicks,
+                                    options.not_clicks, options.segmenter.get(), &clicked);
+      if (options.segmenter) segmenter_record = clicked.describe(*options.segmenter);
+      what = "the box on view " + options.stroke_view;
     } else if (options.segmenter) {
       ClickedMask clicked;
       region = region_from_segmented_clicks(cloud, named->camera, options.stroke_view, options.clicks,
@@ -653,6 +660,10 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
   result.region_how = options.box ? "box: " + options.box->describe()
                       : options.selection ? "selection: the splats missing from " + options.selection_name
                       : options.stroke    ? "mask on view " + options.stroke_view
+                      : options.view_box  ? fmt::format("box {:g},{:g},{:g},{:g} on view {} ({})", (*options.view_box)[0],
+                                                       (*options.view_box)[1], (*options.view_box)[2],
+                                                       (*options.view_box)[3], options.stroke_view,
+                                                       options.segmenter ? "the segmenter's outline" : "GrabCut in the render")
                                           : fmt::format("{} click{} on view {} ({})", options.clicks.size(),
                                                         options.clicks.size() == 1 ? "" : "s", options.stroke_view,
                                                         options.segmenter ? "the segmenter's outline"
@@ -666,7 +677,7 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
 
   FillCameraOptions camera_options = options.camera_options;
   // The stroke's view is the reference unless another is named: the user drew on it.
-  if (camera_options.reference.empty() && (options.stroke || !options.clicks.empty()))
+  if (camera_options.reference.empty() && (options.stroke || !options.clicks.empty() || options.view_box))
     camera_options.reference = options.stroke_view;
   if (options.cameras.empty() && camera_options.up.norm() == 0) camera_options.up = guess_up(cloud, region);
   result.cameras = options.cameras.empty()

@@ -44,6 +44,10 @@ struct FillOptions {
   // the scene's render from that camera; its outline is taken as a stroke. Without, the splat
   // under each click is grown by colour (fill/region.h).
   std::vector<Click> not_clicks;
+  // A box around the object on that camera's view (with or without `clicks` inside it): with a
+  // segmenter its prompt; without, GrabCut in the scene's render from that camera
+  // (edit/box_select.h). The outline is taken as a stroke.
+  std::optional<ViewBox> view_box;
   std::shared_ptr<const Segmenter> segmenter;
   // Cameras to look from (a capture's, a camera list); empty: automatic ones around the region.
   std::vector<NamedCamera> cameras;

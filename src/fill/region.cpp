@@ -15,6 +15,7 @@
 #include "data/image_ops.h"
 #include "data/masks.h"
 #include "data/scene.h"
+#include "edit/box_select.h"
 #include "eval/metrics.h"
 #include "gaussians/gaussians.h"
 #include "render/projection.h"
@@ -219,6 +220,34 @@ RegionMask region_from_segmented_clicks(const SplatCloud& cloud, const Camera& c
   ClickedMask mask;
   try {
     mask = mask_from_clicks(segmenter, splats_seen(cloud, camera), clicks, not_clicks);
+  } catch (const Error& e) {
+    fail("view {}: {}", view, e.what());
+  }
+  RegionMask region = region_under_stroke(cloud, camera, mask.mask);
+  if (clicked) *clicked = std::move(mask);
+  return region;
+}
+
+RegionMask region_from_view_box(const SplatCloud& cloud, const Camera& camera, const std::string& view,
+                                const ViewBox& box, const std::vector<Click>& clicks,
+                                const std::vector<Click>& not_clicks, const Segmenter* segmenter,
+                                ClickedMask* clicked) {
+  check_clicks_inside(camera, view, clicks, not_clicks);
+  check_box(view, camera.K.width, camera.K.height, box, clicks, segmenter != nullptr);
+  const Image seen = splats_seen(cloud, camera);
+  if (!segmenter) {
+    // GrabCut's edge pixels mix the object with what lies behind it, and a stroke pixel on the wall
+    // behind selects the wall's splats there: the stroke one pixel in from GrabCut's edge (the
+    // region grows through the object's depth anyway).
+    Image outside = object_in_box(seen, view, box, clicks, not_clicks);
+    for (float& v : outside.pixels) v = 1.f - v;
+    Image inside = dilate_mask(outside, 1, 3);
+    for (float& v : inside.pixels) v = 1.f - v;
+    return region_under_stroke(cloud, camera, inside);
+  }
+  ClickedMask mask;
+  try {
+    mask = mask_from_prompt(*segmenter, segmenter->encode(seen), clicks, not_clicks, box);
   } catch (const Error& e) {
     fail("view {}: {}", view, e.what());
   }

@@ -50,6 +50,15 @@ RegionMask region_from_segmented_clicks(const SplatCloud& cloud, const Camera& c
                                         const std::vector<Click>& clicks, const std::vector<Click>& not_clicks,
                                         const Segmenter& segmenter, ClickedMask* clicked = nullptr);
 
+// The object in `box` on `camera`'s view of the splats (their render, what a user sees there):
+// with `segmenter` its outline for the box (and the clicks), else GrabCut's in the render (clicks
+// in the box the object, `not_clicks` not), taken as a stroke; `clicked` (optional, with a
+// segmenter) gets its mask and scores.
+RegionMask region_from_view_box(const SplatCloud& cloud, const Camera& camera, const std::string& view,
+                                const ViewBox& box, const std::vector<Click>& clicks,
+                                const std::vector<Click>& not_clicks, const Segmenter* segmenter,
+                                ClickedMask* clicked = nullptr);
+
 int64_t region_count(const RegionMask& region);
 
 // The box that holds the middle 98 % of the splats' centres along each axis (for messages and

@@ -198,6 +198,41 @@ TEST(FillRegion, ASegmentersOutlineOfTheRenderIsTakenAsAStroke) {
             "the click (200, 5) is outside view cam's image (96x72)");
 }
 
+// A box around the object on a camera's view, without a segmenter: GrabCut in the splats' render
+// from that camera, taken as a stroke: the box's splats, its hidden back too, and nothing of the
+// wall behind it. Bad boxes say what is wrong.
+TEST(FillRegion, ABoxOnTheRenderSelectsTheObjectByGrabCut) {
+  const SplatCloud with = room(true, false);
+  const Camera camera = camera_at({0, 0.9, 1.6});
+  // The object's box (kObjectBox) as the camera sees it, grown by a pixel (about 7 % of its 26 x 30).
+  double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
+  for (double x : {-0.2, 0.2})
+    for (double y : {0.0, 0.44})
+      for (double z : {-0.2, 0.2}) {
+        const std::optional<PixelOfPoint> p = pixel_of_point(camera.K, camera.w2c_opencv(), {x, y, z});
+        ASSERT_TRUE(p);
+        x0 = std::min<double>(x0, p->x), y0 = std::min<double>(y0, p->y);
+        x1 = std::max<double>(x1, p->x + 1), y1 = std::max<double>(y1, p->y + 1);
+      }
+  const ViewBox box{x0 - 1, y0 - 1, x1 + 1, y1 + 1};
+  const RegionMask picked = region_from_view_box(with, camera, "cam", box, {}, {}, nullptr);
+  const RegionMask truth = region_in_box(with, kObjectBox);
+  int64_t both = 0, wall = 0;
+  for (size_t i = 0; i < truth.size(); ++i) {
+    both += truth[i] && picked[i];
+    wall += picked[i] && with.means[3 * i + 2] < -1.4f;
+  }
+  EXPECT_GT(double(both) / double(region_count(truth)), 0.95);
+  EXPECT_GT(double(both) / double(region_count(picked)), 0.75);
+  EXPECT_EQ(wall, 0);
+  EXPECT_EQ(error_message([&] { region_from_view_box(with, camera, "cam", {10, 10, 100, 50}, {}, {}, nullptr); }),
+            "view cam: the box 10,10,100,50 reaches outside its photo (96x72)");
+  EXPECT_EQ(error_message([&] { region_from_view_box(with, camera, "cam", box, {{1, 1}}, {}, nullptr); }),
+            fmt::format("view cam: the click (1, 1) is outside the box {:g},{:g},{:g},{:g}: clicks with a box are on "
+                        "the object inside it",
+                        box[0], box[1], box[2], box[3]));
+}
+
 TEST(FillCameras, GivenCamerasThatSeeTheRegionBestComeFirst) {
   const SplatCloud with = room(true, false);
   std::vector<NamedCamera> cameras = capture_cameras();
@@ -417,7 +452,7 @@ TEST(Fill, BadRegionsAndFilesSayWhatIsWrong) {
   FillOptions two = box_fill();
   two.selection = with;
   EXPECT_EQ(error_message([&] { fill_splats(with, two, cpu_predictor()); }),
-            "fill: name the region one way: a box, a selection file, or a view and its mask or clicks (2 given)");
+            "fill: name the region one way: a box, a selection file, or a view and its mask, clicks or box (2 given)");
   FillOptions stroke = box_fill();
   stroke.box.reset();
   stroke.stroke_view = "nope";
