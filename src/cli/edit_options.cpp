@@ -75,6 +75,13 @@ void add_reference_options(CLI::App* cmd, EditArgs& args) {
                   "The reference view when the context is chosen automatically (default: the --view of a one-mask "
                   "edit, else the view nearest the middle of the capture)");
   cmd->add_option("--inpainter,--reference-inpainter", args.inpainter, kInpainterHelp + std::string("ns"));
+  cmd->add_option("--inpaint-grow", args.inpaint_grow,
+                  "The region the 2D inpainter paints: the reference's mask grown by this fraction of the view's "
+                  "larger side, so that the object's contact shadow and edge pixels are painted over, not continued "
+                  "inward (the network's mask stays the mask); 0 = the mask as it is (default: " +
+                      fmt::format("{:g}", kSelectionInpaintGrow) + " for a region selected by --click or --box, 0 for a "
+                      "mask given)")
+      ->check(CLI::Range(0.0, 0.2));
   add_geometry_options(cmd, args.geometry);
 }
 
@@ -116,6 +123,7 @@ void add_geometry_options(CLI::App* cmd, GeometryOptions& geometry) {
 void apply_reference_options(const EditArgs& args, SceneInputOptions& options) {
   options.reference_view = args.reference_view;
   options.inpainter = inpainter_from_flag(args.inpainter, "ns");
+  if (args.inpaint_grow >= 0) options.inpaint_grow = args.inpaint_grow;
   options.geometry = args.geometry;
   if (args.mode == "insert") options.geometry = options.geometry.for_insertion();
 }

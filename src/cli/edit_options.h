@@ -41,6 +41,7 @@ struct EditArgs {
   std::string carve = "on";  // --carve: on, off
   std::string reference_view;       // --reference-view
   std::string inpainter;  // --inpainter (empty: $INSTAINPAINT_INPAINTER, else telea)
+  double inpaint_grow = -1;  // --inpaint-grow (< 0: InputOptions' default)
   GeometryOptions geometry;  // add_geometry_options
 };
 

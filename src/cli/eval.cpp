@@ -61,6 +61,7 @@ void run(const EvalArgs& a) {
   o.reference_view = a.edit.reference_view;
   o.geometry = a.edit.geometry;
   o.inpainter = inpainter_from_flag(a.edit.inpainter, "ns");
+  if (a.edit.inpaint_grow >= 0) o.inpaint_grow = a.edit.inpaint_grow;
   if (a.keep_object && (!a.reference.empty() || !a.edit.view.empty()))
     fail("--keep-object evaluates a reconstruction: drop --reference, --view and --mask");
   o.keep_object = a.keep_object;

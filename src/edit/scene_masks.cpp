@@ -183,6 +183,7 @@ nlohmann::json SceneMasks::describe(const OneMask& request) const {
 
 void SceneMasks::apply_to(SceneInputOptions& options, const OneMask& request) const {
   options.masks = masks;
+  if (!options.inpaint_grow && (!request.clicks.empty() || request.box)) options.inpaint_grow = kSelectionInpaintGrow;
   if (options.reference_view.empty() && options.context.empty()) options.reference_view = request.view;
 }
 

@@ -145,6 +145,7 @@ GaussianSet predict_gaussians(const Scene& scene, const EvalOptions& o, const to
   opts.reference = o.reference;
   opts.preprocess.height = o.height;
   opts.inpainter = o.inpainter;
+  opts.inpaint_grow = o.inpaint_grow;
   opts.reference_view = o.reference_view;
   opts.keep_object = o.keep_object;
   opts.geometry = o.geometry;

@@ -58,6 +58,7 @@ struct EvalOptions {
   int num_views = 4;
   std::optional<std::filesystem::path> reference;  // 2D-inpainted reference (default: `inpainter`)
   Inpainter inpainter;
+  std::optional<double> inpaint_grow;  // see InputOptions::inpaint_grow
   std::string reference_view;   // automatic context around this reference (default: the edit's view)
   std::optional<OneMask> edit;  // one marked view instead of the scene's masks
   bool keep_object = false;     // a reconstruction: no masks, the reference's own photo

@@ -2,10 +2,14 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include "common/error.h"
 #include "common/parallel.h"
 #include "data/image_ops.h"
 #include "data/inpaint2d.h"
+#include "data/masks.h"
 #include "data/view_selection.h"
 
 namespace ii {
@@ -60,11 +64,18 @@ std::vector<PreparedView> prepare_masked_views(const Scene& scene, const std::ve
   return views;
 }
 
+Image region_to_paint(const Image& mask, double grow) {
+  if (!(grow > 0)) return mask;
+  const int pixels = std::max(1, static_cast<int>(std::lround(grow * std::max(mask.width, mask.height))));
+  return dilate_mask(mask, 1, 2 * pixels + 1);
+}
+
 Image painted_reference(const Scene& scene, const std::string& view, const Image& mask, const InputOptions& options) {
   const View& v = scene.views.at(static_cast<size_t>(input_view_index(scene, view, "reference view")));
   const PreparedView prepared =
       options.view_cache ? options.view_cache->get(v, options.preprocess) : prepare_view(v, options.preprocess);
-  return options.inpainter.paint(prepared.rgb, mask_at_working_size(mask, v, options.preprocess));
+  return options.inpainter.paint(prepared.rgb,
+                                 region_to_paint(mask_at_working_size(mask, v, options.preprocess), options.inpaint_grow.value_or(0)));
 }
 
 SceneInput prepare_scene_input(const Scene& scene, const InputOptions& options, StageTimes* stages) {
@@ -101,11 +112,12 @@ SceneInput prepare_scene_input(const Scene& scene, const InputOptions& options, 
       fail("no --reference image given and reference view {} has no mask to inpaint", ref.name);
     if (!options.inpainter.learned)
       spdlog::warn("no --reference given: inpainting view {} with the classical '{}' method; a learned 2D inpainter "
-                   "gives much better results (--inpainter big-lama/models/best.ckpt)",
+                   "gives much better results (instainpaint models get big-lama: then used by default)",
                    ref.name, options.inpainter.name());
-    ref.rgb = options.inpainter.paint(ref.rgb, *ref.mask);
+    ref.rgb = options.inpainter.paint(ref.rgb, region_to_paint(*ref.mask, options.inpaint_grow.value_or(0)));
     out.reference_source = options.inpainter.name();
     out.reference_inpainter = options.inpainter.describe();
+    out.reference_inpainter["grow"] = options.inpaint_grow.value_or(0);  // the mask grown by this fraction first
     times.lap(fmt::format("inpaint reference ({})", out.reference_source));
   }
   out.normalization = scene_normalization(scene);

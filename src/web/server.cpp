@@ -224,6 +224,7 @@ struct JobRequest {
   std::vector<Click> not_clicks;  // with a segmenter: points on `camera` that are not the object
   Inpainter inpainter;  // fill without a reference: the server's (serve --inpainter), else the one asked for
   bool slower_model = false;  // edit: with the released checkpoint offered beside the built-in model
+  bool selected = false;      // masks, edit: the region is the click or box tool's outline (kSelectionInpaintGrow)
 };
 
 // The inpainter as the page sees it: its file by name only (the server's folders stay its own).
@@ -635,6 +636,11 @@ std::optional<Refusal> WebServer::State::parse_edit(const httplib::Request& req,
     edit.mode = parse_edit_mode(mode);
   }
   if (auto r = parse_refine(req, edit.refine)) return r;
+  if (req.has_file("selected")) {
+    const std::string selected = req.get_file_value("selected").content;
+    if (selected != "0" && selected != "1") return Refusal{400, "selected must be 0 or 1"};
+    edit.selected = selected == "1";
+  }
   if (run_network && req.has_file("model")) {
     const std::string model = req.get_file_value("model").content;
     if (model == "released") {
@@ -793,6 +799,8 @@ json WebServer::State::run_edit(const JobRequest& edit, const fs::path& dir, int
   input.view_cache = &views;
   input.geometry = options.geometry;
   input.inpainter = options.inpainter;
+  // The click or box tool's outline lies on the object's edge: its rim is painted over too.
+  if (edit.selected) input.inpaint_grow = kSelectionInpaintGrow;
   if (edit.mode == EditMode::Insert) input.geometry = input.geometry.for_insertion();
   OneMask request;
   request.view = view.name;

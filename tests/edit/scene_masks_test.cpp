@@ -70,6 +70,27 @@ MaskAgreement mean_agreement(const Scene& scene, const SceneMasks& m) {
 
 TEST(SceneMasks, CarvingIsOnByDefault) { EXPECT_TRUE(OneMask{}.carve); }
 
+// A selected region (a click's, a box's outline on the object's edge) is painted with its rim; a
+// given mask as it is; a growth the caller chose stays.
+TEST(SceneMasks, ASelectedRegionIsPaintedWithItsRim) {
+  const SceneMasks masks;
+  OneMask drawn, clicked, boxed;
+  clicked.clicks = {{3, 4}};
+  boxed.box = ViewBox{1, 2, 30, 40};
+  SceneInputOptions options;
+  masks.apply_to(options, drawn);
+  EXPECT_FALSE(options.inpaint_grow);
+  masks.apply_to(options, clicked);
+  EXPECT_EQ(options.inpaint_grow, kSelectionInpaintGrow);
+  SceneInputOptions chosen;
+  chosen.inpaint_grow = 0;
+  masks.apply_to(chosen, boxed);
+  EXPECT_EQ(chosen.inpaint_grow, 0.0);
+  SceneInputOptions for_box;
+  masks.apply_to(for_box, boxed);
+  EXPECT_EQ(for_box.inpaint_grow, kSelectionInpaintGrow);
+}
+
 // Carved (edit/carve.h), the statue's masks hold much less of what is not the statue and nearly
 // all of it (at full size, docs/editing.md: recall 1.000 -> 0.946, precision 0.565 -> 0.786).
 TEST(SceneMasks, CarvedMasksHoldLessBesideTheStatue) {

@@ -67,6 +67,33 @@ TEST(SceneInput, CachedViewsAndAReferenceMadeAheadGiveTheSameInput) {
   EXPECT_EQ(kept.mask->pixels, direct.mask->pixels);
 }
 
+// The region the 2D inpainter paints is the mask grown by inpaint_grow of the larger side (at
+// least a pixel); the network's mask input stays the mask; unset or 0, the mask as it is.
+TEST(SceneInput, TheInpaintersRegionIsTheMaskGrown) {
+  Image mask(100, 60, 1);
+  mask.at(30, 50) = 1.f;
+  auto count = [](const Image& m) { return std::count_if(m.pixels.begin(), m.pixels.end(), [](float v) { return v > 0.5f; }); };
+  EXPECT_EQ(count(region_to_paint(mask, 0)), 1);
+  const Image grown = region_to_paint(mask, 0.02);  // 2 pixels of 100: a 5 x 5 square
+  EXPECT_EQ(count(grown), 25);
+  EXPECT_EQ(grown.at(28, 48), 1.f);
+  EXPECT_EQ(grown.at(27, 50), 0.f);
+  EXPECT_EQ(count(region_to_paint(mask, 0.001)), 9);  // at least a pixel
+
+  II_REQUIRE_SHARED(dir, "data/statue");
+  const Scene scene = load_scene(dir);
+  InputOptions opts = statue_context(64);
+  const SceneInput plain = prepare_scene_input(scene, opts);
+  opts.inpaint_grow = 0.03;
+  const SceneInput wider = prepare_scene_input(scene, opts);
+  EXPECT_EQ(plain.reference_inpainter["grow"], 0.0);
+  EXPECT_EQ(wider.reference_inpainter["grow"], 0.03);
+  // The reference's picture differs just outside the mask, the network's mask input not at all.
+  EXPECT_FALSE(torch::equal(plain.input.images[0].narrow(0, 0, 3), wider.input.images[0].narrow(0, 0, 3)));
+  EXPECT_TRUE(torch::equal(plain.input.images.narrow(1, 3, 1), wider.input.images.narrow(1, 3, 1)));
+  EXPECT_TRUE(torch::equal(plain.input.images.narrow(0, 1, 3), wider.input.images.narrow(0, 1, 3)));
+}
+
 TEST(SceneInput, KeepObjectFeedsThePhotosUnmasked) {
   II_REQUIRE_SHARED(dir, "data/statue");
   Scene scene = load_scene(dir);

@@ -229,6 +229,9 @@ TEST(Serve, BadUploadsAreRefusedWithTheReason) {
     EXPECT_EQ(error_of(r), "refine must be fast, balanced or best, a time up to 20m, or a number of steps up to 5000")
         << refine;
   }
+  r = s.client->Post("/api/edit", edit_form("view_001", mask, "selected", "yes"));
+  EXPECT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r), "selected must be 0 or 1");
   r = s.client->Post("/api/edit", edit_form("view_001", mask, "mode", "insert"));
   EXPECT_EQ(r->status, 400);
   EXPECT_EQ(error_of(r), "insert needs a reference: the view's photo with the new object painted in");

@@ -457,7 +457,10 @@ paintCanvas.addEventListener("pointerup", async (e) => {
     `${selection.clientSeconds.toFixed(2)} s: Run or Preview masks uses it; with the click tool, shift-click adds a ` +
     "point, alt-click marks what is not the object");
 });
-$("clear").onclick = () => paint.clearRect(0, 0, paintCanvas.width, paintCanvas.height);
+$("clear").onclick = () => {
+  paint.clearRect(0, 0, paintCanvas.width, paintCanvas.height);
+  [viewClicks, viewNotClicks, viewBox] = [[], [], null];
+};
 $("mask-file").onchange = async (e) => {
   const file = e.target.files[0];
   if (!file) return;
@@ -557,6 +560,8 @@ async function runJob(path, model = "default") {
   if (path === "/api/edit") form.append("model", model);
   form.append("view", api.info.scene.views[selected].name);
   form.append("mask", await maskBlob(), "mask.png");
+  // The click or box tool's outline: the server paints its rim over too (a drawn region as it is).
+  form.append("selected", viewClicks.length || viewBox ? "1" : "0");
   form.append("mode", $("mode").value);
   form.append("refine", $("refine").value);
   const reference = $("reference-file").files[0];
