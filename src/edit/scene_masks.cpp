@@ -145,6 +145,38 @@ ColouredPoints coloured_points(const GaussianSet& g, const torch::Tensor& rows) 
   return out;
 }
 
+ColouredPoints opaque_points(const GaussianSet& g) {
+  // In float32 whatever the network's type (bf16 on a GPU): the colours compared are the same.
+  const torch::Tensor opacities = g.opacities.to(torch::kCPU, torch::kFloat32).reshape({-1});
+  GaussianSet f = g;
+  f.means = g.means.to(torch::kCPU, torch::kFloat32);
+  f.colors = g.colors.to(torch::kCPU, torch::kFloat32);
+  return coloured_points(f, opacities.gt(0.5).nonzero().squeeze(1));
+}
+
+SceneInputOptions scene_reconstruction_options(const SceneInputOptions& options) {
+  SceneInputOptions o;
+  o.preprocess = options.preprocess;
+  o.num_views = options.num_views;
+  o.keep_object = true;
+  o.view_cache = options.view_cache;
+  o.geometry = options.geometry;
+  return o;
+}
+
+ClickedOutline outline_of_clicks(const View& view, const Camera& camera, const ColouredPoints& points,
+                                 const std::vector<Click>& clicks, std::optional<double> scene_far,
+                                 const SelectOptions& selecting, const CarveOptions& carving) {
+  SelectOptions o = selecting;
+  if (!o.scene_far) o.scene_far = scene_far;
+  ClickedOutline out;
+  out.selected = select_objects(camera, view.name, points.points, points.colours, clicks, o);
+  out.mask = selection_masks({camera}, [&](size_t) { return load_view_image(view); }, points.points, out.selected, o,
+                             carving)[0]
+                 .mask;
+  return out;
+}
+
 Image predicted_view_depth(const Predictor& predictor, const Scene& scene, const std::string& view,
                            const SceneInputOptions& options, StageTimes* stages) {
   return predicted_view_reconstruction(predictor, scene, view, options, stages, 0).depth;
@@ -213,30 +245,6 @@ void carve_to_the_object(const Scene& scene, const OneMask& request, const Propa
     out.masks[views[i]->name] = carved[i].mask;
     out.carved += carved[i].carved;
   }
-}
-
-// The objects under the clicks selected among the reconstruction's points, every view's mask (the
-// marked one's too) its points' image carved to it.
-void select_the_clicked_object(const Scene& scene, const std::vector<Camera>& cameras, const OneMask& request,
-                               const ViewReconstruction& reconstruction, StageTimes& times, SceneMasks& out) {
-  const View& marked = marked_view(scene, request.view);
-  const std::vector<uint8_t> selected = times.time("masks: select", [&] {
-    SelectOptions selecting = request.selecting;
-    if (!selecting.scene_far) selecting.scene_far = scene.far;
-    return select_objects(marked.camera, marked.name, reconstruction.points, reconstruction.colours, request.clicks,
-                          selecting);
-  });
-  const std::vector<CarvedMask> carved = times.time("masks: the selection in every view, carved", [&] {
-    return selection_masks(cameras, [&](size_t i) { return load_view_image(scene.views[i]); }, reconstruction.points,
-                           selected, request.selecting, request.carving);
-  });
-  for (size_t i = 0; i < carved.size(); ++i) {
-    out.masks[scene.views[i].name] = carved[i].mask;
-    out.carved += carved[i].carved;
-  }
-  out.selected = std::count(selected.begin(), selected.end(), uint8_t{1});
-  out.points = static_cast<int64_t>(selected.size());
-  out.depth_source = "network";
 }
 
 }  // namespace
@@ -309,15 +317,27 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
     return out;
   }
 
-  SceneMasks out;
   if (!request.clicks.empty()) {
-    out.clicked_mask = "colour growth over the reconstruction";
+    // The clicked view's outline in the scene's reconstruction, as the page draws it, then lifted
+    // and carved as a drawn region (as the page's Run takes it).
     check_clicks_inside(marked.camera, marked.name, request.clicks);
     if (!predictor) fail("a click on view {} needs the network's reconstruction, and no model was given", marked.name);
-    const ViewReconstruction reconstruction = predicted_view_reconstruction(predictor(), scene, marked.name, options, stages);
-    select_the_clicked_object(scene, cameras, request, reconstruction, times, out);
+    const Prediction p = predictor().predict(scene, scene_reconstruction_options(options));
+    times.merge(p.stages, "masks: the scene's reconstruction: ");
+    const PoseNormalization& n = p.input.normalization;
+    const ClickedOutline outline = times.time("masks: select and outline", [&] {
+      const ColouredPoints points = opaque_points(p.gaussians());
+      const std::optional<double> far = scene.far ? std::optional<double>(*scene.far / n.scale) : std::nullopt;
+      return outline_of_clicks(marked, n.apply(marked.camera), points, request.clicks, far, request.selecting,
+                               request.carving);
+    });
+    SceneMasks out = as_drawn(outline.mask);
+    out.clicked_mask = "colour growth over the reconstruction";
+    out.selected = std::count(outline.selected.begin(), outline.selected.end(), uint8_t{1});
+    out.points = static_cast<int64_t>(outline.selected.size());
     return out;
   }
+  SceneMasks out;
   auto lift = [&](const Image& depth, double margin, bool pixel_depth) {
     PropagationOptions o = request.propagation;
     o.depth_margin = request.depth_margin.value_or(margin);

@@ -85,6 +85,25 @@ struct ViewReconstruction : ColouredPoints {
 // The centres and RGB colours (their own, or their SH's DC term's) of the Gaussians of `g` at
 // `rows` (indices), on the CPU.
 ColouredPoints coloured_points(const GaussianSet& g, const torch::Tensor& rows);
+// Those of its opaque Gaussians (above 0.5): what a click selects among.
+ColouredPoints opaque_points(const GaussianSet& g);
+
+// The options of the scene's reconstruction with the object kept that a click on a view selects
+// in, as the page makes it when it opens: the reference chosen automatically, `options`' working
+// size, number of views, geometry and view cache. One reconstruction for the page and the
+// commands: the same click gives the same mask of the clicked view in both.
+SceneInputOptions scene_reconstruction_options(const SceneInputOptions& options);
+
+// The objects under `clicks` on `view` among `points` (seen by `camera`: the view's camera in the
+// points' frame; `scene_far` the scene's far bound in that frame, when known), and their outline
+// on the view carved by its photo (edit/select.h, edit/carve.h).
+struct ClickedOutline {
+  Image mask;                     // 0/1 at the view's size
+  std::vector<uint8_t> selected;  // per point
+};
+ClickedOutline outline_of_clicks(const View& view, const Camera& camera, const ColouredPoints& points,
+                                 const std::vector<Click>& clicks, std::optional<double> scene_far,
+                                 const SelectOptions& selecting = {}, const CarveOptions& carving = {});
 ViewReconstruction predicted_view_reconstruction(const Predictor& predictor, const Scene& scene,
                                                  const std::string& view, const SceneInputOptions& options,
                                                  StageTimes* stages = nullptr,

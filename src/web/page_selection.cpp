@@ -228,23 +228,17 @@ std::optional<json> PageSelection::select_on_view(const View& view, const Camera
     std::lock_guard<std::mutex> lock(mutex_);
     if (!points_) {
       if (!reconstruction_) return std::nullopt;
-      const torch::Tensor opaque = reconstruction_->opacities.reshape({-1}).gt(0.5).nonzero().squeeze(1);
-      points_ = std::make_shared<const ColouredPoints>(coloured_points(*reconstruction_, opaque));
+      points_ = std::make_shared<const ColouredPoints>(opaque_points(*reconstruction_));
     }
     points = points_;
   }
-  SelectOptions selecting;
-  selecting.scene_far = scene_far;
-  const std::vector<uint8_t> selected =
-      select_objects(camera, view.name, points->points, points->colours, clicks, selecting);
-  const double select_ms = watch.lap();
-  // The selection's image carved to the object by the view's photo, as `masks --click` does.
-  const Image mask =
-      selection_masks({camera}, [&](size_t) { return load_view_image(view); }, points->points, selected)[0].mask;
-  json answer = selection_answer(std::count(selected.begin(), selected.end(), uint8_t{1}),
-                                 static_cast<int64_t>(selected.size()), mask);
+  // The selection's image carved to the object by the view's photo: what `masks --click` makes of
+  // the same click (edit/scene_masks.h's outline_of_clicks in the same reconstruction).
+  const ClickedOutline outline = outline_of_clicks(view, camera, *points, clicks, scene_far);
+  json answer = selection_answer(std::count(outline.selected.begin(), outline.selected.end(), uint8_t{1}),
+                                 static_cast<int64_t>(outline.selected.size()), outline.mask);
   answer["how"] = "colour growth";
-  answer["ms"] = {{"select", select_ms}, {"carve", watch.lap()}};
+  answer["ms"] = {{"select and carve", watch.lap()}};
   return answer;
 }
 

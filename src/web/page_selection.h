@@ -71,7 +71,7 @@ class PageSelection {
 
   // The objects under `clicks` on `view` (its camera in the reconstruction's frame) among the
   // reconstruction's opaque Gaussians, their outline carved by the view's photo:
-  // {selected, total, pixels, width, height, runs, ms: {select, carve}}; nullopt while no
+  // {selected, total, pixels, width, height, runs, ms: {"select and carve"}}; nullopt while no
   // reconstruction has been made.
   // With a segmenter: its mask of the view's photo ({..., how: "segmenter", ms: {encode, decode}}),
   // with or without a reconstruction.

@@ -940,12 +940,13 @@ json WebServer::State::write_cloud_of(std::shared_ptr<const SplatCloud> cloud, c
 json WebServer::State::run_reconstruction(const fs::path& dir, int id,
                                           const std::function<void(const std::string&, double)>& stage,
                                           StageTimes& stages, BehindSteps& behind) {
-  SceneInputOptions input;
-  input.preprocess.height = options.height;
-  input.num_views = options.views;
-  input.keep_object = true;
-  input.view_cache = &views;
-  input.geometry = options.geometry;  // the cover has no region to cover here
+  SceneInputOptions base;
+  base.preprocess.height = options.height;
+  base.num_views = options.views;
+  base.view_cache = &views;
+  base.geometry = options.geometry;  // the cover has no region to cover here
+  // The reconstruction a click on a view selects in: the one `masks --click` makes too.
+  const SceneInputOptions input = scene_reconstruction_options(base);
   stage("reconstructing the scene as captured (object kept)", 0.2);
   const Prediction p = predictor->predict(*scene, input);
   stages.merge(p.stages);

@@ -3,7 +3,7 @@
 // click with the click tool draws the statue's outline as the region, which Preview masks takes.
 // On the splats (the camera on one of the views), a click selects splats that lie on the statue
 // there and not on the ground below it, shift-click adds, and Fill then removes every one.
-import { writeFileSync } from "node:fs";
+import { readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 import * as h from "./harness.mjs";
 
@@ -50,7 +50,26 @@ try {
   h.check(both / onView.pixels > 0.8 && both / ownCount > 0.5, `its outline on the photo is the statue's ` +
     `(precision ${(both / onView.pixels).toFixed(3)}, recall ${(both / ownCount).toFixed(3)} against the view's own mask)`);
   console.log(`measured: a click on the photo to its outline drawn ${onView.clientSeconds.toFixed(2)} s ` +
-    `(server: select ${onView.ms.select.toFixed(0)} ms, carve ${onView.ms.carve.toFixed(0)} ms)`);
+    `(server: select and carve ${onView.ms["select and carve"].toFixed(0)} ms)`);
+  // One selection: `masks --click` with the same click, height and views gives the clicked view
+  // the mask the page outlines (the same reconstruction, the same selection and carving).
+  const [clickX, clickY] = onView.sent.clicks.split(",");
+  h.run(["masks", "--scene", statue, "--view", "IMG_2707", "--click", `${clickX},${clickY}`, "--height", "128",
+    "--views", "2", "--out", join(dir, "masks")]);
+  const commandMask = await page.evaluate(async (b64) => {
+    const bitmap = await createImageBitmap(await (await fetch(`data:image/png;base64,${b64}`)).blob());
+    const ctx = new OffscreenCanvas(bitmap.width, bitmap.height).getContext("2d");
+    ctx.drawImage(bitmap, 0, 0);
+    const d = ctx.getImageData(0, 0, bitmap.width, bitmap.height).data;
+    return Array.from({ length: bitmap.width * bitmap.height }, (_, k) => (d[4 * k] > 127 ? 1 : 0));
+  }, readFileSync(join(dir, "masks", "IMG_2707.png")).toString("base64"));
+  let runAt = 0, differ = 0;
+  onView.runs.forEach((length, k) => {
+    for (let i = runAt; i < runAt + length; i++) differ += commandMask[i] !== (k % 2);
+    runAt += length;
+  });
+  h.check(commandMask.length === onView.width * onView.height && differ <= 0.005 * onView.pixels,
+    `masks --click gives the clicked view the page's outline (${differ} of its ${onView.pixels} pixels differ)`);
   const painted = await page.evaluate(() => {
     const c = document.getElementById("paint-canvas");
     const d = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
