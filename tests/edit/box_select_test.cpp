@@ -11,6 +11,7 @@
 #include "data/masks.h"
 #include "data/scene.h"
 #include "edit/box_select.h"
+#include "edit/propagate.h"
 #include "io/image.h"
 #include "test_support.h"
 
@@ -41,26 +42,12 @@ Photo two_coloured_object() {
   return p;
 }
 
-struct Agreement {
-  double recall, precision;
-};
-
-Agreement agreement(const Image& made, const Image& truth) {
-  double both = 0, made_count = 0, truth_count = 0;
-  for (size_t i = 0; i < made.pixels.size(); ++i) {
-    both += made.pixels[i] > 0.5f && truth.pixels[i] > 0.5f;
-    made_count += made.pixels[i] > 0.5f;
-    truth_count += truth.pixels[i] > 0.5f;
-  }
-  return {both / truth_count, both / std::max(1.0, made_count)};
-}
-
 TEST(BoxSelect, GrabCutFindsAnObjectOfTwoColoursInItsBox) {
   const Photo p = two_coloured_object();
   // The object's box grown by 5 % of its width and height.
   const Image mask = object_in_box(p.rgb, "floor", {58.75, 28.5, 111.25, 91.5});
   ASSERT_EQ(mask.width, 160);
-  const Agreement a = agreement(mask, p.object);
+  const MaskAgreement a = mask_agreement(mask, p.object);
   EXPECT_GT(a.recall, 0.97);
   EXPECT_GT(a.precision, 0.97);
 }
