@@ -247,10 +247,6 @@ void carve_to_the_object(const Scene& scene, const OneMask& request, const Propa
   }
 }
 
-}  // namespace
-
-namespace {
-
 // The view's photo, at its camera's size.
 Image view_photo(const View& view) {
   Image photo = load_view_image(view);
@@ -279,6 +275,59 @@ ClickedMask segmented_view_mask(const Segmenter& segmenter, const View& view, co
   }
 }
 
+namespace {
+
+// The marked view's region that a prompt makes, and how: the segmenter's mask for the clicks and
+// the box; GrabCut's in the box; or the clicked objects' outline in the scene's reconstruction, as
+// the page draws it.
+struct PromptedRegion {
+  Image region;
+  std::string how;  // SceneMasks::clicked_mask
+  nlohmann::json segmenter;
+  int64_t selected = 0, points = 0;  // the clicks' selection in the reconstruction
+};
+
+PromptedRegion prompted_region(const Scene& scene, const View& marked, const OneMask& request,
+                               const PredictorSource& predictor, const SceneInputOptions& options, StageTimes* stages) {
+  StageTimes unrecorded;
+  StageTimes& times = stages ? *stages : unrecorded;
+  PromptedRegion out;
+  if (request.segmenter) {
+    const ClickedMask clicked =
+        segmented_view_mask(*request.segmenter, marked, request.clicks, request.not_clicks, stages, request.box);
+    out.region = clicked.mask;
+    out.how = "segmenter";
+    out.segmenter = clicked.describe(*request.segmenter);
+    return out;
+  }
+  check_clicks_inside(marked.camera, marked.name, request.clicks, request.not_clicks);
+  if (request.box) {
+    check_box(marked.name, marked.camera.K.width, marked.camera.K.height, *request.box, request.clicks, false);
+    out.region = times.time("masks: GrabCut in the box", [&] {
+      return object_in_box(view_photo(marked), marked.name, *request.box, request.clicks, request.not_clicks);
+    });
+    out.how = "GrabCut in the box";
+    return out;
+  }
+  if (!predictor) fail("a click on view {} needs the network's reconstruction, and no model was given", marked.name);
+  const Prediction p = predictor().predict(scene, scene_reconstruction_options(options));
+  times.merge(p.stages, "masks: the scene's reconstruction: ");
+  const PoseNormalization& n = p.input.normalization;
+  const ClickedOutline outline = times.time("masks: select and outline", [&] {
+    const ColouredPoints points = opaque_points(p.gaussians());
+    const std::optional<double> far = scene.far ? std::optional<double>(*scene.far / n.scale) : std::nullopt;
+    return outline_of_clicks(marked, n.apply(marked.camera), points, request.clicks, far, request.selecting,
+                             request.carving);
+  });
+  out.region = outline.mask;
+  out.how = "colour growth over the reconstruction";
+  out.selected = std::count(outline.selected.begin(), outline.selected.end(), uint8_t{1});
+  out.points = static_cast<int64_t>(outline.selected.size());
+  return out;
+}
+
+}  // namespace
+
 SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const PredictorSource& predictor,
                           const SceneInputOptions& options, StageTimes* stages) {
   StageTimes unrecorded;
@@ -287,54 +336,21 @@ SceneMasks masks_from_one(const Scene& scene, const OneMask& request, const Pred
   std::vector<Camera> cameras;
   for (const View& v : scene.views) cameras.push_back(v.camera);
 
-  // The segmenter's mask of the clicked view, or GrabCut's in the box, is the region, lifted (and
-  // carved, as the request says: on by default) as a drawn one.
-  auto as_drawn = [&](const Image& region) {
+  if (!request.clicks.empty() || request.box) {
+    // The region the prompt makes on the marked view, lifted (and carved, as the request says: on
+    // by default) as a drawn one.
+    const PromptedRegion prompted = prompted_region(scene, marked, request, predictor, options, stages);
     OneMask drawn = request;
     drawn.clicks.clear();
     drawn.not_clicks.clear();
     drawn.box.reset();
     drawn.segmenter = nullptr;
-    drawn.region = region;
-    return masks_from_one(scene, drawn, predictor, options, stages);
-  };
-  if ((!request.clicks.empty() || request.box) && request.segmenter) {
-    const ClickedMask clicked =
-        segmented_view_mask(*request.segmenter, marked, request.clicks, request.not_clicks, stages, request.box);
-    SceneMasks out = as_drawn(clicked.mask);
-    out.clicked_mask = "segmenter";
-    out.segmenter = clicked.describe(*request.segmenter);
-    return out;
-  }
-  if (request.box) {
-    check_clicks_inside(marked.camera, marked.name, request.clicks, request.not_clicks);
-    check_box(marked.name, marked.camera.K.width, marked.camera.K.height, *request.box, request.clicks, false);
-    const Image region = times.time("masks: GrabCut in the box", [&] {
-      return object_in_box(view_photo(marked), marked.name, *request.box, request.clicks, request.not_clicks);
-    });
-    SceneMasks out = as_drawn(region);
-    out.clicked_mask = "GrabCut in the box";
-    return out;
-  }
-
-  if (!request.clicks.empty()) {
-    // The clicked view's outline in the scene's reconstruction, as the page draws it, then lifted
-    // and carved as a drawn region (as the page's Run takes it).
-    check_clicks_inside(marked.camera, marked.name, request.clicks);
-    if (!predictor) fail("a click on view {} needs the network's reconstruction, and no model was given", marked.name);
-    const Prediction p = predictor().predict(scene, scene_reconstruction_options(options));
-    times.merge(p.stages, "masks: the scene's reconstruction: ");
-    const PoseNormalization& n = p.input.normalization;
-    const ClickedOutline outline = times.time("masks: select and outline", [&] {
-      const ColouredPoints points = opaque_points(p.gaussians());
-      const std::optional<double> far = scene.far ? std::optional<double>(*scene.far / n.scale) : std::nullopt;
-      return outline_of_clicks(marked, n.apply(marked.camera), points, request.clicks, far, request.selecting,
-                               request.carving);
-    });
-    SceneMasks out = as_drawn(outline.mask);
-    out.clicked_mask = "colour growth over the reconstruction";
-    out.selected = std::count(outline.selected.begin(), outline.selected.end(), uint8_t{1});
-    out.points = static_cast<int64_t>(outline.selected.size());
+    drawn.region = prompted.region;
+    SceneMasks out = masks_from_one(scene, drawn, predictor, options, stages);
+    out.clicked_mask = prompted.how;
+    out.segmenter = prompted.segmenter;
+    out.selected = prompted.selected;
+    out.points = prompted.points;
     return out;
   }
   SceneMasks out;

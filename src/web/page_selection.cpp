@@ -176,7 +176,7 @@ json PageSelection::select_splats(const std::filesystem::path& ply, const Camera
     answer["ms"] = {{"read", read_ms}, {"encode", encode_ms}, {"decode", decode_ms}, {"select", watch.lap()}};
     return answer;
   }
-  if (!not_clicks.empty()) fail("points that are not the object need a box around it, or serve --segmenter");
+  if (!not_clicks.empty()) fail("points that are not the object need serve --segmenter");
   const RegionMask region = region_from_clicks(*cloud, camera, "the page's view", clicks);
   const double select_ms = watch.lap();
   std::vector<Eigen::Vector3d> points;
