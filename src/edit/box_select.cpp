@@ -73,7 +73,11 @@ Image object_in_box(const Image& photo, const std::string& view, const ViewBox& 
   cv::Mat labels = seeded_labels(size, cv::Rect2d(crop), scale, box, clicks, not_clicks, radius);
   cv::Mat background_model, object_model;
   cv::theRNG() = cv::RNG(74);  // its colour models start from k-means: the same mask every run
-  cv::grabCut(image, labels, cv::Rect(), background_model, object_model, options.iterations, cv::GC_INIT_WITH_MASK);
+  try {
+    cv::grabCut(image, labels, cv::Rect(), background_model, object_model, options.iterations, cv::GC_INIT_WITH_MASK);
+  } catch (const cv::Exception& e) {  // a picture it cannot model (OpenCV's own words)
+    fail("view {}: GrabCut failed in the box {}: {}", view, box_text(box), e.err);
+  }
   cv::Mat object = (labels == cv::GC_FGD) | (labels == cv::GC_PR_FGD);
   if (scale < 1) {
     cv::resize(object, object, crop.size(), 0, 0, cv::INTER_LINEAR);

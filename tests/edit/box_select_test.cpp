@@ -86,6 +86,9 @@ TEST(BoxSelect, BadBoxesAreOneClearMessageEach) {
   EXPECT_EQ(error({58, 28, 112, 92}, {{20, 20}}),
             "view IMG_1: the click (20, 20) is outside the box 58,28,112,92: clicks with a box are on the object "
             "inside it");
+  // A photo of one colour holds nothing GrabCut can tell from the rest.
+  EXPECT_EQ(test::error_message([] { object_in_box(Image(160, 120, 3, 0.5f), "IMG_1", {40, 30, 120, 90}); }),
+            "view IMG_1: GrabCut found no object in the box 40,30,120,90");
   // A box of zero width does not get that far: the parser refuses it.
   EXPECT_EQ(test::error_message([] { parse_view_box("60,50,60,90", "--box"); }),
             "--box 60,50,60,90: expected X0,Y0,X1,Y1 with X1 > X0 and Y1 > Y0");
