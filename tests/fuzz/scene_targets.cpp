@@ -1,6 +1,7 @@
 // Fuzz targets of the scene-level inputs: nerfstudio transforms.json, LLFF poses_bounds.npy
 // (with the SPIn-NeRF label folders), the camera-list JSON, and a mask folder.
 #include <cmath>
+#include <cstdlib>
 
 #include <fmt/format.h>
 
@@ -144,6 +145,17 @@ const bool click = register_target({
     [](const uint8_t* data, size_t size) {
       const Click c = parse_click(std::string(reinterpret_cast<const char*>(data), size), "--click");
       if (!std::isfinite(c.x) || !std::isfinite(c.y)) fail("a click that is not finite was taken");
+    }});
+
+// ---- a box on a view (--box X0,Y0,X1,Y1, the page's box tool) -------------------------------
+
+const bool view_box = register_target({
+    "view_box",
+    [] { return std::vector<std::string>{"217.4,122.7,369.6,346.3", "0,0,1e3,5"}; },
+    [](const uint8_t* data, size_t size) {
+      const ViewBox b = parse_view_box(std::string(reinterpret_cast<const char*>(data), size), "--box");
+      // Taken: four finite numbers, X1 > X0 and Y1 > Y0 (anything else a finding).
+      if (!std::isfinite(b[0] + b[1] + b[2] + b[3]) || !(b[2] > b[0]) || !(b[3] > b[1])) std::abort();
     }});
 
 // ---- a mask folder ------------------------------------------------------------------------
