@@ -391,7 +391,7 @@ $("eraser").onclick = () => setTool("eraser");
 $("pick").onclick = () => setTool("pick");
 $("photo-box").onclick = () => setTool("photo-box");
 // The clicks after a click at (x, y): a plain click starts again, shift-click adds a point on the
-// object, alt-click (with a segmenter) a point that is not the object.
+// object, alt-click (with a segmenter, or after a box) a point that is not the object.
 function nextClicks(e, x, y, clicks, notClicks) {
   if (e.altKey && ((api.info?.segmenter && clicks.length) || viewBox)) return [clicks, [...notClicks, [x, y]]];
   if (e.shiftKey) return [[...clicks, [x, y]], notClicks];
