@@ -26,6 +26,7 @@ struct SynthArgs {
   int first = 0;
   int views = 24;
   int test_views = 8;
+  int rings = 0;
   int width = 256, height = 256;
   std::string object = "mixed";
   std::string task = "remove";
@@ -53,6 +54,7 @@ void run(const SynthArgs& a) {
 
   synth::SynthOptions options;
   options.views = a.views;
+  options.rings = a.rings;
   options.test_views = a.test_views;
   options.width = a.width;
   options.height = a.height;
@@ -113,6 +115,11 @@ void add_synth_command(CLI::App& app) {
   cmd->add_option("--views", a->views, "Training views per scene (the object is in them)")->capture_default_str();
   cmd->add_option("--test-views", a->test_views, "Object-free test views per scene, between the training views")
       ->capture_default_str();
+  cmd->add_option("--rings", a->rings,
+                  "0: cameras along a random arc or forward path; 1 or 2: cameras all around the object, evenly over "
+                  "360 degrees on as many rings (two heights), test views between them: a capture seen from every side")
+      ->check(CLI::Range(0, 2))
+      ->capture_default_str();
   cmd->add_option("--width", a->width, "Image width in pixels")->capture_default_str();
   cmd->add_option("--height", a->height, "Image height in pixels")->capture_default_str();
   cmd->add_option("--object", a->object,
@@ -146,7 +153,9 @@ void add_synth_command(CLI::App& app) {
       "cameras.json and synth.json (seed, task, reference, context views). With --task insert the roles swap:\n"
       "the inputs lack the object, reference.png and the test views show it, original/ holds the test views\n"
       "without it.\n"
-      "Example: instainpaint synth --out synth-data --scenes 4 --seed 7 --views 24 --test-views 8");
+      "Examples:\n"
+      "  instainpaint synth --out synth-data --scenes 4 --seed 7 --views 24 --test-views 8\n"
+      "  instainpaint synth --out orbit-rooms --scenes 3 --seed 7 --rings 2 --views 36 --test-views 12");
   cmd->callback([a] { run(*a); });
 }
 

@@ -42,6 +42,8 @@ struct CameraPath {
   double roll = 0.02;
   double min_height = 0.3, max_height = 2.5;
   Intrinsics K;
+  int rings = 0;                         // > 0: cameras all around (ring_at), not along the path
+  double ring_elevations[2] = {0.3, 0.6};  // radians, the lower ring first
 
   // The camera at path parameter t in [0, 1]; `distance_scale` and `lift` move it off the
   // path (test views).
@@ -73,6 +75,20 @@ struct CameraPath {
   }
 };
 
+// The camera at `fraction` of the way around ring `ring` (azimuth theta0 + 2 pi fraction), looking
+// at the object; `distance_scale` and `lift` move it off the ring (test views).
+Camera ring_at(const CameraPath& path, double fraction, int ring, double distance_scale = 1.0, double lift = 0.0) {
+  const double theta = path.theta0 + 2 * M_PI * fraction, e = path.ring_elevations[ring];
+  const double r = path.distance * distance_scale;
+  Vector3d eye =
+      path.target + Vector3d(r * std::cos(theta) * std::cos(e), r * std::sin(e), r * std::sin(theta) * std::cos(e));
+  eye.y() = std::clamp(eye.y() + lift, path.min_height, path.max_height);
+  Camera c;
+  c.K = path.K;
+  c.c2w = look_at(eye, path.target, Vector3d::UnitY());
+  return c;
+}
+
 // Height-normalised horizontal radius of a splat object (99th percentile of the means).
 double splat_footprint(const GaussianSet& g) {
   const torch::Tensor r = torch::hypot(g.means.select(1, 0), g.means.select(1, 2)).contiguous();
@@ -90,6 +106,7 @@ void check_options(const SynthOptions& o) {
     fail("synth: image size must be between 16 and 8192 pixels a side (got {}x{})", o.width, o.height);
   if (!(o.detail > 0.05 && o.detail <= 8)) fail("synth: detail must be in (0.05, 8] (got {})", o.detail);
   if (o.objects < 1 || o.objects > 3) fail("synth: 1 to 3 objects (got {})", o.objects);
+  if (o.rings < 0 || o.rings > 2) fail("synth: rings must be 0 (a path), 1 or 2 (got {})", o.rings);
   if (o.objects > 1 && o.object == ObjectSource::splat)
     fail("synth: several objects are procedural: use --object procedural or mixed");
 }
@@ -247,6 +264,13 @@ CameraPath draw_camera_path(const SynthOptions& options, const RoomPlan& plan, c
   path.p2 = camera_rng.uniform(0, 2 * M_PI);
   path.p3 = camera_rng.uniform(0, 2 * M_PI);
   path.roll = camera_rng.uniform(0, 2.5) * kDeg;
+  if (options.rings > 0) {  // after every draw above: the arc scenes of a seed stay as they were
+    path.arc = true;
+    path.rings = options.rings;
+    path.span = 2 * M_PI;
+    path.ring_elevations[0] = options.rings == 1 ? path.elevation : 15 * kDeg;
+    path.ring_elevations[1] = 40 * kDeg;
+  }
   return path;
 }
 
@@ -262,6 +286,29 @@ void plan_room(RoomPlan& plan, CameraPath& path, SynthRng& plan_rng) {
   path.max_height = room_height - 0.3;
 }
 
+// Cameras all around: view k at k / v of the way around ring k % rings, test view k halfway
+// between two views on ring k % rings. The reference is the first view; the context the views a
+// quarter, a half and three quarters of the way around from it (the object seen from four sides).
+std::vector<Camera> place_ring_cameras(const SynthOptions& options, const CameraPath& path, SynthRng& camera_rng,
+                                       SynthScene& scene, int digits) {
+  std::vector<Camera> all;
+  const int v = options.views, t = options.test_views;
+  for (int k = 0; k < v; ++k) {
+    scene.views.push_back({fmt::format("view_{:0{}d}", k, digits), ring_at(path, double(k) / v, k % path.rings)});
+    all.push_back(scene.views.back().camera);
+  }
+  for (int k = 0; k < t; ++k) {
+    const double scale = 1.0 + camera_rng.uniform(-0.08, 0.08);
+    const double lift = camera_rng.uniform(-0.05, 0.05) * path.distance;
+    scene.test_views.push_back(
+        {fmt::format("test_{:0{}d}", k, digits), ring_at(path, (k + 0.5) / t, k % path.rings, scale, lift)});
+    all.push_back(scene.test_views.back().camera);
+  }
+  scene.reference = 0;
+  scene.context = {0, v / 4, v / 2, 3 * v / 4};
+  return all;
+}
+
 // The input and test views along the path, and the reference and context as the official
 // training recipe picks them from a clip of 15: inputs at 0, 4, 9, 14 with 4 or 9 as the
 // reference, moved to the front. Returns every camera.
@@ -271,6 +318,7 @@ std::vector<Camera> place_cameras(const SynthOptions& options, const CameraPath&
   const int v = options.views, t = options.test_views;
   // Zero-padded so that name order is path order (and test_* sorts before view_*).
   const int digits = std::max<int>(3, static_cast<int>(std::to_string(std::max(v, t) - 1).size()));
+  if (path.rings > 0) return place_ring_cameras(options, path, camera_rng, scene, digits);
   for (int k = 0; k < v; ++k) {
     double s = double(k) / (v - 1);
     if (k > 0 && k < v - 1) s += camera_rng.uniform(-0.3, 0.3) / (v - 1);
@@ -370,6 +418,7 @@ SynthScene generate_scene(const SynthOptions& options, uint64_t seed) {
                                 {"distance", path.distance},
                                 {"fov_y_deg", fov_y / kDeg},
                                 {"span_deg", path.arc ? path.span / kDeg : 0.0},
+                                {"rings", path.rings},
                                 {"elevation_deg", path.elevation / kDeg},
                                 {"target", {path.target.x(), path.target.y(), path.target.z()}}};
   description["background_gaussians"] = scene.background.size();

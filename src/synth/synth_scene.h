@@ -43,6 +43,10 @@ struct SynthOptions {
   // Objects to remove at once (1-3). Several are procedural, stand apart on the floor around
   // the centre, and form one object set (the mask is their union).
   int objects = 1;
+  // 0: cameras on a random arc or forward path (what the model card's rooms use). 1 or 2: cameras
+  // all around the object, evenly over 360 degrees of azimuth on as many rings (at two heights,
+  // alternating), test views between them on the same rings: a capture seen from every side.
+  int rings = 0;
 };
 
 struct SynthScene {

@@ -2,6 +2,7 @@
 // mask = where the object changes the image), cameras on the object, reference degradation.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Geometry>
@@ -96,6 +97,42 @@ TEST(SynthScene, CamerasLookAtTheObjectWithLlffIntrinsics) {
   EXPECT_LE(s.object.opacities.max().item<float>(), 0.98f + 1e-6f);
   EXPECT_GE(s.object.colors.min().item<float>(), 0.f);
   EXPECT_LE(s.object.colors.max().item<float>(), 1.f);
+}
+
+// Cameras all around (--rings 2): every view looks at the object, their azimuths about it cover
+// the whole circle evenly at two heights, the test views lie between them, and the context sees
+// the object from four sides.
+TEST(SynthScene, RingsPutTheCamerasAllAroundTheObject) {
+  SynthOptions o = tiny();
+  o.views = 12;
+  o.test_views = 4;
+  o.rings = 2;
+  const SynthScene s = generate_scene(o, 3);
+  auto azimuth = [&](const Camera& c) {
+    const Eigen::Vector3d d = c.c2w.block<3, 1>(0, 3) - s.object_centre;
+    return std::atan2(d.z(), d.x());
+  };
+  auto height = [&](const Camera& c) { return c.c2w(1, 3); };
+  std::vector<double> azimuths;
+  for (const NamedCamera& v : s.views) {
+    const Eigen::Vector4d x = v.camera.w2c_opencv() * s.object_centre.homogeneous();
+    ASSERT_GT(x.z(), s.object_radius) << v.name;
+    const double u = v.camera.K.fx * x.x() / x.z() + v.camera.K.cx, w = v.camera.K.fy * x.y() / x.z() + v.camera.K.cy;
+    EXPECT_NEAR(u, 32.0, 6.4) << v.name;  // the object in the middle of the picture
+    EXPECT_NEAR(w, 24.0, 9.6) << v.name;
+    azimuths.push_back(azimuth(v.camera));
+  }
+  std::sort(azimuths.begin(), azimuths.end());
+  double widest = 2 * M_PI - (azimuths.back() - azimuths.front());
+  for (size_t i = 1; i < azimuths.size(); ++i) widest = std::max(widest, azimuths[i] - azimuths[i - 1]);
+  EXPECT_NEAR(widest, 2 * M_PI / 12, 0.02);  // evenly, all the way around
+  EXPECT_LT(height(s.views[0].camera), height(s.views[1].camera));  // two rings, alternating
+  EXPECT_NEAR(height(s.views[0].camera), height(s.views[2].camera), 1e-9);
+  ASSERT_EQ(s.test_views.size(), 4u);
+  EXPECT_EQ(s.context, (std::vector<int>{0, 3, 6, 9}));
+  EXPECT_EQ(s.description["camera_path"]["rings"], 2);
+  o.rings = 3;
+  EXPECT_EQ(test::error_message([&] { generate_scene(o, 1); }), "synth: rings must be 0 (a path), 1 or 2 (got 3)");
 }
 
 class SynthViews : public ::testing::TestWithParam<uint64_t> {};
