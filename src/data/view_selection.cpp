@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <limits>
 #include <set>
 
@@ -33,6 +34,35 @@ std::vector<int> context_views_by_name(const Scene& scene, const std::vector<std
   return out;
 }
 
+namespace {
+
+// The views that may join `reference` in the context: those looking within kNeighbourCone of its
+// direction (every view of a forward-facing capture: the statue's and the fern's lie within
+// 8-10 degrees), at least `wanted` of them (the nearest in direction when fewer lie in the cone).
+// A capture that walks around its object would otherwise get context views from its other sides,
+// which see little of what the reference sees.
+constexpr double kNeighbourCone = 30.0;  // degrees
+
+std::vector<int> looking_alike(const Scene& scene, int reference, int wanted) {
+  const int n = static_cast<int>(scene.views.size());
+  // The optical axis: OpenGL camera-to-world, the camera looks along -z.
+  auto axis = [&](int i) { return Eigen::Vector3d(-scene.views[static_cast<size_t>(i)].camera.c2w.block<3, 1>(0, 2)); };
+  std::vector<std::pair<double, int>> by_angle;
+  for (int i = 0; i < n; ++i)
+    if (i != reference)
+      by_angle.emplace_back(std::acos(std::clamp(axis(i).normalized().dot(axis(reference).normalized()), -1.0, 1.0)),
+                            i);
+  std::sort(by_angle.begin(), by_angle.end());
+  const double cone = kNeighbourCone * M_PI / 180;
+  std::vector<int> out;
+  for (const auto& [angle, i] : by_angle)
+    if (angle <= cone || static_cast<int>(out.size()) < wanted) out.push_back(i);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+}  // namespace
+
 std::vector<int> select_context_views(const Scene& scene, int count, std::optional<int> reference_view) {
   const int n = static_cast<int>(scene.views.size());
   if (count < 1) fail("the number of context views must be at least 1, got {}", count);
@@ -55,6 +85,7 @@ std::vector<int> select_context_views(const Scene& scene, int count, std::option
   const int reference = reference_view.value_or(static_cast<int>(nearest));
   std::vector<int> chosen = {reference};
   if (count == 1) return chosen;
+  const std::vector<int> neighbours = looking_alike(scene, reference, count - 1);
 
   if (count == 4) {
     auto area = [&](int a, int b, int c) {
@@ -62,10 +93,12 @@ std::vector<int> select_context_views(const Scene& scene, int count, std::option
       return std::abs(u.x() * v.y() - u.y() * v.x());
     };
     // Exhaustive over a bounded candidate set keeps this O(n^3) small for long captures.
+    std::vector<bool> alike(static_cast<size_t>(n), false);
+    for (const int i : neighbours) alike[static_cast<size_t>(i)] = true;
     std::vector<int> candidates;
     const int stride = std::max(1, n / 120);
     for (int i = 0; i < n; i += stride)
-      if (i != reference) candidates.push_back(i);
+      if (alike[static_cast<size_t>(i)]) candidates.push_back(i);
     double best = -1;
     std::array<int, 3> best_triple{};
     const int m = static_cast<int>(candidates.size());
@@ -90,7 +123,7 @@ std::vector<int> select_context_views(const Scene& scene, int count, std::option
   while (static_cast<int>(chosen.size()) < count) {
     const int last = chosen.back();
     int next = -1;
-    for (int i = 0; i < n; ++i) {
+    for (const int i : neighbours) {
       dist[i] = std::min(dist[i], (p.row(i) - p.row(last)).squaredNorm());
       if (std::find(chosen.begin(), chosen.end(), i) == chosen.end() && (next < 0 || dist[i] > dist[next]))
         next = i;

@@ -16,7 +16,9 @@ int input_view_index(const Scene& scene, const std::string& name, const std::str
 std::vector<int> context_views_by_name(const Scene& scene, const std::vector<std::string>& names);
 
 // Automatic choice: the reference is `reference_view` (an index into scene.views) when given,
-// else the view whose camera centre is nearest the middle of the capture; the others span
+// else the view whose camera centre is nearest the middle of the capture; the others, among the
+// views looking within 30 degrees of the reference's direction (all of a forward-facing capture's;
+// on a capture around its object, the reference's neighbours, as the paper's context is), span
 // the largest triangle (for 3 others; farthest-point sampling for other counts) of camera
 // centres projected on the capture's best-fit plane.
 std::vector<int> select_context_views(const Scene& scene, int count = 4, std::optional<int> reference_view = {});

@@ -5,6 +5,7 @@
 
 #include "data/image_ops.h"
 #include "data/preprocess.h"
+#include "camera/trajectory.h"
 #include "data/view_selection.h"
 #include "test_support.h"
 
@@ -104,6 +105,28 @@ TEST(ViewSelection, ReferenceInTheMiddleAndALargeTriangle) {
   EXPECT_EQ((c[2] - c[1] + 12) % 12, 4);
   EXPECT_EQ((c[3] - c[2] + 12) % 12, 4);
   EXPECT_EQ(select_context_views(s, 2).size(), 2u);
+}
+
+// A capture around its object: 24 cameras on a circle, each looking at its centre. The context is
+// the reference's neighbours (looking within 30 degrees of it, at least 3 of them), not views from
+// the other sides, which see little of what the reference sees.
+TEST(ViewSelection, AroundTheObjectTheContextIsTheReferencesNeighbours) {
+  Scene s;
+  for (int k = 0; k < 24; ++k) {
+    View v;
+    v.name = "v" + std::to_string(k);
+    const double a = 2 * M_PI * k / 24;
+    v.camera.c2w = ::ii::look_at(Eigen::Vector3d(3 * std::cos(a), 0.5, 3 * std::sin(a)), Eigen::Vector3d::Zero(),
+                           Eigen::Vector3d::UnitY());
+    s.views.push_back(v);
+  }
+  const std::vector<int> c = select_context_views(s, 4, 6);
+  ASSERT_EQ(c.size(), 4u);
+  EXPECT_EQ(c[0], 6);
+  for (size_t i = 1; i < c.size(); ++i) {
+    const int steps = std::min((c[i] - 6 + 24) % 24, (6 - c[i] + 24) % 24);  // 15 degrees each
+    EXPECT_LE(steps, 2) << "view " << c[i];
+  }
 }
 
 TEST(ViewSelection, ByNameWithClearErrors) {
