@@ -1,5 +1,6 @@
-// The plane sweep of the photos' depth (geometry/stereo_depth.h) as the page's edit runs it on the
-// statue at 256 rows: five context views matched at 128 x 170 pixels, 24 depths each.
+// The plane sweep of the photos' depth (geometry/stereo_depth.h) at the statue's size at 256 rows:
+// five views of seeded noise matched at 128 x 170 pixels, 24 depths each (the page's edit of the
+// statue matches four such views).
 // `sweep correlation` is one pair of views; `stereo depth` the whole measurement.
 #include <benchmark/benchmark.h>
 
