@@ -152,12 +152,13 @@ std::string published_mismatch(const ModelEntry& entry, const FileDigests& diges
                      entry.checksum_publisher(), published(entry));
 }
 
-FileCheck check_file(const ModelEntry& entry, const fs::path& file, const std::string& recorded_sha256) {
+FileCheck check_file(const ModelEntry& entry, const fs::path& file, const std::string& recorded_sha256,
+                     bool the_archive) {
   FileCheck c;
   c.digests = digests_of_file(file);
   // An archive's member is held to the SHA-256 recorded when it was taken out (the published
   // checksums are the archive's).
-  const bool by_publisher = entry.pinned() && entry.archive_member.empty();
+  const bool by_publisher = entry.pinned() && (entry.archive_member.empty() || the_archive);
   c.pinned = entry.pinned();
   if (const std::string why = by_publisher ? published_mismatch(entry, c.digests) : ""; !why.empty()) {
     fail("{}: {} is not the published file: {}", entry.name, file.string(), why);
@@ -243,11 +244,7 @@ CachedModel import_model(const ModelEntry& entry, const fs::path& source) {
   const std::string origin = "imported from " + fs::absolute(source).string();
   // An archive entry takes the archive (checked as published, its member kept) or the member itself.
   if (!entry.archive_member.empty() && holds_member(source, entry.archive_member)) {
-    FileCheck check;
-    check.digests = digests_of_file(source);
-    check.pinned = entry.pinned();
-    if (const std::string why = published_mismatch(entry, check.digests); !why.empty())
-      fail("{}: {} is not the published file: {}", entry.name, source.string(), why);
+    const FileCheck check = check_file(entry, source, "", /*the_archive=*/true);
     make_models_dir();
     return install_archive_member(entry, source, check, origin);
   }

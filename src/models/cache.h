@@ -57,9 +57,11 @@ std::string published_mismatch(const ModelEntry& entry, const FileDigests& diges
 
 // Hashes `file` and checks it against the entry's published checksums, or when none is
 // published against `recorded_sha256` (when given). Throws an Error naming the entry, the file,
-// what was expected and both checksums found; leaves the file alone.
+// what was expected and both checksums found; leaves the file alone. An archive entry's file is
+// its member, held to the recorded SHA-256; `the_archive`: the file is the archive itself, held
+// to the published checksums.
 FileCheck check_file(const ModelEntry& entry, const std::filesystem::path& file,
-                     const std::string& recorded_sha256 = "");
+                     const std::string& recorded_sha256 = "", bool the_archive = false);
 
 // Hashes the cached file again; an Error (the file left in place) when it differs.
 CachedModel verify_cached(const ModelEntry& entry);
