@@ -265,11 +265,8 @@ ClickedMask segmented_view_mask(const Segmenter& segmenter, const View& view, co
   if (box) check_box(view.name, view.camera.K.width, view.camera.K.height, *box, clicks, true);
   const Image photo = view_photo(view);
   try {
-    if (!box) return mask_from_clicks(segmenter, photo, clicks, not_clicks, stages);
-    StageTimes unrecorded;
-    const SegmenterImage encoded =
-        (stages ? *stages : unrecorded).time("segmenter: encode the view", [&] { return segmenter.encode(photo); });
-    return mask_from_prompt(segmenter, encoded, clicks, not_clicks, box, stages);
+    return box ? mask_from_prompt(segmenter, photo, clicks, not_clicks, box, stages)
+               : mask_from_clicks(segmenter, photo, clicks, not_clicks, stages);
   } catch (const Error& e) {
     fail("view {}: {}", view.name, e.what());
   }

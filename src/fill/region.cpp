@@ -247,7 +247,7 @@ RegionMask region_from_view_box(const SplatCloud& cloud, const Camera& camera, c
   }
   ClickedMask mask;
   try {
-    mask = mask_from_prompt(*segmenter, segmenter->encode(seen), clicks, not_clicks, box);
+    mask = mask_from_prompt(*segmenter, seen, clicks, not_clicks, box);
   } catch (const Error& e) {
     fail("view {}: {}", view, e.what());
   }

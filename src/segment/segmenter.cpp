@@ -270,11 +270,18 @@ Image Segmentation::mask(int k) const {
 
 ClickedMask mask_from_clicks(const Segmenter& segmenter, const Image& photo, const std::vector<Click>& clicks,
                              const std::vector<Click>& not_clicks, StageTimes* stages) {
+  if (clicks.empty()) fail("the segmenter needs a click on the object");
+  return mask_from_prompt(segmenter, photo, clicks, not_clicks, std::nullopt, stages);
+}
+
+ClickedMask mask_from_prompt(const Segmenter& segmenter, const Image& photo, const std::vector<Click>& clicks,
+                             const std::vector<Click>& not_clicks, const std::optional<ViewBox>& box,
+                             StageTimes* stages) {
   StageTimes unrecorded;
   StageTimes& times = stages ? *stages : unrecorded;
-  if (clicks.empty()) fail("the segmenter needs a click on the object");
+  if (clicks.empty() && !box) fail("the segmenter needs a click on the object or a box around it");
   const SegmenterImage encoded = times.time("segmenter: encode the view", [&] { return segmenter.encode(photo); });
-  return mask_from_clicks(segmenter, encoded, clicks, not_clicks, stages);
+  return mask_from_prompt(segmenter, encoded, clicks, not_clicks, box, stages);
 }
 
 ClickedMask mask_from_clicks(const Segmenter& segmenter, const SegmenterImage& encoded, const std::vector<Click>& clicks,

@@ -127,6 +127,10 @@ ClickedMask mask_from_clicks(const Segmenter& segmenter, const SegmenterImage& p
 ClickedMask mask_from_prompt(const Segmenter& segmenter, const SegmenterImage& photo, const std::vector<Click>& clicks,
                              const std::vector<Click>& not_clicks, const std::optional<ViewBox>& box,
                              StageTimes* stages = nullptr);
+// The same on a photo not encoded yet: encoded first ("segmenter: encode the view").
+ClickedMask mask_from_prompt(const Segmenter& segmenter, const Image& photo, const std::vector<Click>& clicks,
+                             const std::vector<Click>& not_clicks, const std::optional<ViewBox>& box,
+                             StageTimes* stages = nullptr);
 
 // The segmenter named by a command's --segmenter, else $INSTAINPAINT_SEGMENTER, else "auto": the
 // cache's (MobileSAM before the larger SAMs; instainpaint models get mobile-sam), else none.
