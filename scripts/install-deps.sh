@@ -11,6 +11,7 @@ PACKAGES=(
   libopenblas0-pthread          # without it LibTorch falls back to reference BLAS (~60x slower)
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   libstb-dev libzip-dev zlib1g-dev libzstd-dev libwebp-dev libeigen3-dev
+  libnanoflann-dev              # reconstruct: each start point's nearest neighbours (its first scale)
   libssl-dev                    # SHA-256 of model files (run.json)
   libcurl4-openssl-dev          # instainpaint models get (HTTPS downloads)
   libopencv-imgproc-dev libopencv-features2d-dev libopencv-calib3d-dev libopencv-photo-dev

@@ -68,7 +68,7 @@ def _geometry_texts(geometry: Mapping[str, Any]) -> Dict[str, str]:
 
 __all__ = [
     "Camera", "Error", "Gaussians", "Predictor", "Scene", "evaluate", "load_gaussians", "load_scene",
-    "masks_from_one", "select", "Segmenter", "set_log_level", "set_threads",
+    "masks_from_one", "reconstruct", "select", "Segmenter", "set_log_level", "set_threads",
 ]
 __version__ = "0.1.0"
 
@@ -134,6 +134,12 @@ class Gaussians:
     def refine_report(self) -> Optional[dict]:
         """What the refinement that made these did (steps, time, loss, densification), or None."""
         text = self._g._refine_report
+        return json.loads(text) if text else None
+
+    @property
+    def reconstruct_report(self) -> Optional[dict]:
+        """What the reconstruction that made these did (start, steps, splats, scores), or None."""
+        text = self._g._reconstruct_report
         return json.loads(text) if text else None
 
     def save(self, path: PathLike, *, normalized: bool = False) -> None:
@@ -237,6 +243,28 @@ class Gaussians:
             None if selection is None else selection._g, view or "", mask, _clicks(click), given, reference,
             reference_view or "", views, height, None if up is None else [float(v) for v in up],
             "" if refine is None else str(refine), all_views, placement, os.fspath(inpainter), predictor._p))
+
+
+def reconstruct(scene: Scene, *, preset: str = "balanced", steps: Optional[int] = None, height: int = 0,
+                eval: bool = False, max_splats: int = 1500000, sh_degree: int = 3, seed: int = 0,
+                start: Optional["Gaussians"] = None, device: str = "auto",
+                progress: Optional[ProgressCallback] = None) -> "Gaussians":
+    """3D Gaussian splatting of the whole capture (as `instainpaint reconstruct`), in its own frame.
+
+    Starts from the scene's COLMAP points, else points triangulated from its photos (or from
+    `start`). preset: "fast" (1 minute), "balanced" (9), "best" (20) or a time ("90s"); steps: a
+    number of steps instead. height: rows trained on (0: the photos' own, at most 1600 on the long
+    side). eval: score the held-out views: load the scene with hold_out_every=8, keep_object=True.
+    The scores, splat counts and seconds are in the result's reconstruct_report.
+    progress: called after each step with {"step", "fraction", "loss", "eta_s", "gaussians"}.
+    """
+    call = None
+    if progress is not None:
+        def call(step, fraction, loss, eta_s, count):
+            progress({"step": step, "fraction": fraction, "loss": loss, "eta_s": eta_s, "gaussians": count})
+    return Gaussians(_core._reconstruct(scene, str(preset), -1 if steps is None else int(steps), height, eval,
+                                        max_splats, sh_degree, seed, None if start is None else start._g,
+                                        device, call))
 
 
 def load_gaussians(path: PathLike) -> Gaussians:

@@ -40,6 +40,7 @@
 #include "io/splat_file.h"
 #include "model/device.h"
 #include "predict/predictor.h"
+#include "refine/reconstruct.h"
 #include "refine/refine.h"
 #include "segment/segmenter.h"
 #include "render/rasterizer.h"
@@ -145,6 +146,7 @@ struct PyGaussians {
   std::shared_ptr<const SceneInputOptions> input;
   std::string refine_report;  // JSON of the refinement that made these, if one did
   std::string fill_report;    // JSON of the fill that made these, if one did
+  std::string reconstruct_report;  // JSON of the reconstruction that made these, if one did
 };
 
 // A splat file's values of Gaussians, in the scene's frame.
@@ -345,6 +347,7 @@ NB_MODULE(_core, m) {
         return std::make_pair(std::vector<double>{n.mean.x(), n.mean.y(), n.mean.z()}, n.scale);
       })
       .def_prop_ro("_refine_report", [](const PyGaussians& g) { return g.refine_report; })
+      .def_prop_ro("_reconstruct_report", [](const PyGaussians& g) { return g.reconstruct_report; })
       .def_prop_ro("_geometry", [](const PyGaussians& g) {
         return g.prediction ? g.prediction->describe_geometry().dump() : std::string();
       })
@@ -510,6 +513,39 @@ NB_MODULE(_core, m) {
           return region_from_clicks(scene_splats(g), camera, view, clicks_of(clicks));
         },
         "gaussians"_a, "camera"_a, "view"_a, "clicks"_a, "not_clicks"_a, "segmenter"_a.none());
+
+  m.def("_reconstruct",
+        [](const Scene& scene, const std::string& length, int steps, int height, bool eval, int64_t max_splats,
+           int sh_degree, uint64_t seed, const PyGaussians* start, const std::string& device,
+           const std::function<void(int, double, double, double, int64_t)>& progress) {
+          ReconstructOptions o;
+          RefineOptions run = steps >= 0 ? RefineOptions{} : refine_setting(length);
+          if (steps >= 0) run.steps = steps, run.time_budget_s = 0;
+          o.training = reconstruct_training(run);
+          o.training.sh_degree = sh_degree;
+          o.training.seed = seed;
+          if (progress)
+            o.training.progress = [progress](const RefineProgress& p) {
+              progress(p.step, p.fraction, p.loss, p.eta_s, p.gaussians);
+            };
+          o.height = height;
+          o.eval = eval;
+          if (eval && scene.test_views.empty())
+            fail("reconstruct: eval=True scores held-out views: load the scene with hold_out_every=8, keep_object=True");
+          o.max_splats = max_splats;
+          if (start) o.start = in_scene_frame(start->set, start->normalization);
+          o.device = resolve_device(device);
+          PyGaussians out;
+          {
+            nb::gil_scoped_release release;
+            const ReconstructResult r = reconstruct_scene(scene, o);
+            out.set = r.gaussians.to(torch::kCPU);
+            out.reconstruct_report = reconstruct_report(r, o).dump();
+          }
+          return out;
+        },
+        "scene"_a, "length"_a, "steps"_a, "height"_a, "eval"_a, "max_splats"_a, "sh_degree"_a, "seed"_a,
+        "start"_a.none(), "device"_a, "progress"_a.none());
 
   m.def("_read_splats", [](const std::string& path) {
     PyGaussians g;

@@ -223,6 +223,28 @@ def test_refine_reports_progress_and_stops_on_the_callbacks_exception(statue, pr
         g.refine(statue, preset="50", progress=stop)
 
 
+def test_reconstruct_trains_the_whole_capture_and_scores_its_held_out_views(shared, tmp_path):
+    from conftest import shared_data
+    cup = shared_data(shared, "realtrain") / "custom_coffee_cup"
+    scene = ii.load_scene(cup, hold_out_every=8, keep_object=True)
+    seen = []
+    g = ii.reconstruct(scene, steps=60, height=48, eval=True, sh_degree=1, progress=seen.append)
+    report = g.reconstruct_report
+    assert [p["step"] for p in seen] == list(range(1, 61))
+    assert report["held_out"] == [v for v in scene.test_views]
+    assert report["start"]["source"] == "triangulated from the photos" and report["start"]["points"] > 1000
+    assert report["scored"] == "held-out views (every 8th)" and len(report["views"]) == len(scene.test_views)
+    assert 10 < report["psnr"] < 40 and g.sh_degree == 1 and len(g) == report["splats"]
+    # The capture's own frame: the file written is what was trained, and other tools' files line up.
+    g.save(tmp_path / "cup.ply")
+    np.testing.assert_allclose(ii.load_gaussians(tmp_path / "cup.ply").means, g.means, rtol=0, atol=1e-6)
+    # Continued from those Gaussians: 0 steps scores them as they are.
+    again = ii.reconstruct(scene, steps=0, height=48, eval=True, sh_degree=1, start=g)
+    assert again.reconstruct_report["psnr"] == pytest.approx(report["psnr"], abs=1e-3)
+    with pytest.raises(ii.Error, match=r"eval=True scores held-out views: load the scene with hold_out_every=8"):
+        ii.reconstruct(ii.load_scene(cup), steps=1, eval=True)
+
+
 def test_masks_from_one_region(statue, predictor):
     view = statue.views[2]
     region = statue.mask(view)

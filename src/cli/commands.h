@@ -25,6 +25,7 @@ void add_train_command(CLI::App& app);
 void add_masks_command(CLI::App& app);
 void add_serve_command(CLI::App& app);
 void add_fill_command(CLI::App& app);
+void add_reconstruct_command(CLI::App& app);
 void add_segment_command(CLI::App& app);
 void add_inpaint_command(CLI::App& app);
 void add_models_command(CLI::App& app);

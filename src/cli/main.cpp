@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   ii::cli::add_masks_command(app);
   ii::cli::add_infer_command(app);
   ii::cli::add_fill_command(app);
+  ii::cli::add_reconstruct_command(app);
   ii::cli::add_segment_command(app);
   ii::cli::add_inpaint_command(app);
   ii::cli::add_models_command(app);

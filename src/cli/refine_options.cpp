@@ -67,22 +67,26 @@ RefineOptions refine_options(const RefineArgs& args) {
     if (part == "coarse-to-fine") o.coarse_to_fine = false;
     if (part == "masks") o.start_in_masks = false;
   }
+  o.progress = progress_line("refine");
+  return o;
+}
+
+std::function<void(const RefineProgress&)> progress_line(const std::string& what) {
   // A terminal gets one line rewritten in place; a log file a line per tenth of the run.
   const bool tty = ::isatty(::fileno(stderr));
   auto last_tenth = std::make_shared<int>(-1);
-  o.progress = [tty, last_tenth](const RefineProgress& p) {
+  return [tty, last_tenth, what](const RefineProgress& p) {
     const bool done = p.fraction >= 1;
     if (tty) {
-      std::fprintf(stderr, "\rrefine %3.0f%%  step %d  loss %.4f  %lld Gaussians  ETA %.0f s\033[K", 100 * p.fraction,
-                   p.step, p.loss, static_cast<long long>(p.gaussians), p.eta_s);
+      std::fprintf(stderr, "\r%s %3.0f%%  step %d  loss %.4f  %lld Gaussians  ETA %.0f s\033[K", what.c_str(),
+                   100 * p.fraction, p.step, p.loss, static_cast<long long>(p.gaussians), p.eta_s);
       if (done) std::fprintf(stderr, "\n");
     } else if (static_cast<int>(p.fraction * 10) > *last_tenth || p.step == 1) {
       *last_tenth = static_cast<int>(p.fraction * 10);
-      spdlog::info("refine {:.0f}%  step {}  loss {:.4f}  {} Gaussians  ETA {:.0f} s", 100 * p.fraction, p.step, p.loss,
-                   p.gaussians, p.eta_s);
+      spdlog::info("{} {:.0f}%  step {}  loss {:.4f}  {} Gaussians  ETA {:.0f} s", what, 100 * p.fraction, p.step,
+                   p.loss, p.gaussians, p.eta_s);
     }
   };
-  return o;
 }
 
 void write_loss_chart(const std::filesystem::path& out, nlohmann::json& report) {

@@ -2,6 +2,7 @@
 // `--refine` (fast, balanced, best, a time or a number of steps), `--refine-sh-degree`,
 // `--refine-exposure`, `--refine-position-rate` and `--refine-without` for the commands that run the network (infer, eval).
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,9 @@ struct RefineArgs {
 void add_refine_options(CLI::App* cmd, RefineArgs& args);
 // The refinement asked for, with a progress line (loss, Gaussians, ETA) on stderr.
 RefineOptions refine_options(const RefineArgs& args);
+// The progress of an optimisation as one line on stderr rewritten in place (a terminal), or a log
+// line per tenth of the run: "WHAT 42%  step 1200  loss 0.0412  180000 Gaussians  ETA 95 s".
+std::function<void(const RefineProgress&)> progress_line(const std::string& what);
 // The loss curve of a refinement report (refinement_report()) as OUT/refine-loss.png, named in
 // the report as "loss_chart".
 void write_loss_chart(const std::filesystem::path& out, nlohmann::json& report);

@@ -186,9 +186,11 @@ void check_refine_options(const GaussianSet& start_set, const std::vector<Refine
   if (views.empty()) fail("refine: no views to refine against");
   if (options.steps < 0) fail("refine: the number of steps must be 0 or more, got {}", options.steps);
   if (!(options.time_budget_s >= 0)) fail("refine: the time budget must be 0 or more seconds, got {}", options.time_budget_s);
-  if (start_set.sh_degree >= 0) fail("refine: the Gaussians must have RGB colours (as the network predicts them)");
   if (options.sh_degree < 0 || options.sh_degree > 3)
     fail("refine: the SH degree must be 0 to 3, got {}", options.sh_degree);
+  if (options.first_step < 0 || !(options.first_fraction >= 0 && options.first_fraction < 1))
+    fail("refine: a run continues from step 0 or later and before its end, got step {} at {:.0f} %",
+         options.first_step, 100 * options.first_fraction);
 }
 
 // Each view with something to supervise, at full, half and quarter size; masked pixels weigh 0.
@@ -231,18 +233,19 @@ struct Parameters {
   bool sh = false;
 
   // Degree 0 keeps the network's RGB colours; higher degrees start from the same colour (the
-  // DC term) with zero view dependence.
+  // DC term) with zero view dependence, or from the start's own coefficients when it has SH (a
+  // run continued).
   Parameters(const GaussianSet& start, int sh_degree, const torch::TensorOptions& f32) : sh(sh_degree > 0) {
     means = start.means.to(f32).detach().clone().requires_grad_(true);
     log_scales = start.scales.to(f32).clamp_min(1e-12).log().detach().requires_grad_(true);
     quats = start.quats.to(f32).detach().clone().requires_grad_(true);
     logits = torch::logit(start.opacities.to(f32).reshape({-1}).clamp(1e-6, 1 - 1e-6)).detach().requires_grad_(true);
-    colours = sh ? sh_dc_from_rgb(start.colors.to(f32)).unsqueeze(1).detach().requires_grad_(true)
-                 : start.colors.to(f32).detach().clone().requires_grad_(true);
-    if (sh) {
-      const int64_t rest = (sh_degree + 1) * (sh_degree + 1) - 1;
-      sh_rest = torch::zeros({start.size(), rest, 3}, f32).requires_grad_(true);
-    }
+    const int64_t k = (sh_degree + 1) * (sh_degree + 1);
+    const torch::Tensor start_sh = as_sh(start, std::max<int64_t>(k, 1)).to(f32);
+    colours = sh ? start_sh.narrow(1, 0, 1).detach().clone().requires_grad_(true)
+            : start.sh_degree < 0 ? start.colors.to(f32).detach().clone().requires_grad_(true)
+                                  : rgb_from_sh_dc(start_sh.select(1, 0)).detach().requires_grad_(true);
+    if (sh) sh_rest = start_sh.narrow(1, 1, k - 1).detach().clone().requires_grad_(true);
   }
 
   GaussianSet gaussians(int degree) const {
@@ -373,6 +376,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   const std::vector<Target> held =
       optimise ? take_held_out(targets, options.hold_out_every) : std::vector<Target>{};
   RefineResult result;
+  result.steps = options.first_step;
   for (const Target& t : targets) result.views.push_back(t.name);
   for (const Target& t : held) result.held_out.push_back(t.name);
 
@@ -395,7 +399,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
 
   const torch::TensorOptions f32 = torch::TensorOptions(device).dtype(torch::kFloat32);
   Parameters p(start, options.sh_degree, f32);
-  const double extent = std::max(visible_bounds(start).radius, 1e-6);
+  const double extent = options.extent > 0 ? options.extent : std::max(visible_bounds(start).radius, 1e-6);
   RowAdam adam;
   adam.add(&p.means, options.position_lr * extent);
   adam.add(&p.log_scales, options.scale_lr);
@@ -447,13 +451,15 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   };
   size_t next_score = 0;  // into options.score_at
   Stopwatch loop_clock;
-  for (int step = 0;; ++step) {
+  for (int step = options.first_step;; ++step) {
     const double now = elapsed_s(clock);
-    const double fraction = budget > 0 ? now / budget : options.steps > 0 ? double(step) / options.steps : 1;
+    const double fraction = budget > 0 ? options.first_fraction + now / budget
+                            : options.steps > 0 ? double(step) / options.steps
+                                                : 1;
     for (; next_score < options.score_at.size() && fraction >= options.score_at[next_score]; ++next_score)
       if (!held.empty() && step > 0 && fraction < 1) score(step);
     if (fraction >= 1) break;
-    if (step == 0) loop_start = now;
+    if (step == options.first_step) loop_start = now;
     if (order.empty()) {
       for (size_t i = 0; i < targets.size(); ++i) order.push_back(i);
       random_shuffle(order, rng);
@@ -482,7 +488,8 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
                                options.ssim_weight * (1 - masked_ssim(rgb, t.rgb, t.weight).mean());
     loss.backward();
 
-    const bool densifying = options.densify.enabled && fraction >= 0.05 && fraction < 0.6;
+    const bool densifying =
+        options.densify.enabled && fraction >= options.densify_from && fraction < options.densify_until;
     if (densifying) {
       torch::NoGradGuard no_grad;
       const torch::Tensor g = view_space_gradient(p.means.detach(), p.means.grad(), t.camera.camera);
@@ -514,19 +521,26 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
     views_seen += std::pow(0.25, level);
     result.losses.push_back(loss.item<double>());
     result.steps = step + 1;
+    if (options.checkpoint && options.checkpoint_every > 0 && (step + 1) % options.checkpoint_every == 0) {
+      torch::NoGradGuard no_grad;
+      options.checkpoint(step + 1, snapshot(p.gaussians(options.sh_degree)));
+    }
     if (options.progress) {
       RefineProgress progress;
       progress.step = step + 1;
       progress.elapsed_s = elapsed_s(clock);
-      progress.fraction = budget > 0 ? std::min(1.0, progress.elapsed_s / budget) : double(step + 1) / options.steps;
+      progress.fraction = budget > 0 ? std::min(1.0, options.first_fraction + progress.elapsed_s / budget)
+                                     : double(step + 1) / options.steps;
       progress.loss = result.losses.back();
-      progress.eta_s = budget > 0 ? std::max(0.0, budget - progress.elapsed_s)
-                                  : (progress.elapsed_s - loop_start) / (step + 1) * (options.steps - step - 1);
+      progress.eta_s = budget > 0 ? std::max(0.0, (1 - progress.fraction) * budget)
+                                  : (progress.elapsed_s - loop_start) / (step + 1 - options.first_step) *
+                                        (options.steps - step - 1);
       progress.gaussians = p.means.size(0);
       options.progress(progress);
     }
   }
-  result.ms_per_step = result.steps > 0 ? loop_clock.ms() / result.steps : 0;
+  const int steps_here = result.steps - options.first_step;
+  result.ms_per_step = steps_here > 0 ? loop_clock.ms() / steps_here : 0;
 
   torch::NoGradGuard no_grad;
   GaussianSet refined = p.gaussians(options.sh_degree);

@@ -92,8 +92,12 @@ struct RefineOptions {
   // depth edges), scales x n (n² times fewer: cheaper steps; densification adds detail where
   // the views ask for it).
   int start_stride = 3;
-  DensifyOptions densify;  // between 5 % and 60 % of the run, every densify_every steps
+  DensifyOptions densify;  // between densify_from and densify_until of the run, every densify_every steps
   int densify_every = 50;
+  double densify_from = 0.05, densify_until = 0.6;
+  // The scene's size the position rate and the clone-or-split threshold are scaled by; 0: the
+  // start set's visible radius (a prediction), > 0: given (reconstruct: 3DGS's camera extent).
+  double extent = 0;
   // 3DGS's opacity reset, while densifying: at these fractions of the run every opacity is
   // lowered to at most reset_opacity (and its Adam moments forgotten); what the views need
   // becomes opaque again within ~100 steps, floaters that only some views need stay faint and
@@ -109,6 +113,14 @@ struct RefineOptions {
   // the opacity resets and the densification, while the position rate has decayed.
   std::vector<double> score_at = {0.7, 0.85};
   std::function<void(const RefineProgress&)> progress;  // after each step
+  // A run continued (reconstruct --resume): the steps already done, the schedule (rates,
+  // densification, SH degree, resolution) taking up from there; the optimiser's moments start anew.
+  int first_step = 0;
+  double first_fraction = 0;  // of a time budget: the part already spent
+  // Every checkpoint_every steps (0: never): the Gaussians as they stand (detached, the result's
+  // form) and the steps done, for checkpoints and previews.
+  int checkpoint_every = 0;
+  std::function<void(int, const GaussianSet&)> checkpoint;
   // refine_prediction: each view's mask (the object, which the reference's region replaces) is fitted to
   // what the prediction draws there, instead of being left free: the moved Gaussians then do not grow
   // over the region where only masked views see it (make demo's room at 2,300 steps: the test views
@@ -160,8 +172,9 @@ struct RefineResult {
   int chosen_step = 0;  // the step of the iterate returned (0: the start)
 };
 
-// `start` has RGB colours (sh_degree -1), like the network's. Errors: no views, a view whose
-// mask does not fit its image, steps < 0, a negative time budget, an SH degree outside 0-3.
+// `start` has RGB colours (sh_degree -1), like the network's, or SH (a run continued). Errors: no
+// views, a view whose mask does not fit its image, steps < 0, a negative time budget, an SH degree
+// outside 0-3.
 RefineResult refine_gaussians(const GaussianSet& start, const std::vector<RefineView>& views,
                               const RefineOptions& options);
 
