@@ -17,6 +17,7 @@
 #include "data/preprocess.h"
 #include "data/scene.h"
 #include "gaussians/gaussians.h"
+#include "io/reconstruct_checkpoint.h"
 #include "refine/refine.h"
 
 namespace ii {
@@ -89,21 +90,6 @@ nlohmann::json reconstruct_report(const ReconstructResult& result, const Reconst
 // What a checkpoint is of: the training views' names and cameras, so that --resume refuses a
 // checkpoint of another scene (or of another working size or hold-out).
 std::string scene_fingerprint(const std::vector<PreparedView>& views);
-
-// A checkpoint's record beside its splat file (the Gaussians as they stood): what scene, how far.
-struct ReconstructCheckpoint {
-  std::string fingerprint;  // scene_fingerprint of the training views
-  int step = 0;             // steps done
-  double fraction = 0;      // of the run, in [0, 1)
-  int steps = 0;            // the run's length in steps (0: a time budget)
-  double time_budget_s = 0;
-  int sh_degree = 3;
-  uint64_t seed = 0;
-};
-std::string checkpoint_json(const ReconstructCheckpoint& checkpoint);
-// Error naming `file` when the text is not such a record (not JSON, a field missing or of the
-// wrong type or out of range).
-ReconstructCheckpoint parse_checkpoint(const std::string& text, const std::string& file);
 
 // The training views at their working size as a COLMAP folder (DIR/images/*.png, DIR/sparse/0
 // with PINHOLE cameras, the views' poses and the start points with their colours): the same

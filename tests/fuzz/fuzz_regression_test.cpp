@@ -22,7 +22,7 @@ TEST(FuzzTargets, EveryParserHasOne) {
   for (const FuzzTarget& t : targets()) names.insert(t.name);
   EXPECT_EQ(names, (std::set<std::string>{"box", "camera_json", "click", "colmap_binary", "colmap_text", "image", "llff",
                                           "mask_folder", "model_catalogue", "nerfstudio", "npy", "pickle", "ply", "pth",
-                                          "safetensors", "sog", "spz", "view_box"}));
+                                          "reconstruct_checkpoint", "safetensors", "sog", "spz", "view_box"}));
 }
 
 TEST(FuzzTargets, HandMadeSeedsAreAccepted) {

@@ -16,6 +16,7 @@
 #include "io/sog.h"
 #include "io/spz.h"
 #include "io/pth.h"
+#include "io/reconstruct_checkpoint.h"
 #include "io/safetensors.h"
 
 namespace ii::fuzz {
@@ -364,6 +365,30 @@ const bool image = register_target({
       if (static_cast<int64_t>(info.width) * info.height > (1 << 18)) return;
       decode_image(path);  // read_image_rgb is this plus alpha compositing
       read_mask(path);
+    }});
+
+// ---- reconstruct's checkpoint record (--resume) -------------------------------------------
+
+const bool reconstruct_checkpoint = register_target({
+    "reconstruct_checkpoint",
+    [] {
+      ReconstructCheckpoint c;
+      c.fingerprint = "667931cc5e53bfda";
+      c.step = 1000;
+      c.fraction = 1.0 / 3;
+      c.steps = 3000;
+      ReconstructCheckpoint timed = c;
+      timed.steps = 0;
+      timed.time_budget_s = 540;
+      return std::vector<std::string>{checkpoint_json(c), checkpoint_json(timed)};
+    },
+    [](const uint8_t* data, size_t size) {
+      const ReconstructCheckpoint c =
+          parse_checkpoint(std::string(reinterpret_cast<const char*>(data), size), "scene.checkpoint.json");
+      // Taken: a run that had not ended, of steps or of time, an SH degree a splat file holds.
+      if (!(c.fraction >= 0 && c.fraction < 1) || c.step < 0 || c.sh_degree < 0 || c.sh_degree > 3 ||
+          (c.steps == 0 && c.time_budget_s == 0))
+        std::abort();
     }});
 
 }  // namespace
