@@ -32,9 +32,10 @@ timed "$out/opensplat.log" "$opensplat" "$out/colmap" -o "$out/opensplat.ply" -n
   --warmup-length $((steps / 60)) --refine-every 100 --reset-alpha-every $(((steps / 10 + 99) / 100)) \
   --stop-screen-size-at $((steps * 4000 / 30000))
 
-# OpenSplat's splats scored as ours were (its PLY in the capture's frame: --keep-crs).
+# OpenSplat's splats scored as ours were (its PLY in the capture's frame: --keep-crs), in front of
+# the colour it trained them in front of (nerfstudio's default, model.hpp), ours in front of white.
 "$ii" reconstruct "$scene" --height "$height" --eval --steps 0 --start "$out/opensplat.ply" \
-  --out "$out/opensplat-scored.ply" --json >"$out/opensplat-scored.json" 2>"$out/opensplat-scored.log"
+  --background 0.6130,0.0101,0.3984 --out "$out/opensplat-scored.ply" >"$out/opensplat-scored.log" 2>&1
 
 python3 - "$out" "$steps" "$height" "$scene" <<'PY'
 import json, sys

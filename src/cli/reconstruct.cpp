@@ -34,6 +34,7 @@ struct ReconstructArgs {
   uint64_t seed = 0;
   std::string start, resume, write_colmap, previews;
   int checkpoint_every = 1000;
+  std::vector<float> background = {1.f, 1.f, 1.f};
   bool json = false;
   RuntimeOptions runtime;
 };
@@ -44,13 +45,16 @@ fs::path checkpoint_path(const fs::path& out, const char* extension) {
 }
 
 // Truth beside render for each scored view (at most 8), one PNG each: what the scores say, seen.
-void write_previews(const fs::path& dir, const GaussianSet& g, const std::vector<PreparedView>& views) {
+void write_previews(const fs::path& dir, const GaussianSet& g, const std::vector<PreparedView>& views,
+                    const std::array<float, 3>& background) {
   torch::NoGradGuard no_grad;
+  RenderOptions look;
+  look.background = background;
   fs::create_directories(dir);
   const size_t every = std::max<size_t>(1, (views.size() + 7) / 8);
   for (size_t i = 0; i < views.size(); i += every) {
     const PreparedView& v = views[i];
-    const torch::Tensor drawn = render(g, {v.camera}).rgb.clamp(0, 1).to(torch::kCPU, torch::kFloat32);
+    const torch::Tensor drawn = render(g, {v.camera}, look).rgb.clamp(0, 1).to(torch::kCPU, torch::kFloat32);
     const torch::Tensor truth = image_to_tensor(v.rgb)[0].permute({1, 2, 0});
     write_png(dir / (v.name + ".png"), image_from_hwc(torch::cat({truth, drawn}, 1).contiguous()));
   }
@@ -63,7 +67,17 @@ ReconstructOptions options_of(const ReconstructArgs& a, const Runtime& runtime) 
   o.training = reconstruct_training(length);
   o.training.sh_degree = a.sh_degree;
   o.training.seed = a.seed;
-  o.training.progress = progress_line("reconstruct");
+  // The progress line, and once, when densification reaches the budget, that it stops growing there.
+  auto line = progress_line("reconstruct");
+  auto said = std::make_shared<bool>(false);
+  o.training.progress = [line, said, budget = a.max_splats](const RefineProgress& p) {
+    if (!*said && p.gaussians >= budget) {
+      *said = true;
+      spdlog::info("reached --max-splats {}: densification stops growing here (step {})", budget, p.step);
+    }
+    line(p);
+  };
+  o.training.background = {a.background[0], a.background[1], a.background[2]};
   o.height = a.height;
   o.eval = a.eval;
   o.max_splats = a.max_splats;
@@ -143,7 +157,7 @@ void run(const ReconstructArgs& a) {
       a.previews.empty() ? out.parent_path() / (out.stem().string() + "-previews") : fs::path(a.previews);
   spdlog::info("[4/4] previews of the {} in {}", a.eval ? "held-out views" : "training views", previews.string());
   write_previews(previews, r.gaussians.to(torch::kCPU),
-                 working_views(a.eval ? scene.test_views : scene.views, o.height));
+                 working_views(a.eval ? scene.test_views : scene.views, o.height), o.training.background);
   const fs::path report_path = out.parent_path() / (out.stem().string() + ".json");
   write_file_atomic(report_path, report.dump(2) + "\n");
   if (a.json) {
@@ -173,7 +187,7 @@ Examples:
   instainpaint reconstruct CAPTURE --eval --steps 3000 --out scene.ply        # every 8th view scored
   instainpaint reconstruct CAPTURE --resume scene.checkpoint.json --out scene.ply
   instainpaint reconstruct CAPTURE --eval --start other-trainer.ply --steps 0  # score a splat file
-  instainpaint fill --splats scene.ply --scene CAPTURE --view 12 --click 400,300 --out filled.ply)");
+  instainpaint fill scene.ply --scene CAPTURE --view 12 --click 400,300 --out filled.ply)");
   cmd->add_option("SCENE", a->scene_dir, "The capture's folder (as --scene)")->check(CLI::ExistingDirectory);
   add_scene_options(cmd, a->scene_dir, a->scene);
   cmd->get_option("--scene")->required(false);
@@ -219,6 +233,12 @@ Examples:
   cmd->add_option("--write-colmap", a->write_colmap,
                   "Also write the training views at the working size and the start points as a COLMAP folder (the "
                   "same start for another trainer)");
+  cmd->add_option("--background", a->background,
+                  "The colour behind the splats, r,g,b in [0, 1], in training, scores and previews (to score another "
+                  "trainer's splats: the colour it trained with)")
+      ->delimiter(',')
+      ->expected(3)
+      ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--previews", a->previews, "Folder of the previews (default: OUT's name + -previews)");
   cmd->add_flag("--json", a->json, "Print the report as JSON");
   add_runtime_options(cmd, a->runtime);

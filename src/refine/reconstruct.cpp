@@ -170,12 +170,15 @@ GaussianSet gaussians_from_points(const StartPoints& start) {
   return g;
 }
 
-std::vector<ViewScore> score_views(const GaussianSet& gaussians, const std::vector<PreparedView>& views) {
+std::vector<ViewScore> score_views(const GaussianSet& gaussians, const std::vector<PreparedView>& views,
+                                   const std::array<float, 3>& background) {
+  RenderOptions look;
+  look.background = background;
   torch::NoGradGuard no_grad;
   std::vector<ViewScore> scores;
   for (const PreparedView& v : views) {
     const torch::Tensor drawn =
-        render(gaussians, {v.camera}).rgb.clamp(0, 1).permute({2, 0, 1}).unsqueeze(0).to(torch::kCPU, torch::kFloat32);
+        render(gaussians, {v.camera}, look).rgb.clamp(0, 1).permute({2, 0, 1}).unsqueeze(0).to(torch::kCPU, torch::kFloat32);
     const torch::Tensor truth = image_to_tensor(v.rgb);
     scores.push_back({v.name, psnr(drawn, truth).item<double>(), ssim(drawn, truth).item<double>()});
   }
@@ -238,7 +241,7 @@ ReconstructResult reconstruct_scene(const Scene& scene, const ReconstructOptions
 
   const std::vector<PreparedView>& scored = options.eval ? held : training;
   for (const PreparedView& v : held) r.held_out.push_back(v.name);
-  r.scores = score_views(r.gaussians, scored);
+  r.scores = score_views(r.gaussians, scored, o.background);
   for (const ViewScore& s : r.scores) {
     r.mean_psnr += s.psnr / static_cast<double>(r.scores.size());
     r.mean_ssim += s.ssim / static_cast<double>(r.scores.size());

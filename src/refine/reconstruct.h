@@ -68,8 +68,9 @@ struct ViewScore {
   double psnr = 0, ssim = 0;
 };
 // PSNR and SSIM of the Gaussians' render from each view against its picture (3DGS's eval: the
-// whole picture, white background).
-std::vector<ViewScore> score_views(const GaussianSet& gaussians, const std::vector<PreparedView>& views);
+// whole picture, on `background`: the colour the Gaussians were trained in front of).
+std::vector<ViewScore> score_views(const GaussianSet& gaussians, const std::vector<PreparedView>& views,
+                                   const std::array<float, 3>& background = {1.f, 1.f, 1.f});
 
 struct ReconstructResult {
   GaussianSet gaussians;  // the scene's frame, SH of the training's degree

@@ -330,12 +330,12 @@ std::vector<Target> take_held_out(std::vector<Target>& targets, int every) {
 
 // PSNR of `drawn` over the image's own pixels (outside its mask) of every held-out view at full
 // size, pooled.
-double held_out_psnr(const GaussianSet& drawn, const std::vector<Target>& held) {
+double held_out_psnr(const GaussianSet& drawn, const std::vector<Target>& held, const RenderOptions& look) {
   torch::NoGradGuard no_grad;
   double squared = 0, count = 0;
   for (const Target& t : held) {
     const Level& l = t.levels[0];
-    const torch::Tensor rgb = render(drawn, l.camera).rgb.permute({2, 0, 1}).unsqueeze(0);
+    const torch::Tensor rgb = render(drawn, l.camera, look).rgb.permute({2, 0, 1}).unsqueeze(0);
     squared += ((rgb - l.rgb) * t.scored).square().sum().item<double>();
     count += 3 * t.scored.sum().item<double>();
   }
@@ -375,6 +375,8 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   const bool optimise = refine_requested(options);
   const std::vector<Target> held =
       optimise ? take_held_out(targets, options.hold_out_every) : std::vector<Target>{};
+  RenderOptions look;
+  look.background = options.background;
   RefineResult result;
   result.steps = options.first_step;
   for (const Target& t : targets) result.views.push_back(t.name);
@@ -384,7 +386,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   GaussianSet start = start_set.to(device);
   if (!held.empty()) {
     result.start_psnr = held_out_psnr(
-        options.whole_start.size() > 0 ? options.whole_start : with_fixed(start, options.fixed), held);
+        options.whole_start.size() > 0 ? options.whole_start : with_fixed(start, options.fixed), held, look);
   }
   if (optimise && options.cover) {
     const GaussianSet added = cover_uncovered(start, targets);
@@ -441,7 +443,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   double best_psnr = result.start_psnr;
   auto score = [&](int step) {
     const GaussianSet now = snapshot(p.gaussians(options.sh_degree));
-    const double psnr = held_out_psnr(with_fixed(now, options.fixed), held);
+    const double psnr = held_out_psnr(with_fixed(now, options.fixed), held, look);
     result.iterates.push_back({step, psnr});
     if (psnr > best_psnr) {
       best_psnr = psnr;
@@ -476,7 +478,7 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
 
     // Unsupervised pixels are zero in both images: no gradient flows from them, and the SSIM
     // windows that reach into them see the same values on both sides.
-    torch::Tensor rgb = render(drawn(degree), t.camera).rgb.permute({2, 0, 1}).unsqueeze(0);
+    torch::Tensor rgb = render(drawn(degree), t.camera, look).rgb.permute({2, 0, 1}).unsqueeze(0);
     if (exposure.defined() && view > 0) {
       const torch::Tensor map = exposure[static_cast<int64_t>(view) - 1];
       rgb = (map.narrow(1, 0, 3).matmul(rgb.reshape({3, -1})) + map.narrow(1, 3, 1)).reshape(rgb.sizes());

@@ -54,6 +54,7 @@ struct RefineOptions {
   int steps = 300;           // how long, unless time_budget_s is set
   double time_budget_s = 0;  // > 0: optimise until this many seconds have passed (steps is then ignored)
   double ssim_weight = 0.2;  // λ
+  std::array<float, 3> background{1.f, 1.f, 1.f};  // behind the Gaussians in every render of the run
   uint64_t seed = 0;         // the order the views are visited in
   // 0: one colour per Gaussian (as the network predicts); 1-3: view-dependent colour, SH
   // coefficients up to this degree fitted from zero (3DGS's rate: colour_lr / 20), one degree
