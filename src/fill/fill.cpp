@@ -667,7 +667,7 @@ FillResult fill_splats(const SplatCloud& cloud, const FillOptions& options, cons
                                           : fmt::format("{} click{} on view {} ({})", options.clicks.size(),
                                                         options.clicks.size() == 1 ? "" : "s", options.stroke_view,
                                                         options.segmenter ? "the segmenter's outline"
-                                                                          : "colour growth over the splats");
+                                                                          : "colour growth in the render");
   stages.lap("select region");
 
   torch::NoGradGuard no_grad;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 #include <fstream>
 
 #include "camera/trajectory.h"
@@ -173,6 +174,31 @@ TEST(FillRegion, AClickSelectsTheObjectAndNotWhatItStandsOn) {
   EXPECT_EQ(wall, 0);
   EXPECT_EQ(error_message([&] { region_from_clicks(with, camera, "cam", {{-1, 5}}); }),
             "the click (-1, 5) is outside view cam's image (96x72)");
+}
+
+// A trained file's splats are translucent and unlike in colour splat by splat (3DGS, reconstruct):
+// growing over them stops at once. The click is then taken in their render as in a photo: the box
+// again, and nothing of the wall.
+TEST(FillRegion, AClickOnTranslucentSplatsSelectsTheObjectInTheirRender) {
+  SplatCloud with = room(true, false);
+  std::mt19937 rng(17);
+  std::normal_distribution<float> jitter(0.f, 0.35f);
+  for (float& l : with.opacity_logit) l = -1.2f;  // opacity 0.23
+  for (float& s : with.log_scales) s += std::log(1.6f);
+  for (float& dc : with.sh_dc) dc += jitter(rng);
+  const Camera camera = camera_at({0, 0.9, 1.6}, 192, 144);
+  const std::optional<PixelOfPoint> front = pixel_of_point(camera.K, camera.w2c_opencv(), {0.05, 0.2, 0.2});
+  ASSERT_TRUE(front);
+  const RegionMask picked = region_from_clicks(with, camera, "cam", {{front->x + 0.5, front->y + 0.5}});
+  const RegionMask truth = region_in_box(with, kObjectBox);
+  int64_t both = 0, wall = 0;
+  for (size_t i = 0; i < truth.size(); ++i) {
+    both += truth[i] && picked[i];
+    wall += picked[i] && with.means[3 * i + 2] < -1.4f;
+  }
+  EXPECT_GT(double(both) / double(region_count(truth)), 0.9) << both << " of " << region_count(truth);
+  EXPECT_GT(double(both) / double(region_count(picked)), 0.7) << region_count(picked) << " picked";
+  EXPECT_EQ(wall, 0);
 }
 
 // With a segmenter (the small MobileSAM-layout fixture of tests/segment), a click prompts it on
