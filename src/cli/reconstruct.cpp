@@ -73,7 +73,8 @@ ReconstructOptions options_of(const ReconstructArgs& a, const Runtime& runtime) 
   o.training.progress = [line, said, budget = a.max_splats](const RefineProgress& p) {
     if (!*said && p.gaussians >= budget) {
       *said = true;
-      spdlog::info("reached --max-splats {}: densification stops growing here (step {})", budget, p.step);
+      spdlog::info("{} splats at step {}: --max-splats {} reached, densification adds no more", p.gaussians, p.step,
+                   budget);
     }
     line(p);
   };

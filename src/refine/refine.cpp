@@ -438,6 +438,11 @@ RefineResult refine_gaussians(const GaussianSet& start_set, const std::vector<Re
   double loop_start = 0;
   double views_seen = 0;  // full-resolution views' worth of pixels visited
   size_t next_reset = 0;  // into options.opacity_resets
+  // A run continued has had the resets before its start (one at exactly its start is still due).
+  const double start_fraction = budget > 0          ? options.first_fraction
+                                : options.steps > 0 ? double(options.first_step) / options.steps
+                                                    : 0;
+  while (next_reset < options.opacity_resets.size() && options.opacity_resets[next_reset] < start_fraction) ++next_reset;
   // The best scored so far on the held-out views: the start, then iterates that beat it.
   GaussianSet best;
   double best_psnr = result.start_psnr;

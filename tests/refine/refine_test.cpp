@@ -302,6 +302,21 @@ TEST(Refine, DensifyingAddsGaussiansAndPruningRemovesTransparentOnes) {
   EXPECT_EQ(r.gaussians.size(), 40);
 }
 
+// A run continued from a checkpoint (reconstruct --resume) continues its schedule: the resets
+// before its start were done before it; one still ahead comes; its step count goes on from there.
+TEST(Refine, ARunContinuedPastAResetDoesNotResetAgain) {
+  RefineOptions o = few_steps(60);
+  o.densify.enabled = true;
+  o.densify.grad_threshold = 1e9;
+  o.opacity_resets = {0.25, 0.75};
+  o.opacity_lr = 0;
+  o.first_step = 30;
+  const RefineResult r = refine_gaussians(grid(0.25f), views_of(grid()), o);
+  EXPECT_EQ(r.steps, 60);
+  EXPECT_EQ(r.losses.size(), 30u);
+  EXPECT_EQ(r.opacity_resets, 1);  // 0.75 alone
+}
+
 TEST(Refine, AnOpacityResetLowersEveryOpacityAndTheViewsBringThemBack) {
   RefineOptions o = few_steps(60);
   o.densify.enabled = true;
