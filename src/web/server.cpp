@@ -43,6 +43,7 @@
 #include "model/default_model.h"
 #include "models/cache.h"
 #include "models/download.h"
+#include "refine/reconstruct.h"
 #include "refine/refine.h"
 #include "render/frames.h"
 #include "render/rasterizer.h"
@@ -191,7 +192,7 @@ void send_file(const httplib::Request& req, httplib::Response& res, const fs::pa
 // The last job's state, as GET /api/job returns it.
 struct Job {
   int id = 0;
-  std::string kind;             // "masks", "edit", "video", "eval" or "reconstruct"
+  std::string kind;             // "masks", "edit", "video", "eval", "reconstruct" or "train"
   std::string state = "idle";   // "running", "done", "failed"
   std::string stage;
   double progress = 0;          // 0..1
@@ -208,13 +209,13 @@ struct Job {
 
 // What a job request asks for, checked before any work starts.
 struct JobRequest {
-  std::string kind;  // "masks", "edit", "video", "eval", "reconstruct"
+  std::string kind;  // "masks", "edit", "video", "eval", "reconstruct", "train"
   // masks, edit:
   int view = -1;
   EditMode mode = EditMode::Remove;
   Image region;                    // the uploaded mask, checked against the view
   std::optional<Image> reference;  // the uploaded inpainted reference (fill: of the painted view)
-  RefineOptions refine = refine_setting("0");
+  RefineOptions refine = refine_setting("0");  // train: how long
   // video, eval: the PLY, one the server serves; fill: the splats to fill (a served file, or a
   // job's standard PLY), and the region: a box, or `region` drawn on `camera`
   fs::path ply;
@@ -453,6 +454,7 @@ struct WebServer::State {
   // with standard_ply, that job's standard PLY whichever of its files was named), or empty.
   fs::path splats_of_url(const std::string& url, bool standard_ply) const;
   std::optional<Refusal> parse_export(const httplib::Request& req, JobRequest& job) const;
+  std::optional<Refusal> parse_train(const httplib::Request& req, JobRequest& job) const;
   std::optional<Refusal> parse_fill(const httplib::Request& req, JobRequest& fill, const fs::path& dir) const;
   // A file a job wrote, from its URL path below /api/jobs/ ("3/gaussians.ply"); empty when
   // it is not one (or leads outside `out`).
@@ -466,6 +468,9 @@ struct WebServer::State {
   json run_video(const JobRequest& job, const fs::path& dir, int id,
                  const std::function<void(const std::string&, double)>& stage);
   json run_eval(const JobRequest& job, const fs::path& dir, int id);
+  // 3DGS of the whole capture (refine/reconstruct.h) at the page's working height.
+  json run_train(const JobRequest& job, const fs::path& dir, int id,
+                 const std::function<void(const std::string&, double)>& stage, StageTimes& stages, BehindSteps& behind);
   json run_reconstruction(const fs::path& dir, int id, const std::function<void(const std::string&, double)>& stage,
                           StageTimes& stages, BehindSteps& behind);
   json run_fill(const JobRequest& fill, const fs::path& dir, int id,
@@ -616,6 +621,21 @@ std::optional<Refusal> WebServer::State::parse_export(const httplib::Request& re
   if (job.ply.empty()) return Refusal{400, fmt::format("ply must be the URL of a PLY this server serves, not '{}'", url)};
   if (job.kind == "eval" && scene->test_views.empty())
     return Refusal{400, "the scene has no test views to evaluate on (SPIn-NeRF test_label/, or serve --hold-out-every N)"};
+  return std::nullopt;
+}
+
+// The form's `length`: fast, balanced, best, a time up to 20 minutes or up to 30,000 steps.
+std::optional<Refusal> WebServer::State::parse_train(const httplib::Request& req, JobRequest& job) const {
+  const std::string text = req.has_file("length") ? req.get_file_value("length").content
+                           : req.has_param("length") ? req.get_param_value("length")
+                                                     : "fast";
+  try {
+    job.refine = refine_setting(text);
+  } catch (const Error& e) {
+    return Refusal{400, e.what()};
+  }
+  if (job.refine.time_budget_s > 1200 || job.refine.steps > 30000 || !refine_requested(job.refine))
+    return Refusal{400, fmt::format("length '{}': the page trains for at most 20 minutes or 30,000 steps", text)};
   return std::nullopt;
 }
 
@@ -937,6 +957,36 @@ json WebServer::State::write_cloud_of(std::shared_ptr<const SplatCloud> cloud, c
   return result;
 }
 
+json WebServer::State::run_train(const JobRequest& job, const fs::path& dir, int id,
+                                 const std::function<void(const std::string&, double)>& stage, StageTimes& stages,
+                                 BehindSteps& behind) {
+  ReconstructOptions o;
+  o.training = reconstruct_training(job.refine);
+  o.height = options.height;
+  o.device = predictor ? render_device(predictor->device()) : torch::Device(torch::kCPU);
+  int shown = -1;
+  o.training.progress = [&](const RefineProgress& p) {
+    if (static_cast<int>(p.fraction * 100) == shown) return;
+    shown = static_cast<int>(p.fraction * 100);
+    stage(fmt::format("training the whole capture: step {}, {} splats (loss {:.4f}), {:.0f} s left", p.step,
+                      p.gaussians, p.loss, p.eta_s),
+          0.05 + 0.85 * p.fraction);
+  };
+  stage("training the whole capture: its start points", 0.02);
+  stages.restart_lap();
+  const ReconstructResult r = reconstruct_scene(*scene, o);
+  stages.lap("train the splats (3DGS)");
+  stage("writing the splats", 0.95);
+  // In the capture's own frame already.
+  auto cloud = std::make_shared<const SplatCloud>(
+      stages.time("splats to a file's values (host)", [&] { return splats_from_gaussians(r.gaussians.to(torch::kCPU)); }));
+  json result = write_cloud_of(cloud, dir, id, stages, behind);
+  json report = reconstruct_report(r, o);
+  report.erase("views");
+  result["trained"] = report;
+  return result;
+}
+
 json WebServer::State::run_reconstruction(const fs::path& dir, int id,
                                           const std::function<void(const std::string&, double)>& stage,
                                           StageTimes& stages, BehindSteps& behind) {
@@ -1080,6 +1130,8 @@ void WebServer::State::run_job(JobRequest request, fs::path dir) {
       result = run_eval(request, dir, id);
     } else if (request.kind == "reconstruct") {
       result = run_reconstruction(dir, id, stage, *stages, behind);
+    } else if (request.kind == "train") {
+      result = run_train(request, dir, id, stage, *stages, behind);
     } else if (request.kind == "fill") {
       result = run_fill(request, dir, id, stage, *stages, behind);
     } else {
@@ -1408,6 +1460,7 @@ void serve_jobs(WebServer::State& s) {
       try {
         refusal = kind == "video" || kind == "eval" ? s.parse_export(req, request)
                   : kind == "fill"                     ? s.parse_fill(req, request, dir)
+                  : kind == "train"                    ? s.parse_train(req, request)
                                                        : s.parse_edit(req, request, dir);
       } catch (const std::exception& e) {
         refusal = Refusal{400, e.what()};
@@ -1421,7 +1474,8 @@ void serve_jobs(WebServer::State& s) {
       reply(res, 202, {{"job", id}});
     };
   };
-  for (const char* kind : {"masks", "edit", "video", "eval", "fill"}) http.Post(std::string("/api/") + kind, start_job(kind));
+  for (const char* kind : {"masks", "edit", "video", "eval", "fill", "train"})
+    http.Post(std::string("/api/") + kind, start_job(kind));
   // Not a job: answered at once, beside a running job.
   http.Post("/api/select", [&s](const httplib::Request& req, httplib::Response& res) {
     wait_for_job_splats(s, req);

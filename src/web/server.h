@@ -29,6 +29,9 @@
 //                                  pixels, width, height, runs (the view's pixels row by row,
 //                                  alternately outside and inside the selection), ms}; ply alone:
 //                                  the splats read ahead of the clicks ({total})
+//   POST /api/train                length=fast|balanced|best|TIME|STEPS (at most 20 minutes or 30,000
+//                                  steps): 3D Gaussian splatting of the whole capture (reconstruct),
+//                                  a job; result.splats as an edit's, result.trained its report
 //   POST /api/video, /api/eval     ply=<a served splat file's URL>: an orbit video (a job), the
 //                                  SPIn-NeRF evaluation on the scene's test views (a job)
 //   GET  /api/job[?wait=<id>]      the current or last job: state, stage, progress, result, and

@@ -249,16 +249,21 @@ let showingBefore = true;
 function listPlys(plys) {
   const box = $("plys");
   box.textContent = plys.length ? "" : "none given (serve --ply FILE)";
-  plys.forEach((p) => {
-    const b = document.createElement("button");
-    b.textContent = p.name;
-    b.onclick = async () => {
-      beforeUrl = p.url;
-      await showPly(p.url);
-      setActive("before");
-    };
-    box.appendChild(b);
-  });
+  plys.forEach(addPly);
+}
+
+// One more splat file to show (its button shows it as the scene "with object").
+function addPly(p) {
+  const box = $("plys");
+  if (!box.querySelector("button")) box.textContent = "";
+  const b = document.createElement("button");
+  b.textContent = p.name;
+  b.onclick = async () => {
+    beforeUrl = p.url;
+    await showPly(p.url);
+    setActive("before");
+  };
+  box.appendChild(b);
 }
 
 // Downloads of the splats on screen: a job's in both formats, a served file as it is.
@@ -617,6 +622,24 @@ async function runExport(kind) {
   $("exports").append(link, " ");
   status(`job ${job.id} done`);
 }
+// 3D Gaussian splatting of the whole capture (the server's `reconstruct`), for a capture walked
+// around its object, which the network predicts only near its reference: the trained splats
+// replace those on screen, ready for a click and Fill.
+async function runTrain() {
+  const job = await startAndWait("/api/train", new URLSearchParams({ length: $("train-length").value }));
+  if (!job) return;
+  api.lastTrain = job;
+  beforeUrl = job.result.splats;
+  await showPly(beforeUrl);
+  setActive("before");
+  setDownloads();
+  addPly({ name: `trained splats (job ${job.id})`, url: job.result.splats });
+  $("fill-panel").hidden = !api.info.filling;
+  const t = job.result.trained;
+  status(`job ${job.id} done: ${t.splats} splats trained in ${t.training.steps} steps, ${job.seconds.toFixed(0)} s ` +
+    `(PSNR ${t.psnr.toFixed(2)} dB over the training views)`);
+}
+$("train").onclick = runTrain;
 $("video").onclick = () => runExport("video");
 $("eval").onclick = () => runExport("eval");
 $("preview").onclick = () => runJob("/api/masks");
@@ -941,6 +964,7 @@ async function start() {
   }
   if (reconstruction?.result?.splats) listPlys([first]);  // not "none given": the scene's own
   $("fill-panel").hidden = !info.filling || !first;
+  $("train-panel").hidden = !info.scene;
   if (info.inpainter?.name === "lama") {  // serve --inpainter: LaMa paints Run's reference and Fill's hole
     $("reference-default").textContent = `(none: ${info.inpainter.network})`;
     const lama = document.createElement("option");
