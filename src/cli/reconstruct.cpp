@@ -214,7 +214,7 @@ Examples:
                 "Hold out every eighth view (0, 8, 16, ...: 3DGS's and gsplat's eval) and score it (PSNR, SSIM); "
                 "without it every view trains and the training views are scored");
   cmd->add_option("--max-splats", a->max_splats,
-                  "Densification stops at this many splats (memory: about 5 kB a splat on the CPU at 800x600)")
+                  "Densification adds no splat past this many (the memory a run needs grows with them)")
       ->capture_default_str()
       ->check(CLI::Range(int64_t{1000}, int64_t{100000000}));
   cmd->add_option("--sh-degree", a->sh_degree, "Spherical harmonics degree (0: one colour per splat)")

@@ -155,20 +155,35 @@ TEST(FillRegion, AStrokeSelectsTheSurfaceItCoversAndWhatIsBehindIt) {
             "--mask: the stroke covers no surface of the scene in this view (nothing is drawn there)");
 }
 
+// One click on the front of the room's box from `camera`: what it selects, the box's splats, how many
+// of them it selects and how many of the back wall's.
+struct ClickOnTheBox {
+  RegionMask picked, truth;
+  int64_t both = 0, wall = 0;
+};
+ClickOnTheBox click_on_the_box(const SplatCloud& with, const Camera& camera) {
+  ClickOnTheBox c;
+  const std::optional<PixelOfPoint> front = pixel_of_point(camera.K, camera.w2c_opencv(), {0.05, 0.2, 0.2});
+  EXPECT_TRUE(front);
+  if (!front) return c;
+  c.picked = region_from_clicks(with, camera, "cam", {{front->x + 0.5, front->y + 0.5}});
+  c.truth = region_in_box(with, kObjectBox);
+  for (size_t i = 0; i < c.truth.size(); ++i) {
+    c.both += c.truth[i] && c.picked[i];
+    c.wall += c.picked[i] && with.means[3 * i + 2] < -1.4f;
+  }
+  return c;
+}
+
 // One click on the box: its splats, all of them (its hidden back too), and little of the floor it
 // stands on (what the box's outline hides of it) and nothing of the wall behind it.
 TEST(FillRegion, AClickSelectsTheObjectAndNotWhatItStandsOn) {
   const SplatCloud with = room(true, false);
   const Camera camera = camera_at({0, 0.9, 1.6});
-  const std::optional<PixelOfPoint> front = pixel_of_point(camera.K, camera.w2c_opencv(), {0.05, 0.2, 0.2});
-  ASSERT_TRUE(front);
-  const RegionMask picked = region_from_clicks(with, camera, "cam", {{front->x + 0.5, front->y + 0.5}});
-  const RegionMask truth = region_in_box(with, kObjectBox);
-  int64_t both = 0, wall = 0;
-  for (size_t i = 0; i < truth.size(); ++i) {
-    both += truth[i] && picked[i];
-    wall += picked[i] && with.means[3 * i + 2] < -1.4f;
-  }
+  const ClickOnTheBox c = click_on_the_box(with, camera);
+  const RegionMask& picked = c.picked;
+  const RegionMask& truth = c.truth;
+  const int64_t both = c.both, wall = c.wall;
   EXPECT_EQ(both, region_count(truth));
   EXPECT_GT(double(both) / double(region_count(picked)), 0.75);
   EXPECT_EQ(wall, 0);
@@ -187,15 +202,10 @@ TEST(FillRegion, AClickOnTranslucentSplatsSelectsTheObjectInTheirRender) {
   for (float& s : with.log_scales) s += std::log(1.6f);
   for (float& dc : with.sh_dc) dc += jitter(rng);
   const Camera camera = camera_at({0, 0.9, 1.6}, 192, 144);
-  const std::optional<PixelOfPoint> front = pixel_of_point(camera.K, camera.w2c_opencv(), {0.05, 0.2, 0.2});
-  ASSERT_TRUE(front);
-  const RegionMask picked = region_from_clicks(with, camera, "cam", {{front->x + 0.5, front->y + 0.5}});
-  const RegionMask truth = region_in_box(with, kObjectBox);
-  int64_t both = 0, wall = 0;
-  for (size_t i = 0; i < truth.size(); ++i) {
-    both += truth[i] && picked[i];
-    wall += picked[i] && with.means[3 * i + 2] < -1.4f;
-  }
+  const ClickOnTheBox c = click_on_the_box(with, camera);
+  const RegionMask& picked = c.picked;
+  const RegionMask& truth = c.truth;
+  const int64_t both = c.both, wall = c.wall;
   EXPECT_GT(double(both) / double(region_count(truth)), 0.9) << both << " of " << region_count(truth);
   EXPECT_GT(double(both) / double(region_count(picked)), 0.7) << region_count(picked) << " picked";
   EXPECT_EQ(wall, 0);
