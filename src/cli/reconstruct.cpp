@@ -90,7 +90,7 @@ ReconstructOptions options_of(const ReconstructArgs& a, const Runtime& runtime) 
 void resume_from(const ReconstructArgs& a, const Scene& scene, ReconstructOptions& o) {
   const fs::path record = a.resume;
   const ReconstructCheckpoint c = parse_checkpoint(read_file_text(record), record.string());
-  const std::string here = scene_fingerprint(working_views(scene.views, o.height));
+  const std::string here = scene_fingerprint(scene.views, o.height);
   if (c.fingerprint != here)
     fail("--resume {}: the checkpoint is of other views (another scene, --height, --eval or --images): {} here, {} "
          "there",
@@ -127,7 +127,7 @@ void run(const ReconstructArgs& a) {
   }
 
   // Checkpoints beside OUT: the Gaussians as a splat file, then the record naming the step.
-  const std::string fingerprint = scene_fingerprint(working_views(scene.views, o.height));
+  const std::string fingerprint = scene_fingerprint(scene.views, o.height);
   o.training.checkpoint_every = a.checkpoint_every;
   const RefineOptions length = o.training;
   o.training.checkpoint = [&, length](int step, const GaussianSet& g) {

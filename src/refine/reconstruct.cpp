@@ -185,18 +185,18 @@ std::vector<ViewScore> score_views(const GaussianSet& gaussians, const std::vect
   return scores;
 }
 
-std::string scene_fingerprint(const std::vector<PreparedView>& views) {
-  // FNV-1a over each view's name, size and pose, printed to 9 digits (enough to tell scenes apart).
+std::string scene_fingerprint(const std::vector<View>& views, int height) {
+  // FNV-1a over the height and each view's name, photo size and pose, printed to 9 digits.
   uint64_t h = 1469598103934665603ull;
   auto mix = [&](const std::string& text) {
     for (unsigned char ch : text) h = (h ^ ch) * 1099511628211ull;
   };
-  for (const PreparedView& v : views) {
+  mix(fmt::format("height {}", height));
+  for (const View& v : views) {
     mix(v.name);
-    mix(fmt::format("{}x{}", v.rgb.width, v.rgb.height));
-    const Eigen::Matrix4d& c2w = v.camera.c2w;
+    mix(fmt::format("{}x{}", v.camera.K.width, v.camera.K.height));
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 4; ++c) mix(fmt::format("{:.9g}", c2w(r, c)));
+      for (int c = 0; c < 4; ++c) mix(fmt::format("{:.9g}", v.camera.c2w(r, c)));
   }
   return fmt::format("{:016x}", h);
 }

@@ -88,9 +88,10 @@ ReconstructResult reconstruct_scene(const Scene& scene, const ReconstructOptions
 // run.json's record of a reconstruction.
 nlohmann::json reconstruct_report(const ReconstructResult& result, const ReconstructOptions& options);
 
-// What a checkpoint is of: the training views' names and cameras, so that --resume refuses a
-// checkpoint of another scene (or of another working size or hold-out).
-std::string scene_fingerprint(const std::vector<PreparedView>& views);
+// What a checkpoint is of: the training views' names, photo sizes and poses and the working
+// height (from the scene's records: no photo decoded), so that --resume refuses a checkpoint of
+// another scene, working size or hold-out.
+std::string scene_fingerprint(const std::vector<View>& views, int height);
 
 // The training views at their working size as a COLMAP folder (DIR/images/*.png, DIR/sparse/0
 // with PINHOLE cameras, the views' poses and the start points with their colours): the same
