@@ -23,7 +23,8 @@ ReconstructCheckpoint parse_checkpoint(const std::string& text, const std::strin
   const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
   if (j.is_discarded() || !j.is_object())
     fail("{}: not a reconstruct checkpoint (not a JSON object)", file);
-  if (j.value("format", "") != "instainpaint reconstruct checkpoint")
+  if (!j.contains("format") || !j["format"].is_string() ||
+      j["format"].get<std::string>() != "instainpaint reconstruct checkpoint")
     fail("{}: not a reconstruct checkpoint (its \"format\" is not \"instainpaint reconstruct checkpoint\")", file);
   auto number = [&](const char* key, double low, double high) {
     if (!j.contains(key) || !j[key].is_number()) fail("{}: the checkpoint has no number \"{}\"", file, key);

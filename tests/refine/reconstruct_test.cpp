@@ -165,6 +165,8 @@ TEST(Reconstruct, CheckpointRecordsRoundTripAndBadOnesAreRefused) {
   EXPECT_EQ(back.seed, 7u);
   EXPECT_EQ(test::error_message([] { parse_checkpoint("[1, 2", "c.json"); }),
             "c.json: not a reconstruct checkpoint (not a JSON object)");
+  EXPECT_EQ(test::error_message([] { parse_checkpoint("{\"format\": 3}", "c.json"); }),
+            "c.json: not a reconstruct checkpoint (its \"format\" is not \"instainpaint reconstruct checkpoint\")");
   EXPECT_EQ(test::error_message([] { parse_checkpoint("{\"format\": \"splat\"}", "c.json"); }),
             "c.json: not a reconstruct checkpoint (its \"format\" is not \"instainpaint reconstruct checkpoint\")");
   nlohmann::json j = nlohmann::json::parse(checkpoint_json(c));
