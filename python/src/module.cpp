@@ -519,9 +519,7 @@ NB_MODULE(_core, m) {
            int sh_degree, uint64_t seed, const PyGaussians* start, const std::string& device,
            const std::function<void(int, double, double, double, int64_t)>& progress) {
           ReconstructOptions o;
-          RefineOptions run = steps >= 0 ? RefineOptions{} : refine_setting(length);
-          if (steps >= 0) run.steps = steps, run.time_budget_s = 0;
-          o.training = reconstruct_training(run);
+          o.training = reconstruct_training(length, steps);
           o.training.sh_degree = sh_degree;
           o.training.seed = seed;
           if (progress)

@@ -45,15 +45,16 @@ fs::path checkpoint_path(const fs::path& out, const char* extension) {
 }
 
 // Truth beside render for each scored view (at most 8), one PNG each: what the scores say, seen.
-void write_previews(const fs::path& dir, const GaussianSet& g, const std::vector<PreparedView>& views,
+void write_previews(const fs::path& dir, const GaussianSet& g, const std::vector<View>& views, int height,
                     const std::array<float, 3>& background) {
   torch::NoGradGuard no_grad;
   RenderOptions look;
   look.background = background;
   fs::create_directories(dir);
+  std::vector<View> shown;  // only those decoded
   const size_t every = std::max<size_t>(1, (views.size() + 7) / 8);
-  for (size_t i = 0; i < views.size(); i += every) {
-    const PreparedView& v = views[i];
+  for (size_t i = 0; i < views.size(); i += every) shown.push_back(views[i]);
+  for (const PreparedView& v : working_views(shown, height)) {
     const torch::Tensor drawn = render(g, {v.camera}, look).rgb.clamp(0, 1).to(torch::kCPU, torch::kFloat32);
     const torch::Tensor truth = image_to_tensor(v.rgb)[0].permute({1, 2, 0});
     write_png(dir / (v.name + ".png"), image_from_hwc(torch::cat({truth, drawn}, 1).contiguous()));
@@ -62,9 +63,7 @@ void write_previews(const fs::path& dir, const GaussianSet& g, const std::vector
 
 ReconstructOptions options_of(const ReconstructArgs& a, const Runtime& runtime) {
   ReconstructOptions o;
-  RefineOptions length = a.steps >= 0 ? RefineOptions{} : refine_setting(a.length);
-  if (a.steps >= 0) length.steps = a.steps, length.time_budget_s = 0;
-  o.training = reconstruct_training(length);
+  o.training = reconstruct_training(a.length, a.steps);
   o.training.sh_degree = a.sh_degree;
   o.training.seed = a.seed;
   // The progress line, and once, when densification reaches the budget, that it stops growing there.
@@ -121,7 +120,9 @@ void run(const ReconstructArgs& a) {
 
   if (!a.write_colmap.empty()) {
     const std::vector<PreparedView> views = working_views(scene.views, o.height);
-    write_colmap_start(a.write_colmap, views, start_points(scene, views));
+    const StartPoints points = start_points(scene, views);
+    write_colmap_start(a.write_colmap, views, points);
+    if (!o.start) o.points = points;  // the same start for both trainers, made once
     spdlog::info("wrote the {} training views and their start points as a COLMAP folder {}", views.size(),
                  a.write_colmap);
   }
@@ -131,15 +132,15 @@ void run(const ReconstructArgs& a) {
   o.training.checkpoint_every = a.checkpoint_every;
   const RefineOptions length = o.training;
   o.training.checkpoint = [&, length](int step, const GaussianSet& g) {
+    // Runs of --steps alone (see --help), and none at their end: the splat file is the result.
+    if (length.time_budget_s > 0 || step >= length.steps) return;
     ReconstructCheckpoint c;
     c.fingerprint = fingerprint;
     c.step = step;
     c.steps = length.steps;
-    c.time_budget_s = length.time_budget_s;
-    c.fraction = length.time_budget_s > 0 ? 0 : double(step) / std::max(1, length.steps);
+    c.fraction = double(step) / length.steps;
     c.sh_degree = length.sh_degree;
     c.seed = length.seed;
-    if (c.fraction >= 1 || length.time_budget_s > 0) return;  // time budgets: see --steps in --help
     write_splats(checkpoint_path(out, ".ply"), splats_from_gaussians(g.to(torch::kCPU)));
     write_file_atomic(checkpoint_path(out, ".json"), checkpoint_json(c));
   };
@@ -157,8 +158,8 @@ void run(const ReconstructArgs& a) {
   const fs::path previews =
       a.previews.empty() ? out.parent_path() / (out.stem().string() + "-previews") : fs::path(a.previews);
   spdlog::info("[4/4] previews of the {} in {}", a.eval ? "held-out views" : "training views", previews.string());
-  write_previews(previews, r.gaussians.to(torch::kCPU),
-                 working_views(a.eval ? scene.test_views : scene.views, o.height), o.training.background);
+  write_previews(previews, r.gaussians.to(torch::kCPU), a.eval ? scene.test_views : scene.views, o.height,
+                 o.training.background);
   const fs::path report_path = out.parent_path() / (out.stem().string() + ".json");
   write_file_atomic(report_path, report.dump(2) + "\n");
   if (a.json) {

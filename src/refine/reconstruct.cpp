@@ -2,14 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 
 #include <Eigen/Geometry>
 #include <fmt/format.h>
 #include <nanoflann.hpp>
 
 #include "common/error.h"
-#include "common/files.h"
 #include "common/parallel.h"
 #include "common/stopwatch.h"
 #include "data/photo_points.h"
@@ -40,6 +38,12 @@ RefineOptions reconstruct_training(const RefineOptions& length) {
   o.quarter_until = 0.1;
   o.half_until = 0.2;
   return o;
+}
+
+RefineOptions reconstruct_training(const std::string& length, int steps) {
+  RefineOptions run = steps >= 0 ? RefineOptions{} : refine_setting(length);
+  if (steps >= 0) run.steps = steps, run.time_budget_s = 0;
+  return reconstruct_training(run);
 }
 
 std::vector<PreparedView> working_views(const std::vector<View>& views, int height) {
@@ -215,7 +219,7 @@ ReconstructResult reconstruct_scene(const Scene& scene, const ReconstructOptions
     r.start_source = "given Gaussians";
     r.start_points = start.size();
   } else {
-    const StartPoints points = start_points(scene, training);
+    const StartPoints points = options.points ? *options.points : start_points(scene, training);
     start = gaussians_from_points(points);
     r.start_source = points.source;
     r.start_points = static_cast<int64_t>(points.points.size());

@@ -27,6 +27,16 @@ namespace ii {
 // reset every tenth until then, SH raised one degree per tenth up to 3, a quarter and then half
 // resolution for the first tenth and fifth (OpenSplat's and nerfstudio's downscales).
 RefineOptions reconstruct_training(const RefineOptions& length);
+// The same for a length as the command and Python take it: `steps` >= 0 that many steps, else
+// `length` (fast, balanced, best or a time, as refine_setting reads it).
+RefineOptions reconstruct_training(const std::string& length, int steps);
+
+// The points the training starts from and where they came from.
+struct StartPoints {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector3f> colours;  // RGB in [0, 1]
+  std::string source;                    // "COLMAP's points3D", "triangulated from the photos"
+};
 
 struct ReconstructOptions {
   RefineOptions training = reconstruct_training(RefineOptions{});
@@ -37,15 +47,11 @@ struct ReconstructOptions {
   // Start from these Gaussians instead of the capture's points (a run continued, another
   // trainer's output); training.first_step says how far its run got.
   std::optional<GaussianSet> start;
+  // Start from these points (start_points' answer, made already: --write-colmap wrote them).
+  std::optional<StartPoints> points;
   torch::Device device = torch::kCPU;  // where to train
 };
 
-// The points the training starts from and where they came from.
-struct StartPoints {
-  std::vector<Eigen::Vector3d> points;
-  std::vector<Eigen::Vector3f> colours;  // RGB in [0, 1]
-  std::string source;                    // "COLMAP's points3D", "triangulated from the photos"
-};
 
 // The capture's COLMAP points where it has them, else points triangulated from its photos with
 // its own cameras (data/photo_points.h); each coloured by the mean of the working pictures it
