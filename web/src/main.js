@@ -628,7 +628,6 @@ async function runExport(kind) {
 async function runTrain() {
   const job = await startAndWait("/api/train", new URLSearchParams({ length: $("train-length").value }));
   if (!job) return;
-  api.lastTrain = job;
   beforeUrl = job.result.splats;
   await showPly(beforeUrl);
   setActive("before");
@@ -638,6 +637,7 @@ async function runTrain() {
   const t = job.result.trained;
   status(`job ${job.id} done: ${t.splats} splats trained in ${t.training.steps} steps, ${job.seconds.toFixed(0)} s ` +
     `(PSNR ${t.psnr.toFixed(2)} dB over the training views)`);
+  api.lastTrain = job;  // last: the trained splats are on screen by now
 }
 $("train").onclick = runTrain;
 $("video").onclick = () => runExport("video");
