@@ -248,6 +248,7 @@ class Gaussians:
 def reconstruct(scene: Scene, *, preset: str = "balanced", steps: Optional[int] = None, height: int = 0,
                 eval: bool = False, max_splats: int = 1500000, sh_degree: int = 3, seed: int = 0,
                 start: Optional["Gaussians"] = None, device: str = "auto",
+                lpips_vgg: Optional[PathLike] = None,
                 progress: Optional[ProgressCallback] = None) -> "Gaussians":
     """3D Gaussian splatting of the whole capture (as `instainpaint reconstruct`), in its own frame.
 
@@ -255,7 +256,8 @@ def reconstruct(scene: Scene, *, preset: str = "balanced", steps: Optional[int] 
     `start`). preset: "fast" (1 minute), "balanced" (9), "best" (20) or a time ("90s"); steps: a
     number of steps instead. height: rows trained on (0: the photos' own, at most 1600 on the long
     side). eval: score the held-out views: load the scene with hold_out_every=8, keep_object=True.
-    The scores, splat counts and seconds are in the result's reconstruct_report.
+    The scores, splat counts and seconds are in the result's reconstruct_report; LPIPS (VGG) too with
+    lpips_vgg, torchvision's vgg16-397923af.pth (default: $INSTAINPAINT_LPIPS_VGG).
     progress: called after each step with {"step", "fraction", "loss", "eta_s", "gaussians"}.
     """
     call = None
@@ -264,7 +266,7 @@ def reconstruct(scene: Scene, *, preset: str = "balanced", steps: Optional[int] 
             progress({"step": step, "fraction": fraction, "loss": loss, "eta_s": eta_s, "gaussians": count})
     return Gaussians(_core._reconstruct(scene, str(preset), -1 if steps is None else int(steps), height, eval,
                                         max_splats, sh_degree, seed, None if start is None else start._g,
-                                        device, call))
+                                        device, "" if lpips_vgg is None else os.fspath(lpips_vgg), call))
 
 
 def load_gaussians(path: PathLike) -> Gaussians:

@@ -517,8 +517,9 @@ NB_MODULE(_core, m) {
   m.def("_reconstruct",
         [](const Scene& scene, const std::string& length, int steps, int height, bool eval, int64_t max_splats,
            int sh_degree, uint64_t seed, const PyGaussians* start, const std::string& device,
-           const std::function<void(int, double, double, double, int64_t)>& progress) {
+           const std::string& lpips_vgg, const std::function<void(int, double, double, double, int64_t)>& progress) {
           ReconstructOptions o;
+          o.lpips = lpips_scorer(lpips_vgg);
           o.training = reconstruct_training(length, steps);
           o.training.sh_degree = sh_degree;
           o.training.seed = seed;
@@ -543,7 +544,7 @@ NB_MODULE(_core, m) {
           return out;
         },
         "scene"_a, "length"_a, "steps"_a, "height"_a, "eval"_a, "max_splats"_a, "sh_degree"_a, "seed"_a,
-        "start"_a.none(), "device"_a, "progress"_a.none());
+        "start"_a.none(), "device"_a, "lpips_vgg"_a, "progress"_a.none());
 
   m.def("_read_splats", [](const std::string& path) {
     PyGaussians g;

@@ -32,7 +32,7 @@ struct ReconstructArgs {
   int64_t max_splats = 1500000;
   int sh_degree = 3;
   uint64_t seed = 0;
-  std::string start, resume, write_colmap, previews;
+  std::string start, resume, write_colmap, previews, lpips_vgg;
   int checkpoint_every = 1000;
   std::vector<float> background = {1.f, 1.f, 1.f};
   bool json = false;
@@ -82,6 +82,7 @@ ReconstructOptions options_of(const ReconstructArgs& a, const Runtime& runtime) 
   o.eval = a.eval;
   o.max_splats = a.max_splats;
   o.device = runtime.device;
+  o.lpips = lpips_scorer(a.lpips_vgg);  // before the training: a wrong file fails first
   return o;
 }
 
@@ -166,9 +167,10 @@ void run(const ReconstructArgs& a) {
     fmt::print("{}\n", report.dump(2));
     return;
   }
-  fmt::print("{}: {} splats from {} ({} points), {} steps in {:.0f} s; {} {}: PSNR {:.2f} dB, SSIM {:.4f}\n",
+  fmt::print("{}: {} splats from {} ({} points), {} steps in {:.0f} s; {} {}: PSNR {:.2f} dB, SSIM {:.4f}{}\n",
              out.string(), r.gaussians.size(), r.start_source, r.start_points, r.training.steps, r.train_s,
-             r.scores.size(), a.eval ? "held-out views" : "training views", r.mean_psnr, r.mean_ssim);
+             r.scores.size(), a.eval ? "held-out views" : "training views", r.mean_psnr, r.mean_ssim,
+             r.mean_lpips ? fmt::format(", LPIPS {:.4f}", *r.mean_lpips) : std::string());
 }
 
 }  // namespace
@@ -212,8 +214,13 @@ Examples:
       ->capture_default_str()
       ->check(CLI::Range(0, 16384));
   cmd->add_flag("--eval", a->eval,
-                "Hold out every eighth view (0, 8, 16, ...: 3DGS's and gsplat's eval) and score it (PSNR, SSIM); "
+                "Hold out every eighth view (0, 8, 16, ...: 3DGS's and gsplat's eval) and score it (PSNR, SSIM; "
+                "LPIPS with --lpips-vgg); "
                 "without it every view trains and the training views are scored");
+  cmd->add_option("--lpips-vgg", a->lpips_vgg,
+                  "torchvision's VGG16 weights (vgg16-397923af.pth): the scores add LPIPS (VGG, as 3DGS's eval); "
+                  "default $INSTAINPAINT_LPIPS_VGG")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--max-splats", a->max_splats,
                   "Densification adds no splat past this many (the memory a run needs grows with them)")
       ->capture_default_str()
@@ -244,6 +251,10 @@ Examples:
   cmd->add_option("--previews", a->previews, "Folder of the previews (default: OUT's name + -previews)");
   cmd->add_flag("--json", a->json, "Print the report as JSON");
   add_runtime_options(cmd, a->runtime);
+  // The shared scene and runtime options that mean nothing here: every view trains whole (no
+  // object masks; --eval holds out its own), and no network runs.
+  for (const char* unused : {"--masks", "--alpha-masks", "--hold-out-every", "--precision"})
+    cmd->remove_option(cmd->get_option(unused));
   cmd->callback([a] { run(*a); });
 }
 

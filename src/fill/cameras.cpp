@@ -19,13 +19,24 @@ namespace {
 
 constexpr int kScoreHeight = 64;  // the small renders that score a camera
 
-// The region's share of the camera's pixels; `sights` (optional) keeps what the camera saw.
-double region_share(const GaussianSet& weights, const Camera& camera, std::vector<Sight>* sights = nullptr) {
+// The region's share of the camera's pixels; `sights` (optional) keeps what the camera saw, whole
+// inside `window` (the one its splats were culled to) alone.
+double region_share(const GaussianSet& weights, const Camera& camera, std::vector<Sight>* sights = nullptr,
+                    const std::optional<PixelWindow>& window = std::nullopt) {
   RenderOptions black;
   black.background = {0.f, 0.f, 0.f};
   const RenderOutput out = render(weights, {camera}, black);
-  if (sights)
-    sights->push_back({camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous()});
+  if (sights) {
+    torch::Tensor complete;
+    if (window) {
+      const auto rows = torch::arange(camera.K.height, torch::kFloat32).unsqueeze(1) + 0.5f;
+      const auto cols = torch::arange(camera.K.width, torch::kFloat32).unsqueeze(0) + 0.5f;
+      complete = (rows >= window->y0).logical_and(rows <= window->y1).logical_and(cols >= window->x0)
+                     .logical_and(cols <= window->x1);
+    }
+    sights->push_back({camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(),
+                       out.alpha.squeeze(2).to(torch::kCPU).contiguous(), complete});
+  }
   return out.rgb.select(2, 0).mean().item<double>();
 }
 
@@ -73,6 +84,46 @@ std::vector<size_t> pick_views(const std::vector<double>& score, const std::vect
         std::find(chosen.begin(), chosen.end(), i) == chosen.end())
       chosen.push_back(i);
   return chosen;
+}
+
+// Whether `point` is in front of `camera` and inside its picture.
+bool in_picture(const Camera& camera, const Eigen::Vector3d& point) {
+  const Eigen::Vector3d p = (camera.w2c_opencv() * point.homogeneous()).head<3>();
+  if (p.z() <= 0) return false;
+  const double u = camera.K.fx * p.x() / p.z() + camera.K.cx, v = camera.K.fy * p.y() / p.z() + camera.K.cy;
+  return u >= 0 && v >= 0 && u < camera.K.width && v < camera.K.height;
+}
+
+// At most this many cameras, the nearest to the region, are scored for the choice.
+constexpr size_t kCandidates = 16;
+
+// Of the cameras that see the region's centre beyond `near` (the nearest, scored), up to
+// kCandidates more that look at it from directions at least 10 degrees from all those taken,
+// the farthest from them first: on a capture all round its object the nearest lie on one side.
+std::vector<size_t> other_sides(const std::vector<NamedCamera>& given, const std::vector<size_t>& near,
+                                const Eigen::Vector3d& centre) {
+  constexpr double kApartDeg = 10;
+  std::vector<Eigen::Vector3d> taken;
+  for (size_t i : near) taken.push_back(given[i].camera.center() - centre);
+  std::vector<size_t> out;
+  while (out.size() < kCandidates) {
+    size_t best = given.size();
+    double best_apart = kApartDeg;
+    for (size_t i = 0; i < given.size(); ++i) {
+      const Camera& c = given[i].camera;
+      if (!in_picture(c, centre)) continue;
+      double apart = 180;
+      for (const Eigen::Vector3d& t : taken) apart = std::min(apart, angle_deg(c.center() - centre, t));
+      if (apart > best_apart) {
+        best_apart = apart;
+        best = i;
+      }
+    }
+    if (best == given.size()) break;
+    out.push_back(best);
+    taken.push_back(given[best].camera.center() - centre);
+  }
+  return out;
 }
 
 Camera working_camera(const Camera& camera, int height) {
@@ -136,25 +187,21 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
   const Sphere sphere = region_sphere(scene, in_region);
   // Those the region's centre is in front of and inside, nearest first; the 16 nearest are rendered.
   std::vector<size_t> candidates;
-  for (size_t i = 0; i < given.size(); ++i) {
-    const Camera& c = given[i].camera;
-    const Eigen::Vector3d p = (c.w2c_opencv() * sphere.centre.homogeneous()).head<3>();
-    if (p.z() <= 0) continue;
-    const double u = c.K.fx * p.x() / p.z() + c.K.cx, v = c.K.fy * p.y() / p.z() + c.K.cy;
-    if (u >= 0 && v >= 0 && u < c.K.width && v < c.K.height) candidates.push_back(i);
-  }
+  for (size_t i = 0; i < given.size(); ++i)
+    if (in_picture(given[i].camera, sphere.centre)) candidates.push_back(i);
   std::stable_sort(candidates.begin(), candidates.end(), [&](size_t a, size_t b) {
     return (given[a].camera.center() - sphere.centre).norm() < (given[b].camera.center() - sphere.centre).norm();
   });
-  if (candidates.size() > 16) candidates.resize(16);
+  if (candidates.size() > kCandidates) candidates.resize(kCandidates);
   const GaussianSet weights = region_weight_set(scene, in_region), region_set = select_rows(scene, in_region);
   times.lap("choose cameras: the region's set");
   // The small renders are read near the region alone (the share, and what the hole test asks
   // of the sights): each draws only the splats that reach it there.
   auto share = [&](const Camera& camera, std::vector<Sight>* keep) {
-    const GaussianSet near = options.cull ? select_rows(weights, near_region(weights, region_set, camera)) : weights;
+    const std::optional<PixelWindow> window = options.cull ? region_window(region_set, camera) : std::nullopt;
+    const GaussianSet near = window ? select_rows(weights, reaching_window(weights, camera, *window)) : weights;
     times.lap("choose cameras: culling");
-    const double s = region_share(near, camera, keep);
+    const double s = region_share(near, camera, keep, window);
     times.lap("choose cameras: scoring renders");
     return s;
   };
@@ -163,6 +210,9 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
   for (const NamedCamera& c : given) cameras.push_back(c.camera);
   std::vector<Sight> sights;
   for (size_t i : candidates) score[i] = share(small(given[i].camera), &sights);
+  // Cameras from other sides see more (a capture all round its object): their renders join the
+  // sights, not the choice.
+  for (size_t i : other_sides(given, candidates, sphere.centre)) share(small(given[i].camera), &sights);
   if (!options.reference.empty()) {
     const auto named = std::find_if(given.begin(), given.end(), [&](const NamedCamera& c) { return c.name == options.reference; });
     if (named == given.end()) fail("--reference-view {}: no camera of that name", options.reference);
@@ -183,6 +233,7 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
   }
   out.observers = observers_besides(chosen, score, [&](size_t i) { return given[i]; }, options.height);
   out.sights = std::move(sights);
+  out.captured = true;
   out.how = fmt::format("given: {} of {} cameras see the region's centre, the {} that see most of it", candidates.size(),
                         given.size(), chosen.size());
   return out;

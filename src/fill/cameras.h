@@ -30,6 +30,9 @@ struct FillCameraOptions {
 struct Sight {
   Camera camera;
   torch::Tensor depth, alpha;  // (H, W) float32 on the CPU
+  // (H, W) bool: where the render is the whole scene's (a render culled to the region's window
+  // lacks what lies in front outside it); undefined: everywhere.
+  torch::Tensor complete;
 };
 
 struct ChosenCameras {
@@ -41,6 +44,9 @@ struct ChosenCameras {
   std::vector<NamedCamera> observers;
   // Every camera scored (64 pixels high): what they saw of the scene is no hole.
   std::vector<Sight> sights;
+  // The cameras are the capture's own: what their renders show in front of the region is space
+  // the photos saw empty (automatic cameras look from where no photo was taken).
+  bool captured = false;
   std::string how;                   // "given (12 of 40 see the region)", "automatic (...)"
 };
 

@@ -83,7 +83,7 @@ using Observer = Sight;
 Observer observe(const GaussianSet& scene, const Camera& camera, torch::Tensor* rgb = nullptr) {
   const RenderOutput out = render(scene, {camera});
   if (rgb) *rgb = out.rgb.clamp(0, 1).to(torch::kCPU);
-  return {camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous()};
+  return {camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous(), {}};
 }
 
 // The depth tolerance of fill's visibility tests (geometry/visibility.h): a point within 3 % of the
@@ -119,7 +119,7 @@ CameraViews render_camera(const GaussianSet& scene, const GaussianSet& kept, con
     w.alpha = pasted(k.alpha, w.alpha, *window);
   }
   v.before = image_from_hwc(w.rgb.clamp(0, 1).to(torch::kCPU));
-  v.whole = {camera, w.depth.squeeze(2).to(torch::kCPU).contiguous(), w.alpha.squeeze(2).to(torch::kCPU).contiguous()};
+  v.whole = {camera, w.depth.squeeze(2).to(torch::kCPU).contiguous(), w.alpha.squeeze(2).to(torch::kCPU).contiguous(), {}};
   RenderOptions black;
   black.background = {0.f, 0.f, 0.f};
   v.share = render(weights, {camera}, black).rgb.select(2, 0).to(torch::kCPU);
@@ -147,13 +147,27 @@ Image hole_mask(const CameraViews& self, const std::vector<const Observer*>& oth
 
 // Which new splats (world positions, N x 3 float64) of view `self` hide nothing another view saw:
 // a splat that lands outside that view's hole in front of the surface it shows there would cover
-// what was seen (a floater of a depth the network got wrong), and is left out.
-torch::Tensor in_no_ones_way(const torch::Tensor& points, const std::vector<CameraViews>& views, size_t self) {
+// what was seen (a floater of a depth the network got wrong), and is left out. With the
+// capture's own cameras, so is one in front of what any of them saw, the region included: space
+// a photo saw through is empty (on a capture all round its object, the surface continued
+// inward from one side stood as a sheet in the air from the others).
+torch::Tensor in_no_ones_way(const torch::Tensor& points, const std::vector<CameraViews>& views, size_t self,
+                             const ChosenCameras& cameras) {
   std::vector<SeenDepth> seen;
   for (const CameraViews& v : views)
     seen.push_back({v.whole.camera, v.kept_depth,
                     (image_to_tensor(v.mask)[0][0] <= 0.5).logical_and(v.kept_alpha > 0.5)});
-  return seen_through(points, seen, kSeenTolerance, static_cast<int64_t>(self)).logical_not();
+  torch::Tensor through = seen_through(points, seen, kSeenTolerance, static_cast<int64_t>(self));
+  if (cameras.captured) {
+    std::vector<SeenDepth> empty_space;
+    for (const Sight& s : cameras.sights) {
+      torch::Tensor usable = s.alpha > 0.5;
+      if (s.complete.defined()) usable = usable.logical_and(s.complete);
+      empty_space.push_back({s.camera, s.depth, usable});
+    }
+    through = through.logical_or(seen_through(points, empty_space, kSeenTolerance));
+  }
+  return through.logical_not();
 }
 
 // The factor that brings the network's depth (normalised units) to the scene's around the hole:
@@ -411,7 +425,7 @@ GaussianSet hole_gaussians(const Prediction& p, const std::vector<CameraViews>& 
     const Eigen::Vector3d c = result.cameras.cameras[v].camera.center();
     const torch::Tensor centre = torch::tensor({c.x(), c.y(), c.z()}, torch::kFloat64);
     const torch::Tensor world = centre + s * (pixels(maps.xyz) * norm.scale + mean - centre);
-    const torch::Tensor keep = in_no_ones_way(world, views, v);
+    const torch::Tensor keep = in_no_ones_way(world, views, v, result.cameras);
     result.dropped += keep.numel() - keep.sum().item<int64_t>();
     means.push_back(world.index({keep}));
     scales.push_back((pixels(maps.scale) * norm.scale * s).index({keep}));
@@ -579,7 +593,7 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
   const torch::Tensor hole = image_to_tensor(full.mask)[0][0] > 0.5;
   const GaussianSet added =
       splats_over(at.camera, full.kept_depth, full.kept_alpha > 0.5, hole, colour, reference.name, 4);
-  return keep_rows(added, in_no_ones_way(added.means.to(torch::kFloat64), views, 0), result.dropped);
+  return keep_rows(added, in_no_ones_way(added.means.to(torch::kFloat64), views, 0, result.cameras), result.dropped);
 }
 
 // Chosen view `v`'s hole pixels that still render nothing with `added` drawn (what the reference
@@ -599,7 +613,7 @@ GaussianSet view_hole_splats(const SceneSets& sets, const GaussianSet& added, co
   const Image paint = inpaint_telea(rgb, image_from_hwc(open.to(torch::kFloat32).unsqueeze(2)));
   const GaussianSet more =
       splats_over(c.camera, now.depth.squeeze(2).to(torch::kCPU), alpha >= 0.5, open, paint, c.name, 2);
-  return keep_rows(more, in_no_ones_way(more.means.to(torch::kFloat64), views, v), result.dropped);
+  return keep_rows(more, in_no_ones_way(more.means.to(torch::kFloat64), views, v, result.cameras), result.dropped);
 }
 
 // The surface placement (FillPlacement::surface): the reference's hole, then each other chosen

@@ -175,7 +175,7 @@ GaussianSet gaussians_from_points(const StartPoints& start) {
 }
 
 std::vector<ViewScore> score_views(const GaussianSet& gaussians, const std::vector<PreparedView>& views,
-                                   const std::array<float, 3>& background) {
+                                   const std::array<float, 3>& background, const Lpips* lpips) {
   RenderOptions look;
   look.background = background;
   torch::NoGradGuard no_grad;
@@ -184,7 +184,8 @@ std::vector<ViewScore> score_views(const GaussianSet& gaussians, const std::vect
     const torch::Tensor drawn =
         render(gaussians, {v.camera}, look).rgb.clamp(0, 1).permute({2, 0, 1}).unsqueeze(0).to(torch::kCPU, torch::kFloat32);
     const torch::Tensor truth = image_to_tensor(v.rgb);
-    scores.push_back({v.name, psnr(drawn, truth).item<double>(), ssim(drawn, truth).item<double>()});
+    scores.push_back({v.name, psnr(drawn, truth).item<double>(), ssim(drawn, truth).item<double>(), std::nullopt});
+    if (lpips) scores.back().lpips = lpips->forward(drawn * 2 - 1, truth * 2 - 1)[0].item<double>();
   }
   return scores;
 }
@@ -245,18 +246,30 @@ ReconstructResult reconstruct_scene(const Scene& scene, const ReconstructOptions
 
   const std::vector<PreparedView>& scored = options.eval ? held : training;
   for (const PreparedView& v : held) r.held_out.push_back(v.name);
-  r.scores = score_views(r.gaussians, scored, o.background);
+  r.scores = score_views(r.gaussians, scored, o.background, options.lpips.get());
+  const double n = static_cast<double>(r.scores.size());
   for (const ViewScore& s : r.scores) {
-    r.mean_psnr += s.psnr / static_cast<double>(r.scores.size());
-    r.mean_ssim += s.ssim / static_cast<double>(r.scores.size());
+    r.mean_psnr += s.psnr / n;
+    r.mean_ssim += s.ssim / n;
+    if (s.lpips) r.mean_lpips = r.mean_lpips.value_or(0.0) + *s.lpips / n;
   }
   r.score_s = clock.lap() / 1000;
   return r;
 }
 
+std::shared_ptr<const Lpips> lpips_scorer(const std::string& vgg_file) {
+  const std::optional<std::filesystem::path> given =
+      vgg_file.empty() ? std::nullopt : std::optional<std::filesystem::path>(vgg_file);
+  if (!lpips_backbone_path(LpipsNet::vgg, given)) return nullptr;
+  return std::make_shared<const Lpips>(Lpips::load(LpipsNet::vgg, given));
+}
+
 nlohmann::json reconstruct_report(const ReconstructResult& r, const ReconstructOptions& options) {
   nlohmann::json views = nlohmann::json::array();
-  for (const ViewScore& s : r.scores) views.push_back({{"view", s.name}, {"psnr", s.psnr}, {"ssim", s.ssim}});
+  for (const ViewScore& s : r.scores) {
+    views.push_back({{"view", s.name}, {"psnr", s.psnr}, {"ssim", s.ssim}});
+    if (s.lpips) views.back()["lpips"] = *s.lpips;
+  }
   nlohmann::json training = refinement_report(r.training, options.training);
   training.erase("losses");
   training["losses_every_100"] = nlohmann::json::array();
@@ -268,6 +281,7 @@ nlohmann::json reconstruct_report(const ReconstructResult& r, const ReconstructO
           {"held_out", r.held_out},
           {"psnr", r.mean_psnr},
           {"ssim", r.mean_ssim},
+          {"lpips", r.mean_lpips ? nlohmann::json(*r.mean_lpips) : nlohmann::json()},
           {"views", views},
           {"seconds", {{"prepare", r.prepare_s}, {"start", r.start_s}, {"train", r.train_s}, {"score", r.score_s}}}};
 }

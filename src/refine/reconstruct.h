@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -16,6 +17,7 @@
 #include "common/torch.h"
 #include "data/preprocess.h"
 #include "data/scene.h"
+#include "eval/lpips.h"
 #include "gaussians/gaussians.h"
 #include "io/reconstruct_checkpoint.h"
 #include "refine/refine.h"
@@ -49,6 +51,8 @@ struct ReconstructOptions {
   std::optional<GaussianSet> start;
   // Start from these points (start_points' answer, made already: --write-colmap wrote them).
   std::optional<StartPoints> points;
+  // Scores LPIPS (VGG, as 3DGS's eval) beside PSNR and SSIM when given (its backbone is the user's).
+  std::shared_ptr<const Lpips> lpips;
   torch::Device device = torch::kCPU;  // where to train
 };
 
@@ -72,11 +76,14 @@ std::vector<PreparedView> working_views(const std::vector<View>& views, int heig
 struct ViewScore {
   std::string name;
   double psnr = 0, ssim = 0;
+  std::optional<double> lpips;
 };
 // PSNR and SSIM of the Gaussians' render from each view against its picture (3DGS's eval: the
-// whole picture, on `background`: the colour the Gaussians were trained in front of).
+// whole picture, on `background`: the colour the Gaussians were trained in front of); LPIPS too
+// with `lpips`.
 std::vector<ViewScore> score_views(const GaussianSet& gaussians, const std::vector<PreparedView>& views,
-                                   const std::array<float, 3>& background = {1.f, 1.f, 1.f});
+                                   const std::array<float, 3>& background = {1.f, 1.f, 1.f},
+                                   const Lpips* lpips = nullptr);
 
 struct ReconstructResult {
   GaussianSet gaussians;  // the scene's frame, SH of the training's degree
@@ -86,10 +93,15 @@ struct ReconstructResult {
   std::vector<std::string> held_out;  // with eval
   std::vector<ViewScore> scores;      // the held-out views with eval, else the training views
   double mean_psnr = 0, mean_ssim = 0;
+  std::optional<double> mean_lpips;
   double prepare_s = 0, start_s = 0, train_s = 0, score_s = 0;
 };
 
 ReconstructResult reconstruct_scene(const Scene& scene, const ReconstructOptions& options);
+
+// LPIPS (VGG) with the backbone in `vgg_file`, else in $INSTAINPAINT_LPIPS_VGG; none without
+// either (the heads from their default place). An Error names a file that is missing or wrong.
+std::shared_ptr<const Lpips> lpips_scorer(const std::string& vgg_file);
 
 // run.json's record of a reconstruction.
 nlohmann::json reconstruct_report(const ReconstructResult& result, const ReconstructOptions& options);

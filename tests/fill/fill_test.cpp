@@ -353,6 +353,27 @@ TEST(Fill, TheHoleComesCloserToTheTruthThanDeletionAlone) {
   EXPECT_LT(filled_error, 0.6 * deleted_error) << "deleted " << deleted_error << ", filled " << filled_error;
 }
 
+// Cameras all round the box (a capture made for splats): what one side hides the others saw, so
+// the new splats lie on the floor under the box alone, where no camera looked; none stands in
+// space a camera saw through.
+TEST(Fill, OnACaptureAllRoundTheNewSplatsLieWhereNoCameraLooked) {
+  FillOptions o = box_fill(4);
+  for (int i = 0; i < 12; ++i) {
+    const double a = 2 * M_PI * i / 12;
+    o.cameras.push_back({"ring" + std::to_string(i), camera_at({1.2 * std::sin(a), 0.9, 1.2 * std::cos(a)}, 128, 96)});
+  }
+  const FillResult r = fill_splats(room(true, false), o, cpu_predictor());
+  ASSERT_GT(r.added, 0);
+  const size_t first_new = r.splats.size() - static_cast<size_t>(r.added);
+  int64_t off_the_footprint = 0;
+  for (size_t i = first_new; i < r.splats.size(); ++i) {
+    const float x = r.splats.means[3 * i], y = r.splats.means[3 * i + 1], z = r.splats.means[3 * i + 2];
+    // the footprint (the box is 0.45 wide) and the seam of the floor's own colours around it
+    off_the_footprint += std::abs(y) > 0.05f || std::abs(x) > 0.5f || std::abs(z) > 0.5f;
+  }
+  EXPECT_EQ(off_the_footprint, 0) << "of " << r.added << " new splats";
+}
+
 // The surface placement (the default): in every chosen view each hole pixel renders something,
 // and the hole is nearer the truth than the network's placement in this room.
 TEST(Fill, TheSurfacePlacementCoversEveryHolePixelOfItsViews) {

@@ -15,6 +15,7 @@
 #include "refine/reconstruct.h"
 #include "render/rasterizer.h"
 #include "tensor/image_tensor.h"
+#include "random_lpips.h"
 #include "test_support.h"
 
 namespace ii {
@@ -212,6 +213,29 @@ TEST(Reconstruct, AnObjectSeenFromAllRoundIsDrawnFromTheViewsItNeverSaw) {
   for (const ViewScore& s : score_views(gaussians_from_points(sparse_points(truth, 5)), held)) start_psnr += s.psnr / 2;
   for (const ViewScore& s : r.scores) EXPECT_GT(s.psnr, 25.0) << s.name;  // 27.6 and 28.2 when written
   EXPECT_GT(r.mean_psnr, start_psnr + 12) << "start " << start_psnr;
+}
+
+// With an LPIPS scorer the scores carry it: none between a picture and itself, some for a start
+// that draws another; the report's mean is the views'.
+TEST(Reconstruct, ScoresCarryLpipsWhenAScorerIsGiven) {
+  const GaussianSet truth = ball_on_floor();
+  const std::vector<PreparedView> views = ring_views(truth, 2);
+  const Lpips lpips(LpipsNet::vgg, test::random_backbone(LpipsNet::vgg, 3), test::random_heads(LpipsNet::vgg), "random");
+  for (const ViewScore& s : score_views(truth, views, {1.f, 1.f, 1.f}, &lpips)) {
+    ASSERT_TRUE(s.lpips.has_value()) << s.name;
+    EXPECT_NEAR(*s.lpips, 0.0, 1e-6) << s.name;
+  }
+  const std::vector<ViewScore> start = score_views(gaussians_from_points(sparse_points(truth, 5)), views, {1.f, 1.f, 1.f}, &lpips);
+  for (const ViewScore& s : start) EXPECT_GT(s.lpips.value_or(0.0), 0.01) << s.name;
+  EXPECT_FALSE(score_views(truth, views).front().lpips.has_value());
+
+  ReconstructResult r;
+  r.scores = start;
+  r.mean_lpips = (*start[0].lpips + *start[1].lpips) / 2;
+  const nlohmann::json report = reconstruct_report(r, ReconstructOptions{});
+  EXPECT_DOUBLE_EQ(report["lpips"].get<double>(), *r.mean_lpips);
+  EXPECT_DOUBLE_EQ(report["views"][1]["lpips"].get<double>(), *start[1].lpips);
+  EXPECT_TRUE(reconstruct_report(ReconstructResult{}, ReconstructOptions{})["lpips"].is_null());
 }
 
 // The whole command on the ball: checkpoints, --resume from one, and one of another scene refused.
