@@ -33,6 +33,11 @@ struct Sight {
   // (H, W) bool: where the render is the whole scene's (a render culled to the region's window
   // lacks what lies in front outside it); undefined: everywhere.
   torch::Tensor complete;
+  // The capture's own cameras alone (else undefined): the depth of the scene without the region
+  // (H, W), and where that surface was seen (H, W bool): outside the region, or behind it where
+  // another camera saw it from the same side. Nothing new may stand in front of it there.
+  torch::Tensor kept_depth, kept_seen;
+  torch::Tensor share;  // (H, W): the region's share of each pixel
 };
 
 struct ChosenCameras {

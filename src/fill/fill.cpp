@@ -83,7 +83,7 @@ using Observer = Sight;
 Observer observe(const GaussianSet& scene, const Camera& camera, torch::Tensor* rgb = nullptr) {
   const RenderOutput out = render(scene, {camera});
   if (rgb) *rgb = out.rgb.clamp(0, 1).to(torch::kCPU);
-  return {camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous(), {}};
+  return {camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous(), {}, {}, {}, {}};
 }
 
 // The depth tolerance of fill's visibility tests (geometry/visibility.h): a point within 3 % of the
@@ -119,7 +119,7 @@ CameraViews render_camera(const GaussianSet& scene, const GaussianSet& kept, con
     w.alpha = pasted(k.alpha, w.alpha, *window);
   }
   v.before = image_from_hwc(w.rgb.clamp(0, 1).to(torch::kCPU));
-  v.whole = {camera, w.depth.squeeze(2).to(torch::kCPU).contiguous(), w.alpha.squeeze(2).to(torch::kCPU).contiguous(), {}};
+  v.whole = {camera, w.depth.squeeze(2).to(torch::kCPU).contiguous(), w.alpha.squeeze(2).to(torch::kCPU).contiguous(), {}, {}, {}, {}};
   RenderOptions black;
   black.background = {0.f, 0.f, 0.f};
   v.share = render(weights, {camera}, black).rgb.select(2, 0).to(torch::kCPU);
@@ -161,9 +161,12 @@ torch::Tensor in_no_ones_way(const torch::Tensor& points, const std::vector<Came
   if (cameras.captured) {
     std::vector<SeenDepth> empty_space;
     for (const Sight& s : cameras.sights) {
-      torch::Tensor usable = s.alpha > 0.5;
-      if (s.complete.defined()) usable = usable.logical_and(s.complete);
+      torch::Tensor usable = s.alpha > 0.5, kept = s.kept_seen.defined() ? s.kept_seen : usable;
+      if (s.complete.defined()) usable = usable.logical_and(s.complete), kept = kept.logical_and(s.complete);
       empty_space.push_back({s.camera, s.depth, usable});
+      // ... and in front of a surface seen behind the region (the floor behind an object is
+      // seen from its other sides: nothing new stands in the object's place)
+      if (s.kept_depth.defined()) empty_space.push_back({s.camera, s.kept_depth, kept});
     }
     through = through.logical_or(seen_through(points, empty_space, kSeenTolerance));
   }

@@ -293,6 +293,46 @@ TEST(FillCameras, GivenCamerasThatSeeTheRegionBestComeFirst) {
             "cameras that see it, or none (automatic views)");
 }
 
+// Cameras all round the box on a floor that goes on under it (what a trained file holds there):
+// behind the box each camera's surface is the floor, seen from the other sides except under the
+// box, where no camera looked; a thin wall seen from its inside through a hole is not seen.
+TEST(FillCameras, TheSurfaceBehindTheRegionIsSeenFromTheOtherSidesExceptUnderIt) {
+  const SplatCloud with = room(true, true);
+  std::vector<NamedCamera> ring;
+  for (int i = 0; i < 12; ++i) {
+    const double a = 2 * M_PI * i / 12;
+    ring.push_back({"ring" + std::to_string(i), camera_at({1.2 * std::sin(a), 0.9, 1.2 * std::cos(a)}, 128, 96)});
+  }
+  FillCameraOptions options;
+  options.height = 64;
+  const ChosenCameras chosen =
+      choose_given_cameras(gaussians_from_splats(with, 0), region_in_box(with, kObjectBox), ring, options);
+  ASSERT_TRUE(chosen.captured);
+  ASSERT_EQ(chosen.sights.size(), 12u);
+  int64_t under = 0, under_seen = 0, beside = 0, beside_seen = 0;
+  for (const Sight& s : chosen.sights) {
+    ASSERT_TRUE(s.kept_depth.defined() && s.kept_seen.defined() && s.share.defined());
+    const torch::Tensor behind = (s.share > 0.5).logical_and(s.kept_depth > 0);
+    const torch::Tensor pixels = behind.nonzero();
+    const torch::Tensor world = unproject(s.camera, pixels.select(1, 0).to(torch::kFloat64),
+                                          pixels.select(1, 1).to(torch::kFloat64),
+                                          s.kept_depth.index({behind}).to(torch::kFloat64));
+    const torch::Tensor seen = s.kept_seen.index({behind});
+    // under the box (0.4 wide) with a margin for the pixels' size; beside it: clear of that
+    const torch::Tensor x = world.select(1, 0).abs(), z = world.select(1, 2).abs();
+    const torch::Tensor is_under = (x < 0.15).logical_and(z < 0.15);
+    const torch::Tensor is_beside = (x > 0.3).logical_or(z > 0.3);
+    under += is_under.sum().item<int64_t>();
+    under_seen += is_under.logical_and(seen).sum().item<int64_t>();
+    beside += is_beside.sum().item<int64_t>();
+    beside_seen += is_beside.logical_and(seen).sum().item<int64_t>();
+  }
+  ASSERT_GT(under, 0);
+  ASSERT_GT(beside, 0);
+  EXPECT_EQ(under_seen, 0) << "of " << under;
+  EXPECT_GT(beside_seen, beside * 8 / 10) << "of " << beside;
+}
+
 TEST(FillCameras, AutomaticCamerasLookAtTheRegionFromAbove) {
   const SplatCloud with = room(true, false);
   const RegionMask region = region_in_box(with, kObjectBox);
