@@ -91,25 +91,6 @@ std::vector<size_t> pick_views(const std::vector<double>& score, const std::vect
 // Within the tolerance of a surface a camera drew, a point is on it (as fill's hole test).
 constexpr double kOnSurface = 0.03;
 
-// Each pixel's surface normal in the world frame (H, W, 3; float64), from the depth map's
-// neighbours, turned towards the camera.
-torch::Tensor depth_normals(const Camera& camera, const torch::Tensor& depth) {
-  const int64_t h = depth.size(0), w = depth.size(1);
-  const torch::Tensor v = torch::arange(h, torch::kFloat64).unsqueeze(1).expand({h, w}).reshape({-1});
-  const torch::Tensor u = torch::arange(w, torch::kFloat64).unsqueeze(0).expand({h, w}).reshape({-1});
-  const torch::Tensor p = unproject(camera, v, u, depth.to(torch::kFloat64).reshape({-1})).reshape({h, w, 3});
-  using torch::indexing::None;
-  using torch::indexing::Slice;
-  torch::Tensor dx = torch::zeros_like(p), dy = torch::zeros_like(p);
-  dx.index_put_({Slice(), Slice(1, -1)}, p.index({Slice(), Slice(2, None)}) - p.index({Slice(), Slice(None, -2)}));
-  dy.index_put_({Slice(1, -1)}, p.index({Slice(2, None)}) - p.index({Slice(None, -2)}));
-  torch::Tensor n = torch::cross(dx, dy, 2);
-  const Eigen::Vector3d c = camera.center();
-  const torch::Tensor to_camera = torch::tensor({c.x(), c.y(), c.z()}, torch::kFloat64) - p;
-  n = torch::where((n * to_camera).sum(2, true) < 0, -n, n);
-  return n / n.norm(2, 2, true).clamp_min(1e-12);
-}
-
 // Each sight's surface without the region (`kept`, drawn near the region as the sight was), and
 // where it was seen: outside the region's pixels, or behind them on another sight's surface, that
 // sight looking at it from the same side (a thin wall's inside, seen through a hole, is not its

@@ -16,6 +16,8 @@
 #include "data/masks.h"
 #include "data/scene.h"
 #include "edit/box_select.h"
+#include "fill/cameras.h"
+#include "fill/whole_object.h"
 #include "eval/metrics.h"
 #include "gaussians/gaussians.h"
 #include "render/projection.h"
@@ -187,6 +189,7 @@ namespace {
 struct RenderedView {
   Camera camera;  // the picture's
   Image picture;
+  torch::Tensor depth, covered;  // (H, W) on the CPU: the render's depth, where it covers
   std::vector<Eigen::Vector3d> points;
   std::vector<Eigen::Vector3f> colours;
 };
@@ -201,6 +204,8 @@ RenderedView rendered_view(const SplatCloud& cloud, const Camera& camera) {
   const RenderOutput out = render(gaussians_from_splats(cloud, 0), {r.camera});
   r.picture = image_from_hwc(out.rgb.clamp(0, 1).to(torch::kCPU, torch::kFloat32));
   const torch::Tensor covered = (out.alpha.squeeze(2) >= 0.5).logical_and(out.depth.squeeze(2) > 0).to(torch::kCPU);
+  r.depth = out.depth.squeeze(2).to(torch::kCPU, torch::kFloat32).contiguous();
+  r.covered = covered;
   const torch::Tensor pixels = covered.nonzero();
   const torch::Tensor v = pixels.select(1, 0).to(torch::kFloat64), u = pixels.select(1, 1).to(torch::kFloat64);
   const torch::Tensor z = out.depth.squeeze(2).to(torch::kCPU, torch::kFloat64).index({covered});
@@ -254,6 +259,59 @@ RegionMask region_grown_over_splats(const SplatCloud& cloud, const Camera& camer
 // A selection's outline smaller than this share of the view is a speck, not an object.
 constexpr double kSpeck = 0.005;
 
+// A splat drawn at a pixel lies this far behind the render's (expected) depth there at most: a
+// trained file's surfaces are several splats deep (the ring rooms: 10 % behind on average).
+constexpr double kOnTheSurface = 1.15;
+
+// Where `part` shows in `seen`: it draws at least half a pixel there, not behind what the render shows.
+torch::Tensor part_pixels(const SplatCloud& cloud, const RenderedView& seen, const RegionMask& part) {
+  torch::NoGradGuard no_grad;
+  const RenderOutput drawn =
+      render(select_rows(gaussians_from_splats(cloud, 0), region_flags(part, torch::kCPU)), {seen.camera});
+  const torch::Tensor depth = drawn.depth.squeeze(2).to(torch::kCPU, torch::kFloat32);
+  return (drawn.alpha.squeeze(2).to(torch::kCPU) >= 0.5)
+      .logical_and(depth <= seen.depth * static_cast<float>(kOnTheSurface))
+      .logical_and(seen.covered);
+}
+
+// The scene's up: the axis guess_up finds, turned the way the camera's own up points when the
+// photo was taken upright (fewer splats above the object than below, guess_up's sign, is not
+// always so: a room's far walls).
+Eigen::Vector3d scene_up(const SplatCloud& cloud, const Camera& camera, const RegionMask& part) {
+  Eigen::Vector3d up = guess_up(cloud, part);
+  if (camera.c2w.block<3, 1>(0, 1).dot(up) < -0.5) up = -up;
+  return up;
+}
+
+// `part` with the rest of the object it belongs to (fill/whole_object.h) in `seen`, lifted as a
+// stroke; `part` alone when no object is found.
+RegionMask with_the_whole_object(const SplatCloud& cloud, const RenderedView& seen, const RegionMask& part) {
+  const std::optional<ObjectAboveSupport> object = object_above_support(
+      seen.camera, seen.depth, seen.covered, part_pixels(cloud, seen, part), scene_up(cloud, seen.camera, part));
+  if (!object) return part;
+  // The stroke reaches as far behind the object as it is wide (the table top behind it): what lies
+  // on or under the surface the object stands on is left out, unless the object's pixels show it
+  // (its thin foot, a disc on the table), and so is what lies outside the object's depths.
+  RegionMask region = region_under_stroke(cloud, seen.camera, object->mask);
+  const Eigen::Matrix4d w2c = seen.camera.w2c_opencv();
+  const float* drawn_depth = seen.depth.data_ptr<float>();
+  const int w = seen.camera.K.width;
+  for (size_t i = 0; i < region.size(); ++i) {
+    if (part[i] || !region[i]) {
+      region[i] = part[i];
+      continue;
+    }
+    const Eigen::Vector3d p = position(cloud, i);
+    const std::optional<PixelOfPoint> hit = pixel_of_point(seen.camera.K, w2c, p);
+    if (!hit || hit->z < object->nearest || hit->z > object->farthest) {
+      region[i] = false;
+    } else if (p.dot(object->up) <= object->above) {
+      region[i] = object->mask.at(hit->y, hit->x) > 0.5f && hit->z <= kOnTheSurface * drawn_depth[hit->y * w + hit->x];
+    }
+  }
+  return region;
+}
+
 RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
                               const std::vector<Click>& clicks, const SelectOptions& options) {
   // Grown over the splats first. On a trained file (3DGS, reconstruct: translucent splats unlike in
@@ -262,14 +320,16 @@ RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, con
   // the network's statue the render gave 0.981 / 0.548 against 0.979 / 0.746 over the splats
   // (2026-12-07, docs/editing.md).
   check_clicks_inside(camera, view, clicks, {});
+  std::optional<RegionMask> grown;
   try {
     double outline_share = 0;
-    RegionMask grown = region_grown_over_splats(cloud, camera, view, clicks, options, outline_share);
-    if (outline_share >= kSpeck) return grown;
+    grown = region_grown_over_splats(cloud, camera, view, clicks, options, outline_share);
+    if (outline_share < kSpeck) grown.reset();
   } catch (const Error&) {
     // No opaque splat at the click (a translucent file): the render may still show the object there.
   }
   const RenderedView seen = rendered_view(cloud, camera);
+  if (grown) return with_the_whole_object(cloud, seen, *grown);
   const double sx = double(seen.camera.K.width) / camera.K.width, sy = double(seen.camera.K.height) / camera.K.height;
   std::vector<Click> scaled;
   for (const Click& c : clicks) scaled.push_back({c.x * sx, c.y * sy});
@@ -277,7 +337,7 @@ RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, con
       select_objects(seen.camera, view, seen.points, seen.colours, scaled, options);
   const Image outline =
       selection_masks({seen.camera}, [&](size_t) { return seen.picture; }, seen.points, selected, options)[0].mask;
-  return region_under_stroke(cloud, seen.camera, outline);
+  return with_the_whole_object(cloud, seen, region_under_stroke(cloud, seen.camera, outline));
 }
 
 Image splats_seen(const SplatCloud& cloud, const Camera& camera) {

@@ -116,4 +116,21 @@ torch::Tensor unproject(const Camera& camera, const torch::Tensor& v, const torc
   return transformed(camera.w2c_opencv().inverse(), local);
 }
 
+torch::Tensor depth_normals(const Camera& camera, const torch::Tensor& depth) {
+  const int64_t h = depth.size(0), w = depth.size(1);
+  const torch::Tensor v = torch::arange(h, torch::kFloat64).unsqueeze(1).expand({h, w}).reshape({-1});
+  const torch::Tensor u = torch::arange(w, torch::kFloat64).unsqueeze(0).expand({h, w}).reshape({-1});
+  const torch::Tensor p = unproject(camera, v, u, depth.to(torch::kFloat64).reshape({-1})).reshape({h, w, 3});
+  using torch::indexing::None;
+  using torch::indexing::Slice;
+  torch::Tensor dx = torch::zeros_like(p), dy = torch::zeros_like(p);
+  dx.index_put_({Slice(), Slice(1, -1)}, p.index({Slice(), Slice(2, None)}) - p.index({Slice(), Slice(None, -2)}));
+  dy.index_put_({Slice(1, -1)}, p.index({Slice(2, None)}) - p.index({Slice(None, -2)}));
+  torch::Tensor n = torch::cross(dx, dy, 2);
+  const Eigen::Vector3d c = camera.center();
+  const torch::Tensor to_camera = torch::tensor({c.x(), c.y(), c.z()}, torch::kFloat64) - p;
+  n = torch::where((n * to_camera).sum(2, true) < 0, -n, n);
+  return n / n.norm(2, 2, true).clamp_min(1e-12);
+}
+
 }  // namespace ii

@@ -35,4 +35,8 @@ torch::Tensor pasted(const torch::Tensor& outside, const torch::Tensor& inside, 
 // The world points (N, 3) of pixels (rows `v`, columns `u`, N each) at camera z-depths `z`.
 torch::Tensor unproject(const Camera& camera, const torch::Tensor& v, const torch::Tensor& u, const torch::Tensor& z);
 
+// Each pixel's surface normal in the world frame (H, W, 3; float64) from a depth map (H, W) of
+// `camera`, by its neighbours' points, turned towards the camera (zero on the picture's edge).
+torch::Tensor depth_normals(const Camera& camera, const torch::Tensor& depth);
+
 }  // namespace ii

@@ -3,6 +3,7 @@
 // deletion), refinement of the new splats alone, the CLI, and one clear message per bad input.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
 #include <fstream>
@@ -189,6 +190,28 @@ TEST(FillRegion, AClickSelectsTheObjectAndNotWhatItStandsOn) {
   EXPECT_EQ(wall, 0);
   EXPECT_EQ(error_message([&] { region_from_clicks(with, camera, "cam", {{-1, 5}}); }),
             "the click (-1, 5) is outside view cam's image (96x72)");
+}
+
+// A box of two colours (red below, blue above): the click on the red grows over the red alone;
+// the rest of the object, joined to it by like depths above the floor it stands on, comes with it,
+// and the floor does not.
+TEST(FillRegion, AClickOnOneColourOfAnObjectSelectsItWhole) {
+  SplatCloud with = room(true, false);
+  const RegionMask truth = region_in_box(with, kObjectBox);
+  for (size_t i = 0; i < with.size(); ++i)
+    if (truth[i] && with.means[3 * i + 1] > 0.22f)
+      for (int c = 0; c < 3; ++c) with.sh_dc[3 * i + c] = float(dc_of_colour(std::array<double, 3>{0.1, 0.2, 0.9}[c]));
+  const Camera camera = camera_at({0, 0.9, 1.6});
+  const std::optional<PixelOfPoint> red = pixel_of_point(camera.K, camera.w2c_opencv(), {0.05, 0.1, 0.2});
+  ASSERT_TRUE(red);
+  const RegionMask picked = region_from_clicks(with, camera, "cam", {{red->x + 0.5, red->y + 0.5}});
+  int64_t both = 0, floor = 0;
+  for (size_t i = 0; i < truth.size(); ++i) {
+    both += truth[i] && picked[i];
+    floor += picked[i] && !truth[i];
+  }
+  EXPECT_GT(double(both) / double(region_count(truth)), 0.9);
+  EXPECT_GT(double(both) / double(region_count(picked)), 0.75) << floor << " others";
 }
 
 // A trained file's splats are translucent and unlike in colour splat by splat (3DGS, reconstruct):
