@@ -192,16 +192,21 @@ TEST(FillRegion, AClickSelectsTheObjectAndNotWhatItStandsOn) {
             "the click (-1, 5) is outside view cam's image (96x72)");
 }
 
-// A box of two colours (red below, blue above): the click on the red grows over the red alone;
-// the rest of the object, joined to it by like depths above the floor it stands on, comes with it,
-// and the floor does not.
+// A trained file's box of two colours (red below, blue above; translucent splats, as 3DGS's):
+// the click on the red grows over the red alone in the render; the rest of the object, joined to
+// it by like depths above the floor it stands on, comes with it, and the floor does not.
 TEST(FillRegion, AClickOnOneColourOfAnObjectSelectsItWhole) {
   SplatCloud with = room(true, false);
   const RegionMask truth = region_in_box(with, kObjectBox);
   for (size_t i = 0; i < with.size(); ++i)
     if (truth[i] && with.means[3 * i + 1] > 0.22f)
       for (int c = 0; c < 3; ++c) with.sh_dc[3 * i + c] = float(dc_of_colour(std::array<double, 3>{0.1, 0.2, 0.9}[c]));
-  const Camera camera = camera_at({0, 0.9, 1.6});
+  std::mt19937 rng(23);
+  std::normal_distribution<float> jitter(0.f, 0.35f);
+  for (float& l : with.opacity_logit) l = -1.2f;  // opacity 0.23
+  for (float& s : with.log_scales) s += std::log(1.6f);
+  for (float& dc : with.sh_dc) dc += jitter(rng);  // unlike splat by splat: the render's path
+  const Camera camera = camera_at({0, 0.9, 1.6}, 192, 144);
   const std::optional<PixelOfPoint> red = pixel_of_point(camera.K, camera.w2c_opencv(), {0.05, 0.1, 0.2});
   ASSERT_TRUE(red);
   const RegionMask picked = region_from_clicks(with, camera, "cam", {{red->x + 0.5, red->y + 0.5}});
