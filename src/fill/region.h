@@ -35,10 +35,12 @@ RegionMask region_missing_from(const SplatCloud& cloud, const SplatCloud& kept, 
 // far behind it as the marked surface is wide.
 RegionMask region_under_stroke(const SplatCloud& cloud, const Camera& camera, const Image& stroke);
 
-// The objects under `clicks` on `camera`'s view (named `view` in errors), selected in the splats'
-// render from that camera (about 256 rows) as in a photo: its per-pixel points at the render's
-// depth grown from the click over neighbours alike in colour (edit/select.h), the outline carved by
-// the render, then lifted to the splats as a stroke (region_under_stroke).
+// The objects under `clicks` on `camera`'s view (named `view` in errors): grown over the opaque
+// splats alike in colour; where that gives a speck (a trained file), selected in the splats' render
+// from that camera (about 256 rows) as in a photo: its per-pixel points at the render's depth
+// grown from the click over neighbours alike in colour (edit/select.h), the outline carved by the
+// render, lifted to the splats as a stroke (region_under_stroke), and the rest of the object that
+// colour belongs to added (fill/whole_object.h).
 RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, const std::string& view,
                               const std::vector<Click>& clicks, const SelectOptions& options = {});
 
