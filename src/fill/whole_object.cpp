@@ -5,7 +5,6 @@
 #include <vector>
 
 #include "render/projection.h"
-#include "tensor/image_tensor.h"
 
 namespace ii {
 
