@@ -88,14 +88,13 @@ std::vector<size_t> pick_views(const std::vector<double>& score, const std::vect
   return chosen;
 }
 
-// Within the tolerance of a surface a camera drew, a point is on it (as fill's hole test).
-constexpr double kOnSurface = 0.03;
-
 // Each sight's surface without the region (`kept`, drawn near the region as the sight was), and
 // where it was seen: outside the region's pixels, or behind them on another sight's surface, that
 // sight looking at it from the same side (a thin wall's inside, seen through a hole, is not its
 // outside that another camera saw).
 void add_kept_surfaces(std::vector<Sight>& sights, const std::vector<GaussianSet>& kept) {
+  std::vector<SeenDepth> surfaces;  // each sight's whole surface, once
+  for (const Sight& s : sights) surfaces.push_back({s.camera, s.depth, drawn_whole(s)});
   for (size_t i = 0; i < sights.size(); ++i) {
     Sight& s = sights[i];
     const RenderOutput k = render(kept[i], {s.camera});
@@ -112,12 +111,10 @@ void add_kept_surfaces(std::vector<Sight>& sights, const std::vector<GaussianSet
     torch::Tensor seen = torch::zeros({pixels.size(0)}, torch::kBool);
     for (size_t j = 0; j < sights.size(); ++j) {
       if (j == i) continue;
-      torch::Tensor usable = sights[j].alpha > 0.5;
-      if (sights[j].complete.defined()) usable = usable.logical_and(sights[j].complete);
       const Eigen::Vector3d c = sights[j].camera.center();
       const torch::Tensor to_j = torch::tensor({c.x(), c.y(), c.z()}, torch::kFloat64) - world;
       const torch::Tensor facing = (to_j * normals).sum(1) > 0.1 * to_j.norm(2, 1);
-      seen.logical_or_(facing.logical_and(on_seen_surface(world, {sights[j].camera, sights[j].depth, usable}, kOnSurface)));
+      seen.logical_or_(facing.logical_and(on_seen_surface(world, surfaces[j], kSeenTolerance)));
     }
     s.kept_seen.index_put_({rows, cols}, seen);
   }
@@ -200,6 +197,11 @@ std::vector<NamedCamera> observers_besides(const std::vector<size_t>& chosen, co
 
 
 }  // namespace
+
+torch::Tensor drawn_whole(const Sight& sight) {
+  const torch::Tensor drawn = sight.alpha > 0.5;
+  return sight.complete.defined() ? drawn.logical_and(sight.complete) : drawn;
+}
 
 torch::Tensor region_flags(const RegionMask& region, const torch::Device& device) {
   std::vector<uint8_t> flags(region.begin(), region.end());

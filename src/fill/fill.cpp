@@ -86,10 +86,6 @@ Observer observe(const GaussianSet& scene, const Camera& camera, torch::Tensor* 
   return {camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous(), {}, {}, {}, {}};
 }
 
-// The depth tolerance of fill's visibility tests (geometry/visibility.h): a point within 3 % of the
-// surface a camera drew is on it, one more than 3 % nearer hides it (synthetic rooms at 10 %: one
-// hole 0.3 dB better, another 4.8 dB worse, more of it taken for seen).
-constexpr double kSeenTolerance = 0.03;
 
 // What an observer saw, where it drew something.
 SeenDepth seen_depth(const Observer& o) { return {o.camera, o.depth, o.alpha > 0.5}; }
@@ -161,12 +157,11 @@ torch::Tensor in_no_ones_way(const torch::Tensor& points, const std::vector<Came
   if (cameras.captured) {
     std::vector<SeenDepth> empty_space;
     for (const Sight& s : cameras.sights) {
-      torch::Tensor usable = s.alpha > 0.5, kept = s.kept_seen.defined() ? s.kept_seen : usable;
-      if (s.complete.defined()) usable = usable.logical_and(s.complete), kept = kept.logical_and(s.complete);
+      const torch::Tensor usable = drawn_whole(s);
       empty_space.push_back({s.camera, s.depth, usable});
       // ... and in front of a surface seen behind the region (the floor behind an object is
       // seen from its other sides: nothing new stands in the object's place)
-      if (s.kept_depth.defined()) empty_space.push_back({s.camera, s.kept_depth, kept});
+      if (s.kept_depth.defined()) empty_space.push_back({s.camera, s.kept_depth, s.kept_seen.logical_and(usable)});
     }
     through = through.logical_or(seen_through(points, empty_space, kSeenTolerance));
   }

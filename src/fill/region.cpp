@@ -189,6 +189,7 @@ namespace {
 struct RenderedView {
   Camera camera;  // the picture's
   Image picture;
+  GaussianSet gaussians;         // the splats drawn
   torch::Tensor depth, covered;  // (H, W) on the CPU: the render's depth, where it covers
   std::vector<Eigen::Vector3d> points;
   std::vector<Eigen::Vector3f> colours;
@@ -201,7 +202,8 @@ RenderedView rendered_view(const SplatCloud& cloud, const Camera& camera) {
   const double scale = std::min(1.0, double(kRows) / camera.K.height);
   r.camera = camera.resized(std::max(1, static_cast<int>(std::lround(camera.K.width * scale))),
                             std::max(1, static_cast<int>(std::lround(camera.K.height * scale))));
-  const RenderOutput out = render(gaussians_from_splats(cloud, 0), {r.camera});
+  r.gaussians = gaussians_from_splats(cloud, 0);
+  const RenderOutput out = render(r.gaussians, {r.camera});
   r.picture = image_from_hwc(out.rgb.clamp(0, 1).to(torch::kCPU, torch::kFloat32));
   const torch::Tensor covered = (out.alpha.squeeze(2) >= 0.5).logical_and(out.depth.squeeze(2) > 0).to(torch::kCPU);
   r.depth = out.depth.squeeze(2).to(torch::kCPU, torch::kFloat32).contiguous();
@@ -264,10 +266,9 @@ constexpr double kSpeck = 0.005;
 constexpr double kOnTheSurface = 1.15;
 
 // Where `part` shows in `seen`: it draws at least half a pixel there, not behind what the render shows.
-torch::Tensor part_pixels(const SplatCloud& cloud, const RenderedView& seen, const RegionMask& part) {
+torch::Tensor part_pixels(const RenderedView& seen, const RegionMask& part) {
   torch::NoGradGuard no_grad;
-  const RenderOutput drawn =
-      render(select_rows(gaussians_from_splats(cloud, 0), region_flags(part, torch::kCPU)), {seen.camera});
+  const RenderOutput drawn = render(select_rows(seen.gaussians, region_flags(part, torch::kCPU)), {seen.camera});
   const torch::Tensor depth = drawn.depth.squeeze(2).to(torch::kCPU, torch::kFloat32);
   return (drawn.alpha.squeeze(2).to(torch::kCPU) >= 0.5)
       .logical_and(depth <= seen.depth * static_cast<float>(kOnTheSurface))
@@ -287,7 +288,7 @@ Eigen::Vector3d scene_up(const SplatCloud& cloud, const Camera& camera, const Re
 // stroke; `part` alone when no object is found.
 RegionMask with_the_whole_object(const SplatCloud& cloud, const RenderedView& seen, const RegionMask& part) {
   const std::optional<ObjectAboveSupport> object = object_above_support(
-      seen.camera, seen.depth, seen.covered, part_pixels(cloud, seen, part), scene_up(cloud, seen.camera, part));
+      seen.camera, seen.depth, seen.covered, part_pixels(seen, part), scene_up(cloud, seen.camera, part));
   if (!object) return part;
   // The stroke reaches as far behind the object as it is wide (the table top behind it): what lies
   // on or under the surface the object stands on is left out, unless the object's pixels show it

@@ -18,13 +18,6 @@ constexpr double kDepthStep = 0.06;
 // Fewer level pixels than this under the part: nothing it stands on is in view.
 constexpr int64_t kMinSupport = 20;
 
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size() - 1)));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
-
 // The pixels reached from `seed` through 4-neighbours that are `covered`, of like depth and higher
 // than `above`; one flag per pixel.
 std::vector<uint8_t> grown_above(const torch::Tensor& depth, const torch::Tensor& covered, const torch::Tensor& seed,
@@ -72,9 +65,10 @@ std::optional<ObjectAboveSupport> object_above_support(const Camera& camera, con
 
   const torch::Tensor part_heights = height.index({part});
   if (part_heights.numel() == 0) return std::nullopt;
-  const double* ph = part_heights.data_ptr<double>();
-  const std::vector<double> heights(ph, ph + part_heights.numel());
-  const double low = quantile(heights, 0.02), extent = std::max(1e-9, quantile(heights, 0.98) - low);
+  auto quantile = [](const torch::Tensor& t, double q) {  // the value at rank q (n - 1), rounded down
+    return torch::quantile(t, q, c10::nullopt, false, "lower").item<double>();
+  };
+  const double low = quantile(part_heights, 0.02), extent = std::max(1e-9, quantile(part_heights, 0.98) - low);
   const double scale = depth.index({part}).median().item<double>();  // how far the part is
   // Near the part: its box grown by its size on every side.
   const torch::Tensor where = part.nonzero();
@@ -109,7 +103,7 @@ std::optional<ObjectAboveSupport> object_above_support(const Camera& camera, con
 
   // Grown from the part over neighbours of like depth above the surface.
   const torch::Tensor part_depths = depth.index({part});
-  const double front = torch::quantile(part_depths, 0.1).item<double>();
+  const double front = torch::quantile(part_depths, 0.1).item<double>();  // linear, as measured
   const double back = torch::quantile(part_depths, 0.9).item<double>();
   const double width = std::max({static_cast<double>(x1 - x0) * scale / camera.K.fx,
                                  static_cast<double>(y1 - y0) * scale / camera.K.fy, back - front, extent});
