@@ -284,15 +284,21 @@ Eigen::Vector3d scene_up(const SplatCloud& cloud, const Camera& camera, const Re
   return up;
 }
 
-// `part` with the rest of the object it belongs to (fill/whole_object.h) in `seen`, lifted as a
-// stroke; `part` alone when no object is found.
-RegionMask with_the_whole_object(const SplatCloud& cloud, const RenderedView& seen, const RegionMask& part) {
+// `part`, selected by `outline` in `seen`, with the rest of the object it belongs to
+// (fill/whole_object.h), lifted as a stroke; `part` alone when no object is found.
+RegionMask with_the_whole_object(const SplatCloud& cloud, const RenderedView& seen, const Image& outline,
+                                 const RegionMask& part) {
+  // The part's pixels: where its splats draw, or its outline where they are too few to draw (a
+  // click on a patterned body grows over a speck).
+  const torch::Tensor outlined = image_to_tensor(outline)[0][0].gt(0.5f);
   const std::optional<ObjectAboveSupport> object = object_above_support(
-      seen.camera, seen.depth, seen.covered, part_pixels(seen, part), scene_up(cloud, seen.camera, part));
+      seen.camera, seen.picture, seen.depth, seen.covered, part_pixels(seen, part).logical_or(outlined),
+      scene_up(cloud, seen.camera, part));
   if (!object) return part;
   // The stroke reaches as far behind the object as it is wide (the table top behind it): what lies
   // on or under the surface the object stands on is left out, unless the object's pixels show it
-  // (its thin foot, a disc on the table), and so is what lies outside the object's depths.
+  // (its thin foot, a disc on the table) or it lies under the object, and so is what lies out of
+  // the object's reach.
   RegionMask region = region_under_stroke(cloud, seen.camera, object->mask);
   const Eigen::Matrix4d w2c = seen.camera.w2c_opencv();
   const float* drawn_depth = seen.depth.data_ptr<float>();
@@ -304,10 +310,14 @@ RegionMask with_the_whole_object(const SplatCloud& cloud, const RenderedView& se
     }
     const Eigen::Vector3d p = position(cloud, i);
     const std::optional<PixelOfPoint> hit = pixel_of_point(seen.camera.K, w2c, p);
-    if (!hit || hit->z < object->nearest || hit->z > object->farthest) {
+    if (!hit || !object->within_reach(p, hit->z)) {
       region[i] = false;
     } else if (p.dot(object->up) <= object->above) {
-      region[i] = object->mask.at(hit->y, hit->x) > 0.5f && hit->z <= kOnTheSurface * drawn_depth[hit->y * w + hit->x];
+      const Eigen::Vector3f colour(static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i])),
+                                   static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i + 1])),
+                                   static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i + 2])));
+      region[i] = (object->under(p) && object->coloured_like_it(colour)) || (object->mask.at(hit->y, hit->x) > 0.5f &&
+                                       hit->z <= kOnTheSurface * drawn_depth[hit->y * w + hit->x]);
     }
   }
   return region;
@@ -340,7 +350,7 @@ RegionMask region_from_clicks(const SplatCloud& cloud, const Camera& camera, con
       select_objects(seen.camera, view, seen.points, seen.colours, scaled, options);
   const Image outline =
       selection_masks({seen.camera}, [&](size_t) { return seen.picture; }, seen.points, selected, options)[0].mask;
-  return with_the_whole_object(cloud, seen, region_under_stroke(cloud, seen.camera, outline));
+  return with_the_whole_object(cloud, seen, outline, region_under_stroke(cloud, seen.camera, outline));
 }
 
 Image splats_seen(const SplatCloud& cloud, const Camera& camera) {

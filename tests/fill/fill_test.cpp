@@ -239,6 +239,50 @@ TEST(FillRegion, AClickOnTranslucentSplatsSelectsTheObjectInTheirRender) {
   EXPECT_EQ(wall, 0);
 }
 
+// A trained file's stack seen from above (splats part translucent, as 3DGS's): a small red top on a wide
+// blue base, and under the base, below the floor's surface, blue splats (no camera saw there;
+// training leaves the object's colours there). One click on the top takes the base, whose depths
+// lie behind the top's by more than the top is wide, and the blue splats under it; the floor
+// around stays.
+TEST(FillRegion, AClickOnTheTopOfAStackTakesItsBaseAndTheObjectsColoursUnderIt) {
+  SplatCloud with = room(false, false);
+  const size_t floor_and_wall = with.size();
+  auto add = [&](double x, double y, double z, std::array<double, 3> rgb) {
+    with.means.insert(with.means.end(), {float(x), float(y), float(z)});
+    for (double v : rgb) with.sh_dc.push_back(float(dc_of_colour(v)));
+    with.opacity_logit.push_back(4.f);
+    for (int k = 0; k < 3; ++k) with.log_scales.push_back(std::log(0.03f));
+    with.rotations.insert(with.rotations.end(), {1.f, 0.f, 0.f, 0.f});
+  };
+  const double step = 0.05;
+  for (double x = -0.2; x <= 0.2 + 1e-9; x += step)
+    for (double z = -0.2; z <= 0.2 + 1e-9; z += step) {
+      for (double y = 0.025; y <= 0.175 + 1e-9; y += step) add(x, y, z, {0.1, 0.2, 0.9});
+      add(x, -0.004, z, {0.1, 0.2, 0.9});
+    }
+  for (double x = -0.075; x <= 0.075 + 1e-9; x += step)
+    for (double y = 0.225; y <= 0.325 + 1e-9; y += step)
+      for (double z = -0.075; z <= 0.075 + 1e-9; z += step) add(x, y, z, {0.9, 0.1, 0.1});
+  std::mt19937 rng(29);
+  std::normal_distribution<float> jitter(0.f, 0.35f);
+  for (float& l : with.opacity_logit) l = 0.5f;  // opacity 0.62
+  for (float& dc : with.sh_dc) dc += jitter(rng);  // unlike splat by splat: the render's path
+  const Camera camera = camera_at({0, 0.9, 1.6}, 192, 144);
+  const std::optional<PixelOfPoint> red = pixel_of_point(camera.K, camera.w2c_opencv(), {0, 0.3, 0.075});
+  ASSERT_TRUE(red);
+  const RegionMask picked = region_from_clicks(with, camera, "cam", {{red->x + 0.5, red->y + 0.5}});
+  int64_t object = 0, object_picked = 0, under = 0, under_picked = 0, others = 0;
+  for (size_t i = floor_and_wall; i < with.size(); ++i) {
+    const bool below_the_floor = with.means[3 * i + 1] < 0;
+    (below_the_floor ? under : object) += 1;
+    (below_the_floor ? under_picked : object_picked) += picked[i];
+  }
+  for (size_t i = 0; i < floor_and_wall; ++i) others += picked[i];
+  EXPECT_GT(double(object_picked) / double(object), 0.9) << object_picked << " of " << object;
+  EXPECT_GT(double(under_picked) / double(under), 0.8) << under_picked << " of " << under;
+  EXPECT_LT(double(others), 0.02 * double(floor_and_wall)) << others << " of " << floor_and_wall;
+}
+
 // With a segmenter (the small MobileSAM-layout fixture of tests/segment), a click prompts it on
 // the scene's render from the camera, and its outline is taken as a stroke: the region is the
 // stroke's, and the record names the mask it chose.
