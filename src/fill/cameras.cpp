@@ -271,7 +271,8 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
   for (size_t i : other_sides(given, candidates, sphere.centre)) share(small(given[i].camera), &sights);
   // Only a capture that goes round the region sees behind it from other sides: the surfaces
   // behind the region are worth their renders there alone (0.8 s of a 665 k-splat fill).
-  if (sights_spread_deg(sights, sphere.centre) >= kRoundDeg) {
+  const bool round = sights_spread_deg(sights, sphere.centre) >= kRoundDeg;
+  if (round) {
     std::vector<GaussianSet> kept;  // each sight's splats without the region
     for (const torch::Tensor& rows : drawn_rows) kept.push_back(select_rows(weights, rows.logical_and(in_region.logical_not())));
     add_kept_surfaces(sights, kept);
@@ -298,8 +299,9 @@ ChosenCameras choose_given_cameras(const GaussianSet& scene, const RegionMask& r
   out.observers = observers_besides(chosen, score, [&](size_t i) { return given[i]; }, options.height);
   out.sights = std::move(sights);
   out.captured = true;
-  out.how = fmt::format("given: {} of {} cameras see the region's centre, the {} that see most of it", candidates.size(),
-                        given.size(), chosen.size());
+  out.round = round;
+  out.how = fmt::format("given: {} of {} cameras see the region's centre, the {} that see most of it{}", candidates.size(),
+                        given.size(), chosen.size(), round ? "; they go round it" : "");
   return out;
 }
 

@@ -60,6 +60,9 @@ struct ChosenCameras {
   // The cameras are the capture's own: what their renders show in front of the region is space
   // the photos saw empty (automatic cameras look from where no photo was taken).
   bool captured = false;
+  // and go round it (90 degrees or more apart): what lies under the region, seen by none, is the
+  // surface the capture's training continued there.
+  bool round = false;
   std::string how;                   // "given (12 of 40 see the region)", "automatic (...)"
 };
 

@@ -589,8 +589,13 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
                          : to_working_size(colour, working_size(colour.width, colour.height, p));
   result.stages.lap(fmt::format("reference.png ({})", painter));
   const torch::Tensor hole = image_to_tensor(full.mask)[0][0] > 0.5;
-  const GaussianSet added =
-      splats_over(at.camera, full.kept_depth, full.kept_alpha > 0.5, hole, colour, reference.name, 4);
+  const torch::Tensor kept = full.kept_alpha > 0.5;
+  // On a capture all round the region, what the region hid from every camera (a pedestal's top
+  // under a vase) keeps the surface the capture's training continued there where it drew one, and
+  // only what draws nothing is filled: painted by the built-in inpainter on a surface continued
+  // from the hole's border, the pedestal's top rose to the wall behind it (ring rooms: docs/editing.md).
+  const torch::Tensor open = result.cameras.round ? hole.logical_and(kept.logical_not()) : hole;
+  const GaussianSet added = splats_over(at.camera, full.kept_depth, kept, open, colour, reference.name, 4);
   return keep_rows(added, in_no_ones_way(added.means.to(torch::kFloat64), views, 0, result.cameras), result.dropped);
 }
 

@@ -486,6 +486,25 @@ TEST(Fill, OnACaptureAllRoundTheNewSplatsLieWhereNoCameraLooked) {
   EXPECT_EQ(off_the_footprint, 0) << "of " << r.added << " new splats";
 }
 
+// Cameras all round the box, and the floor goes on under it (a capture's training continues a
+// surface under what stands on it): the hole keeps that floor, nothing is painted over it; with
+// the cameras on one side (not round the region) the hole is painted as before.
+TEST(Fill, OnACaptureAllRoundTheSurfaceUnderTheObjectIsKept) {
+  FillOptions o = box_fill(4);
+  for (int i = 0; i < 12; ++i) {
+    const double a = 2 * M_PI * i / 12;
+    o.cameras.push_back({"ring" + std::to_string(i), camera_at({1.2 * std::sin(a), 0.9, 1.2 * std::cos(a)}, 128, 96)});
+  }
+  const SplatCloud with = room(true, true);
+  const FillResult round = fill_splats(with, o, cpu_predictor());
+  EXPECT_TRUE(round.cameras.round);
+  EXPECT_EQ(round.added, 0);
+  o.cameras = capture_cameras();
+  const FillResult one_side = fill_splats(with, o, cpu_predictor());
+  EXPECT_FALSE(one_side.cameras.round);
+  EXPECT_GT(one_side.added, 0);
+}
+
 // The surface placement (the default): in every chosen view each hole pixel renders something,
 // and the hole is nearer the truth than the network's placement in this room.
 TEST(Fill, TheSurfacePlacementCoversEveryHolePixelOfItsViews) {
