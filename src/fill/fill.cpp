@@ -25,6 +25,8 @@ namespace ii {
 
 namespace {
 
+// A kept surface in the hole continues its border's when it lies at most this share farther.
+constexpr double kContinuedTolerance = 0.06;
 // A pixel belongs to the hole when the region made at least this share of it.
 constexpr float kHoleShare = 0.1f;
 
@@ -558,6 +560,19 @@ GaussianSet keep_rows(const GaussianSet& g, const torch::Tensor& keep, int64_t& 
   return select_rows(g, keep);
 }
 
+// On a capture all round the region, what the region hid from every camera (a pedestal's top
+// under a vase) keeps the surface the capture's training continued there where the scene without
+// the region draws one no farther than the surface continued from the hole's border (not the
+// inside of a pedestal seen through a hole in its top); what is left of `hole` is filled. Painted
+// by the built-in inpainter on a surface continued from the hole's border, the pedestal's top
+// under the vase rose to the wall behind it (ring rooms: docs/editing.md).
+torch::Tensor still_open(const CameraViews& view, const torch::Tensor& kept, const torch::Tensor& hole) {
+  const std::optional<torch::Tensor> continued = complete_depth(view.kept_depth, kept, hole);
+  if (!continued) return hole;
+  const torch::Tensor on_it = kept.logical_and(view.kept_depth <= *continued * (1 + kContinuedTolerance));
+  return hole.logical_and(on_it.logical_not());
+}
+
 // The reference's hole at the size its camera was given: its depth continued inward, one splat a
 // pixel in the reference picture's colours, and a seam of 4 pixels over the kept surface around
 // it (without the seam SPIn-NeRF scene 1's test views showed 861 pixels of background in the
@@ -590,12 +605,9 @@ GaussianSet reference_splats(const SceneSets& sets, const std::vector<CameraView
   result.stages.lap(fmt::format("reference.png ({})", painter));
   const torch::Tensor hole = image_to_tensor(full.mask)[0][0] > 0.5;
   const torch::Tensor kept = full.kept_alpha > 0.5;
-  // On a capture all round the region, what the region hid from every camera (a pedestal's top
-  // under a vase) keeps the surface the capture's training continued there where it drew one, and
-  // only what draws nothing is filled: painted by the built-in inpainter on a surface continued
-  // from the hole's border, the pedestal's top rose to the wall behind it (ring rooms: docs/editing.md).
-  const torch::Tensor open = result.cameras.round ? hole.logical_and(kept.logical_not()) : hole;
-  const GaussianSet added = splats_over(at.camera, full.kept_depth, kept, open, colour, reference.name, 4);
+  const GaussianSet added = splats_over(at.camera, full.kept_depth, kept,
+                                        result.cameras.round ? still_open(full, kept, hole) : hole, colour,
+                                        reference.name, 4);
   return keep_rows(added, in_no_ones_way(added.means.to(torch::kFloat64), views, 0, result.cameras), result.dropped);
 }
 
