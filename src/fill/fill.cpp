@@ -88,7 +88,6 @@ Observer observe(const GaussianSet& scene, const Camera& camera, torch::Tensor* 
   return {camera, out.depth.squeeze(2).to(torch::kCPU).contiguous(), out.alpha.squeeze(2).to(torch::kCPU).contiguous(), {}, {}, {}, {}};
 }
 
-
 // What an observer saw, where it drew something.
 SeenDepth seen_depth(const Observer& o) { return {o.camera, o.depth, o.alpha > 0.5}; }
 

@@ -32,6 +32,12 @@ Eigen::Vector3d position(const SplatCloud& cloud, size_t i) {
   return {cloud.means[3 * i], cloud.means[3 * i + 1], cloud.means[3 * i + 2]};
 }
 
+// A splat's colour (RGB in [0, 1]) by its first spherical-harmonics coefficients.
+Eigen::Vector3f colour_of(const SplatCloud& cloud, size_t i) {
+  return {static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i])), static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i + 1])),
+          static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i + 2]))};
+}
+
 double percentile(std::vector<double> values, double q) {
   if (values.empty()) return 0;
   const size_t k = std::min(values.size() - 1, static_cast<size_t>(q * static_cast<double>(values.size() - 1)));
@@ -242,7 +248,7 @@ RegionMask region_grown_over_splats(const SplatCloud& cloud, const Camera& camer
   for (size_t k = 0; k < opaque.size(); ++k) {
     const size_t i = opaque[k];
     points[k] = position(cloud, i);
-    for (int c = 0; c < 3; ++c) colours[k][c] = static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i + c]));
+    colours[k] = colour_of(cloud, i);
   }
   const std::vector<uint8_t> selected = select_objects(camera, view, points, colours, clicks, options);
   // The selection's outline in the view taken as a stroke: with it go the splats it misses
@@ -313,11 +319,8 @@ RegionMask with_the_whole_object(const SplatCloud& cloud, const RenderedView& se
     if (!hit || !object->within_reach(p, hit->z)) {
       region[i] = false;
     } else if (p.dot(object->up) <= object->above) {
-      const Eigen::Vector3f colour(static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i])),
-                                   static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i + 1])),
-                                   static_cast<float>(colour_of_dc(cloud.sh_dc[3 * i + 2])));
-      region[i] = (object->under(p) && object->coloured_like_it(colour)) || (object->mask.at(hit->y, hit->x) > 0.5f &&
-                                       hit->z <= kOnTheSurface * drawn_depth[hit->y * w + hit->x]);
+      region[i] = (object->under(p) && object->coloured_like_it(colour_of(cloud, i))) ||
+                  (object->mask.at(hit->y, hit->x) > 0.5f && hit->z <= kOnTheSurface * drawn_depth[hit->y * w + hit->x]);
     }
   }
   return region;

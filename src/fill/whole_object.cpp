@@ -148,15 +148,14 @@ PixelsInScene pixels_in_scene(const Camera& camera, const torch::Tensor& depth, 
                               const Eigen::Vector3d& up) {
   const int64_t h = depth.size(0), w = depth.size(1);
   const torch::Tensor upt = torch::tensor({up.x(), up.y(), up.z()}, torch::kFloat64);
-  const torch::Tensor v = torch::arange(h, torch::kFloat64).unsqueeze(1).expand({h, w}).reshape({-1});
-  const torch::Tensor u = torch::arange(w, torch::kFloat64).unsqueeze(0).expand({h, w}).reshape({-1});
+  const torch::Tensor grid = depth_points(camera, depth);  // (H, W, 3)
   PixelsInScene s;
-  s.points = unproject(camera, v, u, depth.reshape({-1}));
+  s.points = grid.reshape({-1, 3});
   s.height = (s.points * upt).sum(1).reshape({h, w}).contiguous();
   const Eigen::Vector3d eye = camera.center();
   const torch::Tensor from_eye = s.points - torch::tensor({eye.x(), eye.y(), eye.z()}, torch::kFloat64);
   s.reach = (from_eye - (from_eye * upt).sum(1, true) * upt).norm(2, 1).reshape({h, w});
-  s.level = (depth_normals(camera, depth) * upt).sum(2).gt(kLevel).logical_and(covered);
+  s.level = (point_normals(camera, grid) * upt).sum(2).gt(kLevel).logical_and(covered);
   return s;
 }
 

@@ -116,11 +116,14 @@ torch::Tensor unproject(const Camera& camera, const torch::Tensor& v, const torc
   return transformed(camera.w2c_opencv().inverse(), local);
 }
 
-torch::Tensor depth_normals(const Camera& camera, const torch::Tensor& depth) {
+torch::Tensor depth_points(const Camera& camera, const torch::Tensor& depth) {
   const int64_t h = depth.size(0), w = depth.size(1);
   const torch::Tensor v = torch::arange(h, torch::kFloat64).unsqueeze(1).expand({h, w}).reshape({-1});
   const torch::Tensor u = torch::arange(w, torch::kFloat64).unsqueeze(0).expand({h, w}).reshape({-1});
-  const torch::Tensor p = unproject(camera, v, u, depth.to(torch::kFloat64).reshape({-1})).reshape({h, w, 3});
+  return unproject(camera, v, u, depth.to(torch::kFloat64).reshape({-1})).reshape({h, w, 3});
+}
+
+torch::Tensor point_normals(const Camera& camera, const torch::Tensor& p) {
   using torch::indexing::None;
   using torch::indexing::Slice;
   torch::Tensor dx = torch::zeros_like(p), dy = torch::zeros_like(p);
@@ -131,6 +134,10 @@ torch::Tensor depth_normals(const Camera& camera, const torch::Tensor& depth) {
   const torch::Tensor to_camera = torch::tensor({c.x(), c.y(), c.z()}, torch::kFloat64) - p;
   n = torch::where((n * to_camera).sum(2, true) < 0, -n, n);
   return n / n.norm(2, 2, true).clamp_min(1e-12);
+}
+
+torch::Tensor depth_normals(const Camera& camera, const torch::Tensor& depth) {
+  return point_normals(camera, depth_points(camera, depth));
 }
 
 }  // namespace ii

@@ -35,8 +35,13 @@ torch::Tensor pasted(const torch::Tensor& outside, const torch::Tensor& inside, 
 // The world points (N, 3) of pixels (rows `v`, columns `u`, N each) at camera z-depths `z`.
 torch::Tensor unproject(const Camera& camera, const torch::Tensor& v, const torch::Tensor& u, const torch::Tensor& z);
 
-// Each pixel's surface normal in the world frame (H, W, 3; float64) from a depth map (H, W) of
-// `camera`, by its neighbours' points, turned towards the camera (zero on the picture's edge).
+// Each pixel's world point (H, W, 3; float64) at a depth map (H, W) of `camera`.
+torch::Tensor depth_points(const Camera& camera, const torch::Tensor& depth);
+// Each pixel's surface normal in the world frame (H, W, 3; float64) from its world points (H, W, 3;
+// float64, depth_points), by its neighbours' points, turned towards the camera (zero on the
+// picture's edge).
+torch::Tensor point_normals(const Camera& camera, const torch::Tensor& points);
+// point_normals of depth_points.
 torch::Tensor depth_normals(const Camera& camera, const torch::Tensor& depth);
 
 }  // namespace ii
